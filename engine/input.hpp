@@ -1,0 +1,74 @@
+#pragma once
+// Probe input sources: scripted key-frame tracks, recorded CSV replay, and (later) haptic devices.
+//
+// Every source sits behind `InputSource`. Once per frame the engine calls `sample(t)` for the probe's load
+// (a force at a point on the organ's surface) and, after the frame is solved, `feedback(t, reaction)` with the
+// reaction force at that point (what a haptic device displays). A device source runs its own polling thread at
+// the device's rate (e.g. 1 kHz): `sample` returns its latest reading without waiting, and `feedback` stores the
+// force for the device thread to send. The engine never blocks on a source.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "engine/scene.hpp"
+
+namespace lumen::engine {
+
+// What a source gives at one instant.
+struct ProbeSample {
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();  // metres, on (or near) the organ's outer wall
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  // newtons, applied at `point`
+};
+
+class InputSource {
+ public:
+  virtual ~InputSource() = default;
+  virtual std::string kind() const = 0;  // "track", "replay", "device", ...
+  // The load at simulation time t (seconds). Must not block.
+  virtual ProbeSample sample(double t) = 0;
+  // The reaction force at the probe point after the frame at time t, newtons.
+  virtual void feedback(double /*t*/, const Eigen::Vector3d& /*reaction*/) {}
+  // Whether the point can move during the session (false: precompute its load response once).
+  virtual bool point_is_fixed() const { return true; }
+};
+
+// Scripted key frames at a fixed point; linear interpolation between keys, held before the first / after the last.
+class TrackSource final : public InputSource {
+ public:
+  TrackSource(const Eigen::Vector3d& point, std::vector<TrackKey> keys);
+  std::string kind() const override { return "track"; }
+  ProbeSample sample(double t) override;
+
+ private:
+  Eigen::Vector3d point_;
+  std::vector<TrackKey> keys_;
+  std::vector<double> times_;  // n_keys, seconds (keys_[k].t)
+};
+
+// Replay of a recorded session: CSV lines `t, x, y, z, fx, fy, fz` (seconds, metres, newtons), t increasing.
+// Lines starting with '#' and a first header line starting with 't' are skipped. Linear interpolation.
+class ReplaySource final : public InputSource {
+ public:
+  // Throws InputError naming the file, line, field and value.
+  explicit ReplaySource(const std::string& csv_path);
+  std::string kind() const override { return "replay"; }
+  ProbeSample sample(double t) override;
+  bool point_is_fixed() const override { return fixed_point_; }
+  const std::vector<double>& times() const { return t_; }
+  // Reaction forces handed back, one per frame (for reports and tests).
+  const std::vector<Eigen::Vector3d>& reactions() const { return reactions_; }
+  void feedback(double t, const Eigen::Vector3d& reaction) override;
+
+ private:
+  std::vector<double> t_;                    // n_samples, seconds
+  std::vector<Eigen::Vector3d> x_, f_;       // n_samples each, metres / newtons
+  std::vector<Eigen::Vector3d> reactions_;   // n_frames, newtons
+  bool fixed_point_ = true;
+};
+
+// Build the source a probe asks for.
+std::unique_ptr<InputSource> make_source(const ProbeSpec& probe);
+
+}  // namespace lumen::engine

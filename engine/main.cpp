@@ -1,0 +1,153 @@
+// lumen: the command line. run a scene to frames/video/report, bench it, or run CCD query files.
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include <CLI/CLI.hpp>
+
+#include "collision/ccd_queries.hpp"
+#include "engine/scene.hpp"
+#include "engine/session.hpp"
+#include "engine/simulation.hpp"
+
+namespace fs = std::filesystem;
+using namespace lumen;
+
+namespace {
+
+constexpr int kExitBadInput = 2;
+constexpr int kExitFailure = 1;
+
+// Create the output folder and prove it is writable before any work; InputError otherwise.
+void prepare_output_dir(const std::string& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec || !fs::is_directory(dir)) throw engine::InputError(dir + ": cannot create output folder" + (ec ? ": " + ec.message() : ""));
+  const fs::path probe = fs::path(dir) / ".lumen_write_test";
+  {
+    std::ofstream f(probe);
+    if (!f) throw engine::InputError(dir + ": output folder is not writable");
+  }
+  fs::remove(probe, ec);
+}
+
+int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool no_render, std::string video,
+            bool export_surface, bool check) {
+  // Load and validate everything before touching the output folder.
+  engine::Scene scene = engine::load_scene(scene_path);
+  if (out_dir.empty()) out_dir = (fs::path("out") / scene.name).string();
+  if (!video.empty() && fs::path(video).extension() != ".mp4")
+    throw engine::InputError("--video: must name an .mp4 file (value \"" + video + "\")");
+  if (video.empty() && scene.render.video && !no_render) video = (fs::path(out_dir) / "video.mp4").string();
+  auto model = engine::compile_model(scene);
+  engine::SessionOptions opt;
+  opt.frames = frames;
+  for (const auto& probe : scene.probes)
+    if (!probe.replay.empty()) engine::ReplaySource check_replay(probe.replay);  // refuse a bad replay file now
+  prepare_output_dir(out_dir);
+  if (!video.empty()) prepare_output_dir(fs::path(video).parent_path().empty() ? "." : fs::path(video).parent_path().string());
+  opt.out_dir = out_dir;
+  opt.render = !no_render;
+  opt.write_frames = !no_render;
+  opt.video_path = no_render ? std::string() : video;
+  opt.export_surface = export_surface;
+  opt.check = check;
+  opt.progress = true;
+
+  engine::SessionResult result = engine::run_session(*model, opt);
+  engine::write_json_file((fs::path(out_dir) / "report.json").string(), result.report);
+  std::cout << engine::format_stage_table(result.frames, model->budget_ms);
+  if (result.writer.frames > 0)
+    std::printf("writer: %ld frames, %.1f frames/s on its thread\n", result.writer.frames, result.writer.frames_per_second());
+  if (check) std::printf("frames with intersecting inner-wall pairs: %ld\n", result.report["frames_with_intersections"].get<long>());
+  std::printf("outputs in %s\n", out_dir.c_str());
+  return 0;
+}
+
+int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_render) {
+  engine::Scene scene = engine::load_scene(scene_path);
+  auto model = engine::compile_model(scene);
+  engine::SessionOptions opt;
+  opt.frames = frames;
+  opt.render = !no_render;
+  opt.write_frames = false;
+  engine::SessionResult result = engine::run_session(*model, opt);
+  if (json) {
+    nlohmann::json j = result.report;
+    j.erase("per_frame");
+    std::cout << j.dump(1) << "\n";
+  } else {
+    std::printf("scene %s: %d nodes, %ld tets, %ld inner triangles, compile %.3f s\n", scene.name.c_str(),
+                model->mesh.n_nodes(), static_cast<long>(model->mesh.tets.rows()), static_cast<long>(model->mesh.inner.rows()),
+                model->compile_seconds);
+    std::cout << engine::format_stage_table(result.frames, model->budget_ms);
+  }
+  return 0;
+}
+
+int cmd_ccd(const std::string& file, bool json) {
+  collision::CcdFileStats r;
+  try {
+    r = collision::run_ccd_file(file);
+  } catch (const std::runtime_error& e) {
+    throw engine::InputError(e.what());
+  }
+  std::cout << (json ? collision::format_ccd_json(r) : collision::format_ccd_table(r)) << "\n";
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Lumen: real-time hollow-organ deformation with inner-wall self-collision"};
+  app.require_subcommand(1);
+
+  std::string scene_path, out_dir, video, ccd_file;
+  int frames = -1;
+  bool no_render = false, export_surface = false, json = false, check = false;
+
+  CLI::App* run = app.add_subcommand("run", "run a scene: PNG frames, optional MP4, report.json");
+  run->add_option("scene", scene_path, "scene file (JSON)")->required();
+  run->add_option("--out", out_dir, "output folder (default out/<scene name>)");
+  run->add_option("--frames", frames, "number of frames (overrides the scene)")->check(CLI::PositiveNumber);
+  run->add_flag("--no-render", no_render, "simulate only (no images, no video)");
+  run->add_option("--video", video, "write an MP4 (H.264) to this file");
+  run->add_flag("--export-surface", export_surface, "write the deformed inner wall per frame as OBJ (assimp)");
+  run->add_flag("--check", check, "count intersecting inner-wall triangle pairs on every frame (exact predicates)");
+
+  CLI::App* bench = app.add_subcommand("bench", "run a scene without writing images; print per-stage frame times");
+  bench->add_option("scene", scene_path, "scene file (JSON)")->required();
+  bench->add_option("--frames", frames, "number of frames (overrides the scene)")->check(CLI::PositiveNumber);
+  bench->add_flag("--json", json, "print one JSON object");
+  bench->add_flag("--no-render", no_render, "leave rendering out");
+
+  CLI::App* ccd = app.add_subcommand("ccd", "run every CCD query of a file; print positives, misses, timings");
+  ccd->add_option("file", ccd_file, "query file (CSV, see shared/data/ccd/README.md)")->required();
+  ccd->add_flag("--json", json, "print one JSON object");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? 0 : kExitBadInput;
+  }
+
+  try {
+    if (*run) return cmd_run(scene_path, out_dir, frames, no_render, video, export_surface, check);
+    if (*bench) return cmd_bench(scene_path, frames, json, no_render);
+    if (*ccd) return cmd_ccd(ccd_file, json);
+  } catch (const engine::InputError& e) {
+    std::fprintf(stderr, "lumen: error: %s\n", e.what());
+    return kExitBadInput;
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "lumen: error: %s\n", e.what());
+    return kExitBadInput;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "lumen: failed: %s\n", e.what());
+    return kExitFailure;
+  }
+  return 0;
+}

@@ -1,0 +1,107 @@
+#include "engine/report.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace lumen::engine {
+
+const char* stage_name(int stage) {
+  static const char* names[kStageCount] = {"input", "physics", "collision", "response", "render", "total"};
+  return names[stage];
+}
+
+StageSummary summarize(std::vector<double> v) {
+  StageSummary s;
+  if (v.empty()) return s;
+  std::sort(v.begin(), v.end());
+  // Interpolated quantile q in [0, 1].
+  auto q = [&](double p) {
+    double pos = p * (v.size() - 1);
+    size_t i = static_cast<size_t>(std::floor(pos));
+    size_t j = std::min(i + 1, v.size() - 1);
+    return v[i] + (pos - i) * (v[j] - v[i]);
+  };
+  s.median_ms = q(0.5);
+  s.p95_ms = q(0.95);
+  s.p99_ms = q(0.99);
+  s.max_ms = v.back();
+  return s;
+}
+
+void write_json_file(const std::string& path, const nlohmann::json& j) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error(path + ": cannot write");
+    out << j.dump(1) << "\n";
+    out.flush();
+    if (!out) {
+      std::filesystem::remove(tmp);
+      throw std::runtime_error(path + ": write failed");
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp);
+    throw std::runtime_error(path + ": cannot rename temporary file: " + ec.message());
+  }
+}
+
+nlohmann::json stages_json(const std::vector<FrameRecord>& frames) {
+  nlohmann::json out = nlohmann::json::object();
+  for (int s = 0; s < kStageCount; ++s) {
+    std::vector<double> v;
+    v.reserve(frames.size());
+    for (const auto& f : frames) v.push_back(f.ms[s]);
+    StageSummary sum = summarize(v);
+    out[stage_name(s)] = {{"median_ms", sum.median_ms}, {"p95_ms", sum.p95_ms}, {"p99_ms", sum.p99_ms}, {"max_ms", sum.max_ms}};
+  }
+  return out;
+}
+
+std::string format_stage_table(const std::vector<FrameRecord>& frames, double budget_ms) {
+  std::ostringstream o;
+  char line[160];
+  std::snprintf(line, sizeof line, "%-10s %10s %10s %10s %10s\n", "stage", "median_ms", "p95_ms", "p99_ms", "max_ms");
+  o << line;
+  const nlohmann::json st = stages_json(frames);
+  for (int s = 0; s < kStageCount; ++s) {
+    const auto& j = st.at(stage_name(s));
+    std::snprintf(line, sizeof line, "%-10s %10.3f %10.3f %10.3f %10.3f\n", stage_name(s), j["median_ms"].get<double>(),
+                  j["p95_ms"].get<double>(), j["p99_ms"].get<double>(), j["max_ms"].get<double>());
+    o << line;
+  }
+  long over = std::count_if(frames.begin(), frames.end(), [](const FrameRecord& f) { return f.over_budget; });
+  std::snprintf(line, sizeof line, "frames %zu, budget %.1f ms, over budget %ld\n", frames.size(), budget_ms, over);
+  o << line;
+  return o.str();
+}
+
+nlohmann::json frame_json(const FrameRecord& r) {
+  nlohmann::json j;
+  j["frame"] = r.frame;
+  j["t"] = r.t;
+  for (int s = 0; s < kStageCount; ++s) j[std::string(stage_name(s)) + "_ms"] = r.ms[s];
+  j["over_budget"] = r.over_budget;
+  j["bv_overlaps"] = r.bv_overlaps;
+  j["feature_tests"] = r.feature_tests;
+  j["contacts"] = r.contacts;
+  j["response_iterations"] = r.response_iterations;
+  j["fallback"] = r.fallback;
+  if (r.intersecting_pairs >= 0) j["intersecting_pairs"] = r.intersecting_pairs;
+  j["inverted_elements"] = r.inverted_elements;
+  j["numerical_failure"] = r.numerical_failure;
+  j["max_displacement_m"] = r.max_displacement;
+  nlohmann::json re = nlohmann::json::array();
+  for (const auto& f : r.reactions) re.push_back({f.x(), f.y(), f.z()});
+  j["reaction_force_n"] = re;
+  return j;
+}
+
+}  // namespace lumen::engine

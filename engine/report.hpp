@@ -1,0 +1,47 @@
+#pragma once
+// Per-frame records, stage statistics against the frame budget, and the session report (report.json).
+#include <array>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+namespace lumen::engine {
+
+// Stages of one frame, in order; Total is the simulation thread's work for the frame.
+enum Stage : int { kInput = 0, kPhysics, kCollision, kResponse, kRender, kTotal, kStageCount };
+const char* stage_name(int stage);
+
+// What one frame did and cost.
+struct FrameRecord {
+  int frame = 0;                      // 1-based
+  double t = 0.0;                     // simulated time at the end of the frame, seconds
+  std::array<double, kStageCount> ms{};  // milliseconds per stage
+  bool over_budget = false;
+  // Collision statistics (zero when self-collision is off).
+  long bv_overlaps = 0, feature_tests = 0, contacts = 0;
+  int response_iterations = 0;
+  bool fallback = false;              // the safe fallback ended this frame's motion early
+  long intersecting_pairs = -1;       // exact check (--check), -1 when not run
+  int inverted_elements = 0;          // tets with non-positive volume after the frame
+  bool numerical_failure = false;     // NaN/Inf or solver failure: the last good frame was kept
+  double max_displacement = 0.0;      // metres, max node displacement from rest
+  std::vector<Eigen::Vector3d> reactions;  // per probe, newtons
+};
+
+struct StageSummary {
+  double median_ms = 0, p95_ms = 0, p99_ms = 0, max_ms = 0;
+};
+// Percentiles by linear interpolation between order statistics.
+StageSummary summarize(std::vector<double> values_ms);
+
+// Writes JSON to `path` atomically (temporary name, then rename). Throws std::runtime_error naming the path.
+void write_json_file(const std::string& path, const nlohmann::json& j);
+
+// Stage table as text (for `lumen bench` and the end of `lumen run`).
+std::string format_stage_table(const std::vector<FrameRecord>& frames, double budget_ms);
+nlohmann::json stages_json(const std::vector<FrameRecord>& frames);
+nlohmann::json frame_json(const FrameRecord& r);
+
+}  // namespace lumen::engine

@@ -1,0 +1,238 @@
+#include "engine/scene.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+namespace lumen::engine {
+namespace {
+
+using nlohmann::json;
+
+// Reads one JSON object, checking keys, types and ranges; every error names file, key path and value.
+class Reader {
+ public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void fail(const std::string& key, const std::string& problem, const json* value) const {
+    std::string msg = file_ + ": " + (key.empty() ? "(top level)" : key) + ": " + problem;
+    if (value) msg += " (value " + value->dump() + ")";
+    throw InputError(msg);
+  }
+
+  // Refuse keys that are not in `allowed`.
+  void only_keys(const json& obj, const std::string& path, std::initializer_list<const char*> allowed) const {
+    if (!obj.is_object()) fail(path, "must be an object", &obj);
+    std::set<std::string> ok(allowed.begin(), allowed.end());
+    for (auto it = obj.begin(); it != obj.end(); ++it)
+      if (!ok.count(it.key())) fail(join(path, it.key()), "unknown key", nullptr);
+  }
+
+  const json& require(const json& obj, const std::string& path, const char* key) const {
+    if (!obj.contains(key)) fail(join(path, key), "missing key", nullptr);
+    return obj.at(key);
+  }
+
+  double number(const json& v, const std::string& path) const {
+    if (!v.is_number()) fail(path, "must be a number", &v);
+    double d = v.get<double>();
+    if (!std::isfinite(d)) fail(path, "must be finite", &v);
+    return d;
+  }
+  // Number in the open/closed range given; messages say the range.
+  double number_in(const json& v, const std::string& path, double lo, double hi, bool lo_open, bool hi_open) const {
+    double d = number(v, path);
+    bool bad = (lo_open ? d <= lo : d < lo) || (hi_open ? d >= hi : d > hi);
+    if (bad) {
+      std::ostringstream r;
+      r << "out of range " << (lo_open ? "(" : "[") << lo << ", " << hi << (hi_open ? ")" : "]");
+      fail(path, r.str(), &v);
+    }
+    return d;
+  }
+  double positive(const json& v, const std::string& path) const {
+    double d = number(v, path);
+    if (!(d > 0)) fail(path, "must be > 0", &v);
+    return d;
+  }
+  int integer_in(const json& v, const std::string& path, int lo, int hi) const {
+    if (!v.is_number_integer()) fail(path, "must be an integer", &v);
+    long long i = v.get<long long>();
+    if (i < lo || i > hi)
+      fail(path, "out of range [" + std::to_string(lo) + ", " + std::to_string(hi) + "]", &v);
+    return static_cast<int>(i);
+  }
+  bool boolean(const json& v, const std::string& path) const {
+    if (!v.is_boolean()) fail(path, "must be true or false", &v);
+    return v.get<bool>();
+  }
+  std::string string(const json& v, const std::string& path) const {
+    if (!v.is_string()) fail(path, "must be a string", &v);
+    return v.get<std::string>();
+  }
+  std::string one_of(const json& v, const std::string& path, std::initializer_list<const char*> names) const {
+    std::string s = string(v, path);
+    std::string list;
+    for (const char* n : names) {
+      if (s == n) return s;
+      list += (list.empty() ? "" : ", ") + std::string(n);
+    }
+    fail(path, "must be one of " + list, &v);
+  }
+  Eigen::Vector3d vec3(const json& v, const std::string& path) const {
+    if (!v.is_array() || v.size() != 3) fail(path, "must be an array of 3 numbers", &v);
+    Eigen::Vector3d r;
+    for (int i = 0; i < 3; ++i) r[i] = number(v[i], path + "[" + std::to_string(i) + "]");
+    return r;
+  }
+
+  static std::string join(const std::string& path, const std::string& key) {
+    return path.empty() ? key : path + "." + key;
+  }
+  static std::string index(const std::string& path, size_t i) { return path + "[" + std::to_string(i) + "]"; }
+
+ private:
+  std::string file_;
+};
+
+void read_mesh(const Reader& r, const json& m, physics::HollowCylinderSpec& spec) {
+  r.only_keys(m, "mesh", {"type", "inner_radius", "outer_radius", "length", "segments_around", "segments_along",
+                          "layers", "bend_radius"});
+  r.one_of(r.require(m, "mesh", "type"), "mesh.type", {"hollow_cylinder"});
+  spec.inner_radius = r.positive(r.require(m, "mesh", "inner_radius"), "mesh.inner_radius");
+  spec.outer_radius = r.positive(r.require(m, "mesh", "outer_radius"), "mesh.outer_radius");
+  if (spec.inner_radius >= spec.outer_radius)
+    r.fail("mesh.inner_radius", "must be < mesh.outer_radius (" + std::to_string(spec.outer_radius) + ")",
+           &m.at("inner_radius"));
+  spec.length = r.positive(r.require(m, "mesh", "length"), "mesh.length");
+  spec.segments_around = r.integer_in(r.require(m, "mesh", "segments_around"), "mesh.segments_around", 3, 4096);
+  spec.segments_along = r.integer_in(r.require(m, "mesh", "segments_along"), "mesh.segments_along", 1, 4096);
+  spec.layers = r.integer_in(r.require(m, "mesh", "layers"), "mesh.layers", 1, 256);
+  if (m.contains("bend_radius")) {
+    spec.bend_radius = r.number(m.at("bend_radius"), "mesh.bend_radius");
+    if (spec.bend_radius != 0.0 && !(spec.bend_radius > spec.outer_radius))
+      r.fail("mesh.bend_radius", "must be 0 (straight) or > mesh.outer_radius", &m.at("bend_radius"));
+  }
+}
+
+void read_material(const Reader& r, const json& m, MaterialSpec& mat) {
+  r.only_keys(m, "material", {"model", "young_modulus", "poisson_ratio", "density"});
+  mat.model = r.one_of(r.require(m, "material", "model"), "material.model", {"linear"});
+  mat.young_modulus = r.positive(r.require(m, "material", "young_modulus"), "material.young_modulus");
+  mat.poisson_ratio = r.number_in(r.require(m, "material", "poisson_ratio"), "material.poisson_ratio", -1.0, 0.5,
+                                  true, true);
+  if (m.contains("density")) mat.density = r.positive(m.at("density"), "material.density");
+}
+
+ProbeSpec read_probe(const Reader& r, const json& p, const std::string& path, size_t i,
+                     const std::filesystem::path& scene_dir) {
+  r.only_keys(p, path, {"name", "point", "track", "replay"});
+  ProbeSpec probe;
+  probe.name = p.contains("name") ? r.string(p.at("name"), Reader::join(path, "name")) : "probe" + std::to_string(i);
+  probe.point = r.vec3(r.require(p, path, "point"), Reader::join(path, "point"));
+  bool has_track = p.contains("track"), has_replay = p.contains("replay");
+  if (has_track == has_replay) r.fail(path, "needs exactly one of \"track\" or \"replay\"", nullptr);
+  if (has_replay) {
+    std::filesystem::path f = r.string(p.at("replay"), Reader::join(path, "replay"));
+    if (f.is_relative()) f = scene_dir / f;
+    probe.replay = f.lexically_normal().string();
+    return probe;
+  }
+  // Scripted key frames: times strictly increasing, forces finite.
+  const std::string tpath = Reader::join(path, "track");
+  const json& track = p.at("track");
+  if (!track.is_array()) r.fail(tpath, "must be an array of {\"t\", \"force\"} keys", &track);
+  if (track.empty()) r.fail(tpath, "must not be empty", &track);
+  for (size_t k = 0; k < track.size(); ++k) {
+    const std::string kpath = Reader::index(tpath, k);
+    r.only_keys(track[k], kpath, {"t", "force"});
+    TrackKey key;
+    key.t = r.number(r.require(track[k], kpath, "t"), kpath + ".t");
+    if (key.t < 0) r.fail(kpath + ".t", "must be >= 0", &track[k].at("t"));
+    key.force = r.vec3(r.require(track[k], kpath, "force"), kpath + ".force");
+    if (!probe.track.empty() && !(key.t > probe.track.back().t))
+      r.fail(kpath + ".t", "track times must be strictly increasing", &track[k].at("t"));
+    probe.track.push_back(key);
+  }
+  return probe;
+}
+
+void read_render(const Reader& r, const json& m, RenderSpec& spec) {
+  r.only_keys(m, "render", {"width", "height", "camera", "video", "force_scale"});
+  if (m.contains("width")) spec.width = r.integer_in(m.at("width"), "render.width", 16, 8192);
+  if (m.contains("height")) spec.height = r.integer_in(m.at("height"), "render.height", 16, 8192);
+  if (spec.width % 2) r.fail("render.width", "must be even (video encoding)", &m.at("width"));
+  if (spec.height % 2) r.fail("render.height", "must be even (video encoding)", &m.at("height"));
+  if (m.contains("camera")) spec.camera = r.one_of(m.at("camera"), "render.camera", {"side", "diagonal", "endoscope"});
+  if (m.contains("video")) spec.video = r.boolean(m.at("video"), "render.video");
+  if (m.contains("force_scale")) spec.force_scale = r.positive(m.at("force_scale"), "render.force_scale");
+}
+
+void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
+  r.only_keys(m, "collision", {"self", "kdop", "response", "gap", "max_iterations"});
+  if (m.contains("self")) spec.self = r.boolean(m.at("self"), "collision.self");
+  if (m.contains("kdop")) {
+    spec.kdop = r.integer_in(m.at("kdop"), "collision.kdop", 6, 26);
+    if (spec.kdop != 6 && spec.kdop != 14 && spec.kdop != 18 && spec.kdop != 26)
+      r.fail("collision.kdop", "must be one of 6, 14, 18, 26", &m.at("kdop"));
+  }
+  if (m.contains("response")) spec.response = r.one_of(m.at("response"), "collision.response", {"paper", "constraint"});
+  if (m.contains("gap")) spec.gap = r.number_in(m.at("gap"), "collision.gap", 0.0, 0.01, false, false);
+  if (m.contains("max_iterations"))
+    spec.max_iterations = r.integer_in(m.at("max_iterations"), "collision.max_iterations", 1, 100);
+}
+
+}  // namespace
+
+Scene parse_scene(const std::string& text, const std::string& path) {
+  Reader r(path);
+  // Parse the JSON text; syntax errors name the byte position.
+  json root;
+  try {
+    root = json::parse(text);
+  } catch (const json::parse_error& e) {
+    throw InputError(path + ": malformed JSON: " + e.what());
+  }
+  r.only_keys(root, "", {"name", "mesh", "material", "fixed", "probes", "frames", "fps", "render", "collision"});
+
+  Scene s;
+  s.path = path;
+  const std::filesystem::path dir = std::filesystem::path(path).parent_path();
+  s.name = r.string(r.require(root, "", "name"), "name");
+  if (s.name.empty() || s.name.find_first_of("/\\") != std::string::npos || s.name == "." || s.name == "..")
+    r.fail("name", "must be a non-empty name without path separators", &root.at("name"));
+  read_mesh(r, r.require(root, "", "mesh"), s.mesh);
+  read_material(r, r.require(root, "", "material"), s.material);
+
+  // Named node sets held still.
+  const json& fixed = r.require(root, "", "fixed");
+  if (!fixed.is_array() || fixed.empty()) r.fail("fixed", "must be a non-empty array of names", &fixed);
+  for (size_t i = 0; i < fixed.size(); ++i)
+    s.fixed.push_back(r.one_of(fixed[i], Reader::index("fixed", i), {"ends", "start", "stop"}));
+
+  const json& probes = r.require(root, "", "probes");
+  if (!probes.is_array()) r.fail("probes", "must be an array", &probes);
+  for (size_t i = 0; i < probes.size(); ++i) s.probes.push_back(read_probe(r, probes[i], Reader::index("probes", i), i, dir));
+
+  s.frames = r.integer_in(r.require(root, "", "frames"), "frames", 1, 10000000);
+  s.fps = r.number(r.require(root, "", "fps"), "fps");
+  if (!(s.fps > 0) || s.fps > 10000) r.fail("fps", "out of range (0, 10000]", &root.at("fps"));
+  if (root.contains("render")) read_render(r, root.at("render"), s.render);
+  if (root.contains("collision")) read_collision(r, root.at("collision"), s.collision);
+  return s;
+}
+
+Scene load_scene(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot read scene file");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw InputError(path + ": cannot read scene file");
+  return parse_scene(ss.str(), path);
+}
+
+}  // namespace lumen::engine

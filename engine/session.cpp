@@ -1,0 +1,223 @@
+#include "engine/session.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+
+#include <assimp/Exporter.hpp>
+#include <assimp/scene.h>
+
+#include "collision/self_collision.hpp"
+#include "render/renderer.hpp"
+
+namespace lumen::engine {
+namespace fs = std::filesystem;
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+render::Framing framing_of(const Model& model) {
+  render::Framing f;
+  const Eigen::Vector3d lo = model.mesh.rest.colwise().minCoeff(), hi = model.mesh.rest.colwise().maxCoeff();
+  f.center = 0.5 * (lo + hi);
+  f.radius = 0.5 * (hi - lo).norm();
+  f.axis = Eigen::Vector3d::UnitZ();
+  f.lumen_radius = model.scene.mesh.inner_radius;
+  return f;
+}
+
+// Remove outputs of an earlier run that this run would not overwrite (stale frames).
+void clear_stale(const fs::path& dir, const std::string& prefix) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return;
+  for (const auto& e : fs::directory_iterator(dir, ec))
+    if (e.path().filename().string().rfind(prefix, 0) == 0) fs::remove(e.path(), ec);
+}
+
+std::string numbered(const fs::path& dir, const char* prefix, int i, const char* ext) {
+  char name[64];
+  std::snprintf(name, sizeof name, "%s%06d%s", prefix, i, ext);
+  return (dir / name).string();
+}
+
+}  // namespace
+
+void export_surface_obj(const std::string& path, const Points& x, const Tris& tris) {
+  // Compact the surface's vertices (the index map onto the mesh) into one assimp mesh.
+  std::vector<int> local(x.rows(), -1);
+  std::vector<int> used;
+  for (int t = 0; t < tris.rows(); ++t)
+    for (int k = 0; k < 3; ++k)
+      if (local[tris(t, k)] < 0) {
+        local[tris(t, k)] = static_cast<int>(used.size());
+        used.push_back(tris(t, k));
+      }
+  aiScene scene;
+  scene.mRootNode = new aiNode();
+  scene.mRootNode->mNumMeshes = 1;
+  scene.mRootNode->mMeshes = new unsigned int[1]{0};
+  scene.mNumMaterials = 1;
+  scene.mMaterials = new aiMaterial*[1]{new aiMaterial()};
+  scene.mNumMeshes = 1;
+  scene.mMeshes = new aiMesh*[1]{new aiMesh()};
+  aiMesh* mesh = scene.mMeshes[0];
+  mesh->mMaterialIndex = 0;
+  mesh->mPrimitiveTypes = aiPrimitiveType_TRIANGLE;
+  mesh->mNumVertices = static_cast<unsigned>(used.size());
+  mesh->mVertices = new aiVector3D[used.size()];
+  for (size_t i = 0; i < used.size(); ++i)
+    mesh->mVertices[i] = aiVector3D(static_cast<ai_real>(x(used[i], 0)), static_cast<ai_real>(x(used[i], 1)),
+                                    static_cast<ai_real>(x(used[i], 2)));
+  mesh->mNumFaces = static_cast<unsigned>(tris.rows());
+  mesh->mFaces = new aiFace[tris.rows()];
+  for (int t = 0; t < tris.rows(); ++t) {
+    aiFace& face = mesh->mFaces[t];
+    face.mNumIndices = 3;
+    face.mIndices = new unsigned int[3];
+    for (int k = 0; k < 3; ++k) face.mIndices[k] = static_cast<unsigned>(local[tris(t, k)]);
+  }
+  // Export under a temporary name, then rename.
+  const std::string tmp = path + ".tmp.obj";
+  Assimp::Exporter exporter;
+  if (exporter.Export(&scene, "objnomtl", tmp) != AI_SUCCESS) {
+    fs::remove(tmp);
+    throw std::runtime_error(path + ": surface export failed: " + exporter.GetErrorString());
+  }
+  fs::rename(tmp, path);
+}
+
+SessionResult run_session(const Model& model, const SessionOptions& opt) {
+  SessionResult result;
+  const int frames = opt.frames > 0 ? opt.frames : model.scene.frames;
+  const RenderSpec& rs = model.scene.render;
+
+  // Output folders (validated by the caller); stale numbered outputs of earlier runs are removed.
+  const fs::path out(opt.out_dir);
+  const bool write_frames = opt.render && opt.write_frames && !opt.out_dir.empty();
+  if (write_frames) {
+    fs::create_directories(out / "frames");
+    clear_stale(out / "frames", "frame_");
+  }
+  if (opt.export_surface && !opt.out_dir.empty()) {
+    fs::create_directories(out / "surface");
+    clear_stale(out / "surface", "inner_");
+  }
+
+  // Renderer on this thread; writers on their own.
+  std::unique_ptr<render::Renderer> renderer;
+  std::unique_ptr<render::FrameWriter> writer;
+  if (opt.render) {
+    renderer = std::make_unique<render::Renderer>(rs.width, rs.height, render::parse_camera(rs.camera), framing_of(model));
+    if (write_frames || !opt.video_path.empty())
+      writer = std::make_unique<render::FrameWriter>(write_frames ? (out / "frames").string() : std::string(),
+                                                     opt.video_path, rs.width, rs.height,
+                                                     static_cast<int>(std::lround(model.scene.fps)));
+  }
+
+  State state = make_state(model);
+  result.frames.reserve(frames);
+  const bool tty = opt.progress && isatty(fileno(stderr));
+  long over_budget = 0;
+  const auto session_start = Clock::now();
+  for (int i = 0; i < frames; ++i) {
+    FrameRecord rec;
+    const auto frame_start = Clock::now();
+    step(model, state, rec);
+
+    // Optional exact intersection count (not part of the frame's budget).
+    double check_ms = 0.0;
+    if (opt.check) {
+      const auto c0 = Clock::now();
+      rec.intersecting_pairs = collision::count_intersecting_pairs(state.x, model.mesh.inner);
+      check_ms = std::chrono::duration<double, std::milli>(Clock::now() - c0).count();
+    }
+
+    // Render the committed state and hand the image to the writer thread.
+    if (renderer) {
+      const auto r0 = Clock::now();
+      render::FrameView view;
+      view.positions = state.x.data();
+      view.n_points = static_cast<int>(state.x.rows());
+      view.outer = model.mesh.outer.data();
+      view.n_outer = static_cast<int>(model.mesh.outer.rows());
+      view.inner = model.mesh.inner.data();
+      view.n_inner = static_cast<int>(model.mesh.inner.rows());
+      view.ends = model.mesh.ends.data();
+      view.n_ends = static_cast<int>(model.mesh.ends.rows());
+      view.contact = state.in_contact.data();
+      view.force_scale = rs.force_scale;
+      for (size_t p = 0; p < state.samples.size(); ++p) {
+        render::ProbeGlyph g;
+        // Draw the probe at its attachment point as it moved with the surface.
+        const SurfacePoint& sp = model.probe_points[p];
+        g.point = Eigen::Vector3d::Zero();
+        for (int k = 0; k < 3; ++k) g.point += sp.weight[k] * state.x.row(sp.node[k]).transpose();
+        g.force = state.samples[p].force;
+        view.probes.push_back(g);
+      }
+      render::Image image;
+      renderer->draw(view, image);
+      rec.ms[kRender] = std::chrono::duration<double, std::milli>(Clock::now() - r0).count();
+      if (writer) writer->push(std::move(image));
+    }
+    rec.ms[kTotal] = std::chrono::duration<double, std::milli>(Clock::now() - frame_start).count() - check_ms;
+    rec.over_budget = rec.ms[kTotal] > model.budget_ms;
+    over_budget += rec.over_budget;
+
+    // Surface export (off the budget, like the writers).
+    if (opt.export_surface && !opt.out_dir.empty())
+      export_surface_obj(numbered(out / "surface", "inner_", rec.frame, ".obj"), state.x, model.mesh.inner);
+
+    result.frames.push_back(std::move(rec));
+    if (tty && (i % 10 == 9 || i + 1 == frames)) {
+      const double wall = std::chrono::duration<double>(Clock::now() - session_start).count();
+      std::fprintf(stderr, "\rframe %d of %d  %.1f fps  over budget %ld", i + 1, frames, (i + 1) / wall, over_budget);
+      std::fflush(stderr);
+    }
+  }
+  if (tty) std::fprintf(stderr, "\n");
+  if (writer) result.writer = writer->finish();
+
+  // Session report.
+  nlohmann::json& r = result.report;
+  r["scene"] = model.scene.name;
+  r["scene_file"] = model.scene.path;
+  r["frames"] = frames;
+  r["fps"] = model.scene.fps;
+  r["budget_ms"] = model.budget_ms;
+  r["over_budget_frames"] = over_budget;
+  r["mesh"] = {{"nodes", model.mesh.n_nodes()},
+               {"tets", model.mesh.tets.rows()},
+               {"inner_triangles", model.mesh.inner.rows()},
+               {"outer_triangles", model.mesh.outer.rows()}};
+  r["model"] = {{"material", model.scene.material.model}, {"solver", "quasi_static_cholmod"},
+                {"compile_seconds", model.compile_seconds}};
+  r["collision"] = {{"self", model.scene.collision.self}, {"kdop", model.scene.collision.kdop},
+                    {"response", model.scene.collision.response}, {"gap_m", model.scene.collision.gap}};
+  r["render"] = {{"enabled", opt.render}, {"width", rs.width}, {"height", rs.height}, {"camera", rs.camera}};
+  r["stages"] = stages_json(result.frames);
+  r["writer"] = {{"frames", result.writer.frames}, {"busy_seconds", result.writer.busy_seconds},
+                 {"frames_per_second", result.writer.frames_per_second()},
+                 {"keeps_up", result.writer.frames == 0 || result.writer.frames_per_second() >= model.scene.fps}};
+  long fallbacks = 0, inverted_frames = 0, failures = 0, intersecting_frames = 0;
+  for (const auto& f : result.frames) {
+    fallbacks += f.fallback;
+    inverted_frames += f.inverted_elements > 0;
+    failures += f.numerical_failure;
+    intersecting_frames += f.intersecting_pairs > 0;
+  }
+  r["fallback_frames"] = fallbacks;
+  r["frames_with_inverted_elements"] = inverted_frames;
+  r["numerical_failures"] = failures;
+  if (opt.check) r["frames_with_intersections"] = intersecting_frames;
+  nlohmann::json per = nlohmann::json::array();
+  for (const auto& f : result.frames) per.push_back(frame_json(f));
+  r["per_frame"] = std::move(per);
+  return result;
+}
+
+}  // namespace lumen::engine

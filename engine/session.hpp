@@ -1,0 +1,37 @@
+#pragma once
+// A whole session: the fixed-step frame loop, rendering, writers, budget check, report.
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/report.hpp"
+#include "engine/simulation.hpp"
+#include "render/writers.hpp"
+
+namespace lumen::engine {
+
+struct SessionOptions {
+  std::string out_dir;          // where outputs go (run); empty for bench
+  int frames = -1;              // override the scene's frame count (> 0)
+  bool render = true;           // draw every frame (bench draws too, to measure it)
+  bool write_frames = true;     // PNG frames (run)
+  std::string video_path;       // MP4 path, empty for none
+  bool export_surface = false;  // DIR/surface/inner_000001.obj ...
+  bool check = false;           // exact intersection count of the inner wall on every frame
+  bool progress = false;        // progress line on stderr
+};
+
+struct SessionResult {
+  std::vector<FrameRecord> frames;
+  render::WriterStats writer;
+  nlohmann::json report;        // what report.json holds
+};
+
+// Runs the scene's frames. Outputs are written under temporary names and renamed when complete.
+SessionResult run_session(const Model& model, const SessionOptions& options);
+
+// Writes the inner wall at positions x as a Wavefront OBJ through assimp, atomically.
+void export_surface_obj(const std::string& path, const Points& x, const Tris& tris);
+
+}  // namespace lumen::engine

@@ -1,0 +1,222 @@
+#include "engine/simulation.hpp"
+
+#include "engine/response.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+namespace lumen::engine {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+// Closest point on triangle abc to p (Ericson, Real-Time Collision Detection 5.1.5); returns barycentrics.
+Eigen::Vector3d closest_barycentric(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                    const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
+  const Eigen::Vector3d bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return {0, 1, 0};
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    return {1 - v, v, 0};
+  }
+  const Eigen::Vector3d cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return {0, 0, 1};
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double w = d2 / (d2 - d6);
+    return {1 - w, 0, w};
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return {0, 1 - w, w};
+  }
+  const double denom = 1.0 / (va + vb + vc);
+  const double v = vb * denom, w = vc * denom;
+  return {1 - v - w, v, w};
+}
+
+// Nodal force vector (3n) for probe loads at surface points.
+void add_point_load(const SurfacePoint& sp, const Eigen::Vector3d& force, Eigen::VectorXd& f) {
+  for (int k = 0; k < 3; ++k) f.segment<3>(3 * sp.node[k]) += sp.weight[k] * force;
+}
+
+}  // namespace
+
+SurfacePoint snap_to_surface(const Points& x, const Tris& tris, const Eigen::Vector3d& p) {
+  SurfacePoint best;
+  double best_d2 = std::numeric_limits<double>::infinity();
+  // Brute force over the surface triangles (done once per probe for fixed points).
+  for (int t = 0; t < tris.rows(); ++t) {
+    const Eigen::Vector3d a = x.row(tris(t, 0)), b = x.row(tris(t, 1)), c = x.row(tris(t, 2));
+    const Eigen::Vector3d w = closest_barycentric(p, a, b, c);
+    const double d2 = (w[0] * a + w[1] * b + w[2] * c - p).squaredNorm();
+    if (d2 < best_d2) {
+      best_d2 = d2;
+      best.triangle = t;
+      for (int k = 0; k < 3; ++k) {
+        best.node[k] = tris(t, k);
+        best.weight[k] = w[k];
+      }
+    }
+  }
+  return best;
+}
+
+std::unique_ptr<Model> compile_model(const Scene& scene) {
+  const auto t0 = Clock::now();
+  auto m = std::make_unique<Model>();
+  m->scene = scene;
+  m->budget_ms = 1000.0 / scene.fps;
+
+  // Mesh and material.
+  m->mesh = physics::make_hollow_cylinder(scene.mesh);
+  m->material.young_modulus = scene.material.young_modulus;
+  m->material.poisson_ratio = scene.material.poisson_ratio;
+
+  // Named fixed node sets.
+  for (const std::string& name : scene.fixed) {
+    if (name == "ends" || name == "start")
+      m->fixed_nodes.insert(m->fixed_nodes.end(), m->mesh.end_nodes_start.begin(), m->mesh.end_nodes_start.end());
+    if (name == "ends" || name == "stop")
+      m->fixed_nodes.insert(m->fixed_nodes.end(), m->mesh.end_nodes_stop.begin(), m->mesh.end_nodes_stop.end());
+  }
+  std::sort(m->fixed_nodes.begin(), m->fixed_nodes.end());
+  m->fixed_nodes.erase(std::unique(m->fixed_nodes.begin(), m->fixed_nodes.end()), m->fixed_nodes.end());
+
+  // Assemble K and factorise it once.
+  const Eigen::SparseMatrix<double> K = physics::assemble_stiffness(m->mesh, m->material);
+  m->solver = std::make_unique<physics::StaticSolver>(K, m->fixed_nodes);
+
+  // Probe attachment points on the outer wall; a point far from the wall is refused.
+  const double tolerance = 0.25 * (scene.mesh.outer_radius - scene.mesh.inner_radius) + 1e-9;
+  std::vector<physics::LoadPoint> load_points;
+  for (size_t i = 0; i < scene.probes.size(); ++i) {
+    const ProbeSpec& p = scene.probes[i];
+    SurfacePoint sp = snap_to_surface(m->mesh.rest, m->mesh.outer, p.point);
+    Eigen::Vector3d q = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) q += sp.weight[k] * m->mesh.rest.row(sp.node[k]).transpose();
+    if ((q - p.point).norm() > tolerance)
+      throw InputError(scene.path + ": probes[" + std::to_string(i) + "].point: not on the organ's outer wall (" +
+                       std::to_string((q - p.point).norm()) + " m away; value [" + std::to_string(p.point.x()) + ", " +
+                       std::to_string(p.point.y()) + ", " + std::to_string(p.point.z()) + "])");
+    m->probe_points.push_back(sp);
+    physics::LoadPoint lp;
+    for (int k = 0; k < 3; ++k) {
+      lp.node[k] = sp.node[k];
+      lp.weight[k] = sp.weight[k];
+    }
+    load_points.push_back(lp);
+  }
+  // Unit-load responses at the probe points: a frame's physics is then a small dense product.
+  m->probe_response = std::make_unique<physics::LoadResponse>(*m->solver, load_points);
+
+  // Inner-wall nodes (for the collision surface's bookkeeping).
+  for (int t = 0; t < m->mesh.inner.rows(); ++t)
+    for (int k = 0; k < 3; ++k) m->inner_nodes.push_back(m->mesh.inner(t, k));
+  std::sort(m->inner_nodes.begin(), m->inner_nodes.end());
+  m->inner_nodes.erase(std::unique(m->inner_nodes.begin(), m->inner_nodes.end()), m->inner_nodes.end());
+
+  m->compile_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  return m;
+}
+
+State make_state(const Model& model) {
+  State s;
+  s.x = model.mesh.rest;
+  s.u = Eigen::VectorXd::Zero(3 * model.mesh.n_nodes());
+  for (const ProbeSpec& p : model.scene.probes) s.sources.push_back(make_source(p));
+  s.samples.resize(model.scene.probes.size());
+  s.in_contact.assign(model.mesh.n_nodes(), 0);
+  if (model.scene.collision.self) {
+    s.detector = std::make_unique<collision::SelfCollision>(model.mesh.inner, model.mesh.n_nodes(), model.scene.collision.kdop);
+    s.compliance = std::make_unique<physics::SurfaceCompliance>(*model.solver, model.inner_nodes);
+  }
+  return s;
+}
+
+void step(const Model& model, State& state, FrameRecord& rec) {
+  const int n = model.mesh.n_nodes();
+  const double t1 = (state.frame + 1) / model.scene.fps;
+  rec.frame = state.frame + 1;
+  rec.t = t1;
+
+  // Input: sample every probe source at the end-of-frame time.
+  auto clock = Clock::now();
+  bool all_fixed = true;
+  for (size_t i = 0; i < state.sources.size(); ++i) {
+    state.samples[i] = state.sources[i]->sample(t1);
+    all_fixed = all_fixed && state.sources[i]->point_is_fixed();
+  }
+  rec.ms[kInput] = ms_since(clock);
+
+  // Physics: quasi-static linear FEM, u = K^-1 f (precomputed unit responses when probe points are fixed).
+  clock = Clock::now();
+  Eigen::VectorXd u(3 * n);
+  if (all_fixed) {
+    Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> forces(state.samples.size(), 3);
+    for (size_t i = 0; i < state.samples.size(); ++i) forces.row(i) = state.samples[i].force.transpose();
+    model.probe_response->displacement(forces, u);
+  } else {
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * n);
+    for (size_t i = 0; i < state.samples.size(); ++i) {
+      const SurfacePoint sp = state.sources[i]->point_is_fixed()
+                                  ? model.probe_points[i]
+                                  : snap_to_surface(model.mesh.rest, model.mesh.outer, state.samples[i].point);
+      add_point_load(sp, state.samples[i].force, f);
+    }
+    model.solver->solve(f, u);
+  }
+  Points x1 = model.mesh.rest + Eigen::Map<const Points>(u.data(), n, 3);
+  rec.ms[kPhysics] = ms_since(clock);
+
+  // Collision and response (self-collision of the inner wall): contacts constrain the solve, CCD re-checks.
+  std::fill(state.in_contact.begin(), state.in_contact.end(), 0);
+  state.contacts.clear();
+  rec.ms[kCollision] = 0.0;
+  rec.ms[kResponse] = 0.0;
+  if (state.detector && u.allFinite()) {
+    collide_and_respond(model, state, u, rec);
+    x1 = model.mesh.rest + Eigen::Map<const Points>(u.data(), n, 3);
+  }
+
+  // Numerical health: finite values and element orientation; a bad frame keeps the last good state.
+  bool finite = u.allFinite();
+  int inverted = 0;
+  if (finite)
+    for (int e = 0; e < model.mesh.tets.rows(); ++e)
+      if (physics::tet_volume(x1, model.mesh.tets, e) <= 0.0) ++inverted;
+  rec.inverted_elements = inverted;
+  rec.numerical_failure = !finite;
+  if (finite) {
+    state.x = std::move(x1);
+    state.u = std::move(u);
+  } else {
+    ++state.failures;
+  }
+  rec.max_displacement = 0.0;
+  for (int i = 0; i < n; ++i) rec.max_displacement = std::max(rec.max_displacement, state.u.segment<3>(3 * i).norm());
+
+  // Reaction at each probe point (force-controlled probe in equilibrium: equal and opposite), handed back.
+  rec.reactions.clear();
+  for (size_t i = 0; i < state.sources.size(); ++i) {
+    const Eigen::Vector3d reaction = -state.samples[i].force;
+    rec.reactions.push_back(reaction);
+    state.sources[i]->feedback(t1, reaction);
+  }
+  state.frame += 1;
+  state.t = t1;
+}
+
+}  // namespace lumen::engine

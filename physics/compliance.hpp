@@ -1,0 +1,145 @@
+#pragma once
+// Precomputed responses of a prefactorised FEM model (what makes a frame cheap) and contact solves on them.
+//
+// Per-frame physics path: the loads of a frame act at a few fixed surface points (probe tips). LoadResponse
+// precomputes U = K^-1 [unit forces at those points] once (one multi-column CHOLMOD solve); a frame is then
+// u = U * forces, a dense 3n x 3m mat-vec (m = number of load points), no back-substitution at all.
+//
+// Contact path: SurfaceCompliance holds C = K^-1 restricted to a node set (the inner wall). Contacts are rows
+// of a constraint matrix H; their coupling A = H C H^T is small and dense, so the multipliers lambda come from
+// a dense solve (equality, the paper's "hold the colliding vertices") or a dense LCP (non-penetration), and
+// the whole-mesh correction is one back-substitution du = K^-1 H^T lambda.
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "physics/fem.hpp"
+#include "physics/types.hpp"
+
+namespace lumen::physics {
+
+// A load point on the surface: up to 3 mesh nodes with barycentric weights (unused entries: node = -1).
+struct LoadPoint {
+  int node[3] = {-1, -1, -1};
+  double weight[3] = {0.0, 0.0, 0.0};
+};
+
+// Displacement of the whole mesh for forces at fixed load points, precomputed.
+// Keeps no reference to the solver.
+class LoadResponse {
+ public:
+  // One solve_many with 3m unit-force columns (x, y, z at each point, split over its nodes by the weights).
+  LoadResponse(const StaticSolver& solver, const std::vector<LoadPoint>& points);
+
+  int n_points() const { return static_cast<int>(points_.size()); }
+  const std::vector<LoadPoint>& points() const { return points_; }
+  // U, 3n x 3m, metres per newton: column 3p + c is the displacement for a unit force along axis c at point p.
+  const Eigen::MatrixXd& response() const { return U_; }
+  // Compliance between load points, 3m x 3m, metres per newton: row 3q + i is the displacement of point q
+  // (weighted over its nodes) along axis i; use it to find the force that moves a point to a target.
+  const Eigen::MatrixXd& point_compliance() const { return P_; }
+
+  // u = U * forces: forces m x 3 (row p = force at point p), newtons; u 3n, metres. No allocation when u has
+  // the right size already.
+  void displacement(const Points& forces, Eigen::VectorXd& u) const;
+  Eigen::VectorXd displacement(const Points& forces) const;
+
+ private:
+  std::vector<LoadPoint> points_;
+  Eigen::MatrixXd U_;  // 3n x 3m, m/N
+  Eigen::MatrixXd P_;  // 3m x 3m, m/N
+};
+
+// Dense compliance C = K^-1 restricted to a set of nodes (e.g. the inner wall), plus on-demand columns for
+// nodes outside the set. Keeps a reference to the solver, which must outlive it.
+class SurfaceCompliance {
+ public:
+  // nodes: distinct mesh node ids. Columns are computed block_columns at a time (solve_many).
+  SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns = 64);
+
+  const StaticSolver& solver() const { return *solver_; }
+  int n_nodes_mesh() const { return solver_->n_dofs() / 3; }
+  const std::vector<int>& nodes() const { return nodes_; }
+  // Position of a mesh node in nodes(), or -1.
+  int index_of(int node) const;
+  // C, 3s x 3s, metres per newton: C(3a + i, 3b + j) = d u(nodes[a], i) / d f(nodes[b], j).
+  const Eigen::MatrixXd& matrix() const { return C_; }
+
+  // 3 x 3 block d u(node_a) / d f(node_b) for any two mesh nodes; columns of nodes outside the set are
+  // solved for and cached on first use.
+  Eigen::Matrix3d block(int node_a, int node_b);
+  // Solves for the columns of every listed node outside the set not cached yet, in one solve_many.
+  void ensure_columns(const std::vector<int>& nodes);
+  // Number of nodes outside the set whose columns are cached.
+  int n_cached_nodes() const { return static_cast<int>(extra_nodes_.size()); }
+
+ private:
+  void check_node(int node, const char* what) const;
+  const StaticSolver* solver_;
+  std::vector<int> nodes_;
+  std::vector<int> index_;                 // mesh node -> position in nodes_, or -1
+  Eigen::MatrixXd C_;                      // 3s x 3s, m/N
+  std::vector<int> extra_index_;           // mesh node -> position in extra_nodes_, or -1
+  std::vector<int> extra_nodes_;           // nodes outside the set with cached columns
+  std::vector<Eigen::MatrixXd> extra_cols_;  // per cached node: 3n x 3, K^-1 columns of its DOFs, m/N
+};
+
+// One contact constraint row of H: (H u)_r = n . sum_k weight[k] * u(node[k]), metres.
+// Vertex-face: weights (1, -b0, -b1, -b2) on (vertex, face nodes); edge-edge: (1 - s, s, -(1 - t), -t);
+// a prescribed node displacement: one node, weight 1, n a unit axis, g the wanted displacement component.
+// Unused entries: node = -1.
+struct ContactRow {
+  int node[4] = {-1, -1, -1, -1};
+  double weight[4] = {0.0, 0.0, 0.0, 0.0};
+  Eigen::Vector3d n = Eigen::Vector3d::Zero();  // direction (usually the unit contact normal)
+  double g = 0.0;                               // required value of the row (equality) or minimum (LCP), metres
+};
+
+// Options of the dense LCP solver.
+struct LcpOptions {
+  double tolerance = 1e-9;  // residual accepted as converged, metres
+  int max_iterations = 0;   // pivot bound; 0 = 10 * rows + 100
+};
+
+// Result of a dense LCP w = A z + q, w >= 0, z >= 0, w . z = 0.
+struct LcpResult {
+  Eigen::VectorXd z;    // multipliers, >= 0
+  Eigen::VectorXd w;    // A z + q
+  int iterations = 0;   // pivots
+  double residual = 0;  // max_i |min(w_i, A_ii z_i)| and max(-w_i, 0), units of q
+  bool converged = false;
+};
+
+// Lemke's complementary pivoting (lexicographic tie-break, covering vector 1) on a dense symmetric positive
+// semidefinite A (m x m), with a final polish on the active set. Fails (converged = false) on ray termination
+// (infeasible problem) or at the pivot bound.
+LcpResult solve_lcp_dense(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, const LcpOptions& options = {});
+
+// Result of a contact solve.
+struct ContactResult {
+  Eigen::VectorXd lambda;      // row multipliers, newtons, one per row (>= 0 for the LCP)
+  Eigen::VectorXd force;       // f_c = H^T lambda, nodal contact forces, 3n, newtons
+  Eigen::VectorXd correction;  // du = K^-1 f_c (one StaticSolver::solve), 3n, metres
+  int iterations = 0;          // LCP pivots (1 for the equality solve)
+  double residual = 0.0;       // max row violation at u_free + du, metres (see solve_equality / solve_lcp)
+  bool converged = false;      // residual <= tolerance
+};
+
+// H u for the rows, metres (u: 3n).
+Eigen::VectorXd row_values(const std::vector<ContactRow>& rows, const Eigen::VectorXd& u);
+// H^T lambda, a nodal force vector of length n_dofs, newtons.
+Eigen::VectorXd contact_force(const std::vector<ContactRow>& rows, const Eigen::VectorXd& lambda, int n_dofs);
+// A = H C H^T, rows x rows, metres per newton (computes missing compliance columns on demand).
+Eigen::MatrixXd coupling_matrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows);
+
+// Equality constraints H (u_free + du) = g: A lambda = g - H u_free (Cholesky, or the minimum-norm least-squares
+// solution when A is singular). residual = max |H u - g|; converged when <= tolerance (metres).
+ContactResult solve_equality(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
+                             const Eigen::VectorXd& u_free, double tolerance = 1e-9);
+
+// Non-penetration H u >= g with lambda >= 0 and lambda . (H u - g) = 0, by solve_lcp_dense on A.
+// residual = max over rows of (g - H u)^+ and, where lambda > 0, |H u - g|.
+ContactResult solve_lcp(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
+                        const Eigen::VectorXd& u_free, const LcpOptions& options = {});
+
+}  // namespace lumen::physics

@@ -1,0 +1,352 @@
+// Linear tetrahedral FEM: element kernels, assembly, CHOLMOD prefactorised static solver.
+#include "physics/fem.hpp"
+
+#include <Eigen/LU>
+#include <cholmod.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace lumen::physics {
+
+namespace {
+
+using Mat43 = Eigen::Matrix<double, 4, 3>;
+
+// Shape-function gradients of a linear tet (4 x 3, 1/metres) and its rest volume (cubic metres).
+// Rejects a degenerate or inverted rest element.
+Mat43 shape_gradients(const Mat43& X, double& volume) {
+  Eigen::Matrix3d Dm;  // edge vectors X_a - X_0 as columns, metres
+  for (int a = 0; a < 3; ++a) Dm.col(a) = (X.row(a + 1) - X.row(0)).transpose();
+  volume = Dm.determinant() / 6.0;
+  if (!(volume > 0.0) || !std::isfinite(volume)) {
+    std::ostringstream msg;
+    msg << "tet element: rest volume must be > 0 (positively oriented, non-degenerate), got " << volume;
+    throw std::invalid_argument(msg.str());
+  }
+  // grad N_a (a = 1..3) is row a-1 of Dm^-1; grad N_0 = -(sum of the others).
+  const Eigen::Matrix3d G = Dm.inverse();
+  Mat43 g;
+  g.bottomRows<3>() = G;
+  g.row(0) = -G.colwise().sum();
+  return g;
+}
+
+// Lame parameters (pascals) of a validated material.
+void lame_parameters(const LinearMaterial& m, double& lambda, double& mu) {
+  validate_material(m);
+  const double E = m.young_modulus, nu = m.poisson_ratio;
+  lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+  mu = E / (2.0 * (1.0 + nu));
+}
+
+}  // namespace
+
+void validate_material(const LinearMaterial& m) {
+  if (!(m.young_modulus > 0.0) || !std::isfinite(m.young_modulus)) {
+    std::ostringstream msg;
+    msg << "LinearMaterial.young_modulus must be > 0 and finite, got " << m.young_modulus;
+    throw std::invalid_argument(msg.str());
+  }
+  if (!(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5)) {
+    std::ostringstream msg;
+    msg << "LinearMaterial.poisson_ratio must be in (-1, 0.5), got " << m.poisson_ratio;
+    throw std::invalid_argument(msg.str());
+  }
+}
+
+Eigen::Matrix<double, 12, 12> tet_stiffness(const Mat43& X, const LinearMaterial& m) {
+  double lambda, mu, volume;
+  lame_parameters(m, lambda, mu);
+  const Mat43 g = shape_gradients(X, volume);
+
+  // Strain-displacement matrix B (6 x 12): Voigt strain (xx, yy, zz, 2yz, 2xz, 2xy) from nodal displacements.
+  Eigen::Matrix<double, 6, 12> B = Eigen::Matrix<double, 6, 12>::Zero();
+  for (int a = 0; a < 4; ++a) {
+    const double gx = g(a, 0), gy = g(a, 1), gz = g(a, 2);
+    const int c = 3 * a;
+    B(0, c) = gx;
+    B(1, c + 1) = gy;
+    B(2, c + 2) = gz;
+    B(3, c + 1) = gz, B(3, c + 2) = gy;
+    B(4, c) = gz, B(4, c + 2) = gx;
+    B(5, c) = gy, B(5, c + 1) = gx;
+  }
+
+  // Isotropic elasticity D (6 x 6, pascals) in the same Voigt order.
+  Eigen::Matrix<double, 6, 6> D = Eigen::Matrix<double, 6, 6>::Zero();
+  D.topLeftCorner<3, 3>().setConstant(lambda);
+  D.topLeftCorner<3, 3>().diagonal().array() += 2.0 * mu;
+  D.bottomRightCorner<3, 3>().diagonal().setConstant(mu);
+
+  // K_e = V B^T D B, symmetrised so that assembly gives an exactly symmetric K.
+  Eigen::Matrix<double, 12, 12> K = volume * (B.transpose() * D * B);
+  return 0.5 * (K + K.transpose());
+}
+
+double tet_energy(const Mat43& X, const Mat43& u, const LinearMaterial& m) {
+  double lambda, mu, volume;
+  lame_parameters(m, lambda, mu);
+  const Mat43 g = shape_gradients(X, volume);
+  // Displacement gradient H = sum_a u_a (x) grad N_a, small strain eps = sym(H).
+  const Eigen::Matrix3d H = u.transpose() * g;
+  const Eigen::Matrix3d eps = 0.5 * (H + H.transpose());
+  // Energy density mu eps:eps + lambda/2 tr(eps)^2, times the volume.
+  const double tr = eps.trace();
+  return volume * (mu * eps.squaredNorm() + 0.5 * lambda * tr * tr);
+}
+
+Eigen::SparseMatrix<double> assemble_stiffness(const TetMesh& mesh, const LinearMaterial& m) {
+  validate_material(m);
+  const int n = mesh.n_nodes();
+  // Element matrices scattered as triplets (144 per tet), summed by setFromTriplets.
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(static_cast<size_t>(mesh.tets.rows()) * 144);
+  for (int t = 0; t < mesh.tets.rows(); ++t) {
+    Mat43 X;
+    for (int a = 0; a < 4; ++a) {
+      const int v = mesh.tets(t, a);
+      if (v < 0 || v >= n) {
+        throw std::invalid_argument("assemble_stiffness: mesh.tets(" + std::to_string(t) + ", " + std::to_string(a) +
+                                    ") must be a node id in [0, " + std::to_string(n) + "), got " + std::to_string(v));
+      }
+      X.row(a) = mesh.rest.row(v);
+    }
+    const Eigen::Matrix<double, 12, 12> Ke = tet_stiffness(X, m);
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            triplets.emplace_back(3 * mesh.tets(t, a) + i, 3 * mesh.tets(t, b) + j, Ke(3 * a + i, 3 * b + j));
+  }
+  Eigen::SparseMatrix<double> K(3 * n, 3 * n);
+  K.setFromTriplets(triplets.begin(), triplets.end());
+  return K;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// StaticSolver
+
+struct StaticSolver::Impl {
+  cholmod_common common;
+  cholmod_factor* L = nullptr;
+  int n = 0;                  // all DOFs, 3 * nodes
+  std::vector<int> free_of;   // DOF -> free index, or -1 when fixed, length n
+  std::vector<int> dof_of;    // free index -> DOF, length n_free
+  // Reused solve workspace (single right-hand side).
+  mutable std::vector<double> rhs;
+  mutable cholmod_dense* X = nullptr;
+  mutable cholmod_dense* Y = nullptr;
+  mutable cholmod_dense* E = nullptr;
+
+  Impl() { cholmod_start(&common); }
+  ~Impl() {
+    cholmod_free_dense(&X, &common);
+    cholmod_free_dense(&Y, &common);
+    cholmod_free_dense(&E, &common);
+    cholmod_free_factor(&L, &common);
+    cholmod_finish(&common);
+  }
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+
+  int n_free() const { return static_cast<int>(dof_of.size()); }
+
+  // A cholmod_dense header over caller-owned column-major memory (nrow x ncol).
+  static cholmod_dense wrap(double* data, int nrow, int ncol) {
+    cholmod_dense d{};
+    d.nrow = static_cast<size_t>(nrow);
+    d.ncol = static_cast<size_t>(ncol);
+    d.nzmax = d.nrow * d.ncol;
+    d.d = d.nrow;
+    d.x = data;
+    d.z = nullptr;
+    d.xtype = CHOLMOD_REAL;
+    d.dtype = CHOLMOD_DOUBLE;
+    return d;
+  }
+
+  // Copies the lower triangle of K on the free DOFs into CHOLMOD, analyses and factorises it (supernodal LL^T).
+  void factorise(const Eigen::SparseMatrix<double>& K, const std::vector<char>& fixed) {
+    n = static_cast<int>(K.rows());
+    free_of.assign(n, -1);
+    for (int d = 0; d < n; ++d)
+      if (!fixed[d]) {
+        free_of[d] = static_cast<int>(dof_of.size());
+        dof_of.push_back(d);
+      }
+    const int nf = n_free();
+    if (nf == 0) throw std::invalid_argument("StaticSolver: every DOF is fixed, nothing to solve");
+
+    // Lower triangle of K_ff, column by column, rows sorted.
+    std::vector<std::vector<std::pair<int, double>>> cols(nf);
+    size_t nnz = 0;
+    for (int j = 0; j < K.outerSize(); ++j) {
+      const int jf = free_of[j];
+      if (jf < 0) continue;
+      for (Eigen::SparseMatrix<double>::InnerIterator it(K, j); it; ++it) {
+        const int i = static_cast<int>(it.row());
+        const int fi = free_of[i];
+        if (!std::isfinite(it.value())) {
+          std::ostringstream msg;
+          msg << "StaticSolver: K(" << i << ", " << j << ") must be finite, got " << it.value();
+          throw std::invalid_argument(msg.str());
+        }
+        if (fi >= jf) cols[jf].emplace_back(fi, it.value()), ++nnz;
+      }
+    }
+    cholmod_sparse* A = cholmod_allocate_sparse(nf, nf, nnz, 1, 1, -1, CHOLMOD_REAL, &common);
+    if (!A) throw std::runtime_error("StaticSolver: CHOLMOD could not allocate the matrix");
+    int* Ap = static_cast<int*>(A->p);
+    int* Ai = static_cast<int*>(A->i);
+    double* Ax = static_cast<double*>(A->x);
+    int pos = 0;
+    for (int j = 0; j < nf; ++j) {
+      std::sort(cols[j].begin(), cols[j].end());
+      Ap[j] = pos;
+      for (const auto& [i, v] : cols[j]) Ai[pos] = i, Ax[pos] = v, ++pos;
+    }
+    Ap[nf] = pos;
+
+    // Symbolic analysis (fill-reducing ordering) and numeric factorisation, once.
+    common.supernodal = CHOLMOD_SUPERNODAL;
+    common.print = 0;
+    L = cholmod_analyze(A, &common);
+    const bool ok = L && cholmod_factorize(A, L, &common);
+    cholmod_free_sparse(&A, &common);
+    if (!ok || common.status == CHOLMOD_OUT_OF_MEMORY) {
+      throw std::runtime_error("StaticSolver: CHOLMOD factorisation failed (status " + std::to_string(common.status) +
+                               ")");
+    }
+    // Not positive definite, or singular up to round-off (rigid motion left free).
+    const double rcond = cholmod_rcond(L, &common);
+    if (common.status == CHOLMOD_NOT_POSDEF || static_cast<int>(L->minor) < nf || !(rcond > 1e-12)) {
+      std::ostringstream msg;
+      msg << "StaticSolver: K on the free DOFs is not positive definite (reciprocal condition estimate " << rcond
+          << "); the fixed DOFs must remove all rigid motion";
+      throw std::invalid_argument(msg.str());
+    }
+  }
+};
+
+namespace {
+
+// Marks DOFs to fix, validating node ids and components; n_dofs must be a multiple of 3.
+std::vector<char> fixed_mask(const Eigen::SparseMatrix<double>& K, const std::vector<FixedDof>& dofs) {
+  if (K.rows() != K.cols() || K.rows() % 3 != 0 || K.rows() == 0) {
+    throw std::invalid_argument("StaticSolver: K must be square with 3n rows, got " + std::to_string(K.rows()) + " x " +
+                                std::to_string(K.cols()));
+  }
+  const int n_nodes = static_cast<int>(K.rows() / 3);
+  std::vector<char> fixed(K.rows(), 0);
+  for (size_t k = 0; k < dofs.size(); ++k) {
+    if (dofs[k].node < 0 || dofs[k].node >= n_nodes) {
+      throw std::invalid_argument("StaticSolver: fixed node [" + std::to_string(k) + "] must be in [0, " +
+                                  std::to_string(n_nodes) + "), got " + std::to_string(dofs[k].node));
+    }
+    if (dofs[k].component < 0 || dofs[k].component > 2) {
+      throw std::invalid_argument("StaticSolver: fixed component [" + std::to_string(k) + "] must be 0, 1 or 2, got " +
+                                  std::to_string(dofs[k].component));
+    }
+    fixed[3 * dofs[k].node + dofs[k].component] = 1;
+  }
+  return fixed;
+}
+
+std::vector<FixedDof> whole_nodes(const std::vector<int>& nodes) {
+  std::vector<FixedDof> dofs;
+  dofs.reserve(3 * nodes.size());
+  for (int v : nodes)
+    for (int c = 0; c < 3; ++c) dofs.push_back({v, c});
+  return dofs;
+}
+
+}  // namespace
+
+StaticSolver::StaticSolver(const Eigen::SparseMatrix<double>& K, const std::vector<int>& fixed_nodes)
+    : StaticSolver(K, whole_nodes(fixed_nodes)) {}
+
+StaticSolver::StaticSolver(const Eigen::SparseMatrix<double>& K, const std::vector<FixedDof>& fixed_dofs)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->factorise(K, fixed_mask(K, fixed_dofs));
+}
+
+StaticSolver::~StaticSolver() = default;
+StaticSolver::StaticSolver(StaticSolver&&) noexcept = default;
+StaticSolver& StaticSolver::operator=(StaticSolver&&) noexcept = default;
+
+int StaticSolver::n_dofs() const { return impl_->n; }
+int StaticSolver::n_free_dofs() const { return impl_->n_free(); }
+long StaticSolver::factor_nonzeros() const {
+  const cholmod_factor* L = impl_->L;
+  if (L->is_super) {
+    // Supernodal: sum over supernodes of (rows x columns) of each dense block, lower part.
+    const int* super = static_cast<const int*>(L->super);
+    const int* pi = static_cast<const int*>(L->pi);
+    long nnz = 0;
+    for (size_t s = 0; s < L->nsuper; ++s) {
+      const long ncols = super[s + 1] - super[s], nrows = pi[s + 1] - pi[s];
+      nnz += ncols * nrows - ncols * (ncols - 1) / 2;
+    }
+    return nnz;
+  }
+  return static_cast<long>(L->nzmax);
+}
+
+bool StaticSolver::is_fixed_dof(int dof) const {
+  if (dof < 0 || dof >= impl_->n) {
+    throw std::invalid_argument("StaticSolver::is_fixed_dof: dof must be in [0, " + std::to_string(impl_->n) +
+                                "), got " + std::to_string(dof));
+  }
+  return impl_->free_of[dof] < 0;
+}
+
+void StaticSolver::solve(const Eigen::VectorXd& f, Eigen::VectorXd& u) const {
+  Impl& m = *impl_;
+  if (f.size() != m.n) {
+    throw std::invalid_argument("StaticSolver::solve: f must have " + std::to_string(m.n) + " entries, got " +
+                                std::to_string(f.size()));
+  }
+  // Gather the free DOFs, back-substitute with reused workspace, scatter (fixed DOFs are 0).
+  const int nf = m.n_free();
+  m.rhs.resize(nf);
+  for (int k = 0; k < nf; ++k) m.rhs[k] = f[m.dof_of[k]];
+  cholmod_dense B = Impl::wrap(m.rhs.data(), nf, 1);
+  if (!cholmod_solve2(CHOLMOD_A, m.L, &B, nullptr, &m.X, nullptr, &m.Y, &m.E, &m.common)) {
+    throw std::runtime_error("StaticSolver::solve: CHOLMOD solve failed (status " + std::to_string(m.common.status) +
+                             ")");
+  }
+  const double* x = static_cast<const double*>(m.X->x);
+  u.setZero(m.n);
+  for (int k = 0; k < nf; ++k) u[m.dof_of[k]] = x[k];
+}
+
+Eigen::MatrixXd StaticSolver::solve_many(const Eigen::MatrixXd& F) const {
+  Impl& m = *impl_;
+  if (F.rows() != m.n) {
+    throw std::invalid_argument("StaticSolver::solve_many: F must have " + std::to_string(m.n) + " rows, got " +
+                                std::to_string(F.rows()));
+  }
+  const int nf = m.n_free(), nc = static_cast<int>(F.cols());
+  Eigen::MatrixXd U = Eigen::MatrixXd::Zero(m.n, nc);
+  if (nc == 0) return U;
+  // Gather the free rows, one multi-column CHOLMOD solve, scatter.
+  Eigen::MatrixXd Bf(nf, nc);
+  for (int k = 0; k < nf; ++k) Bf.row(k) = F.row(m.dof_of[k]);
+  cholmod_dense B = Impl::wrap(Bf.data(), nf, nc);
+  cholmod_dense* X = cholmod_solve(CHOLMOD_A, m.L, &B, &m.common);
+  if (!X) {
+    throw std::runtime_error("StaticSolver::solve_many: CHOLMOD solve failed (status " +
+                             std::to_string(m.common.status) + ")");
+  }
+  const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Xf(static_cast<const double*>(X->x), nf, nc, Eigen::OuterStride<>(X->d));
+  for (int k = 0; k < nf; ++k) U.row(m.dof_of[k]) = Xf.row(k);
+  cholmod_free_dense(&X, &m.common);
+  return U;
+}
+
+}  // namespace lumen::physics

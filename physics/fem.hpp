@@ -1,0 +1,69 @@
+#pragma once
+// Linear elastic tetrahedral FEM: element stiffness, assembly, prefactorised static solve.
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include "physics/mesh.hpp"
+
+namespace lumen::physics {
+
+// Isotropic linear elastic material.
+struct LinearMaterial {
+  double young_modulus = 5000.0;  // pascals, > 0
+  double poisson_ratio = 0.45;    // in (-1, 0.5)
+};
+
+// 12 x 12 stiffness of a linear (4-node) tet with rest vertices X (4 x 3, metres), N/m.
+// DOF order: (x0, y0, z0, x1, ..., z3).
+Eigen::Matrix<double, 12, 12> tet_stiffness(const Eigen::Matrix<double, 4, 3>& X, const LinearMaterial& m);
+
+// Elastic energy of a linear tet for displacements u (4 x 3), joules (for finite-difference checks).
+double tet_energy(const Eigen::Matrix<double, 4, 3>& X, const Eigen::Matrix<double, 4, 3>& u, const LinearMaterial& m);
+
+// Throws std::invalid_argument unless E > 0 and finite and nu in (-1, 0.5).
+void validate_material(const LinearMaterial& m);
+
+// Global stiffness, 3n x 3n, symmetric, DOF 3*i+c for node i, coordinate c.
+Eigen::SparseMatrix<double> assemble_stiffness(const TetMesh& mesh, const LinearMaterial& m);
+
+// One fixed degree of freedom: displacement component `component` (0 = x, 1 = y, 2 = z) of node `node` is 0.
+struct FixedDof {
+  int node;
+  int component;
+};
+
+// K u = f with some nodes fixed (u = 0 there), factorised once with CHOLMOD (supernodal).
+// All vectors are full length 3n; entries of fixed DOFs in f are ignored and returned as 0 in u.
+// K is read once (its lower triangle on the free DOFs) and not kept. A solve reuses workspace inside the
+// solver, so one solver must not be used from two threads at once.
+class StaticSolver {
+ public:
+  // Fix whole nodes (all three components).
+  StaticSolver(const Eigen::SparseMatrix<double>& K, const std::vector<int>& fixed_nodes);
+  // Fix single components (e.g. u_z = 0 on an end face, symmetry planes).
+  StaticSolver(const Eigen::SparseMatrix<double>& K, const std::vector<FixedDof>& fixed_dofs);
+  ~StaticSolver();
+  StaticSolver(const StaticSolver&) = delete;
+  StaticSolver& operator=(const StaticSolver&) = delete;
+  StaticSolver(StaticSolver&&) noexcept;
+  StaticSolver& operator=(StaticSolver&&) noexcept;
+
+  int n_dofs() const;       // 3n
+  int n_free_dofs() const;  // 3n minus the fixed DOFs
+  // Non-zeros of the Cholesky factor L (a measure of the solve cost).
+  long factor_nonzeros() const;
+  // u = K^-1 f (full vectors, 3n).
+  void solve(const Eigen::VectorXd& f, Eigen::VectorXd& u) const;
+  // Many right-hand sides at once (3n x m).
+  Eigen::MatrixXd solve_many(const Eigen::MatrixXd& F) const;
+  bool is_fixed_dof(int dof) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace lumen::physics

@@ -1,0 +1,147 @@
+// Hollow-cylinder tetrahedral mesh generator and tet volume.
+#include "physics/mesh.hpp"
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+namespace lumen::physics {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Throws std::invalid_argument "HollowCylinderSpec.<field> <rule>, got <value>".
+template <typename T>
+[[noreturn]] void fail_spec(const char* field, const char* rule, T value) {
+  std::ostringstream msg;
+  msg.precision(17);
+  msg << "HollowCylinderSpec." << field << " " << rule << ", got " << value;
+  throw std::invalid_argument(msg.str());
+}
+
+void validate(const HollowCylinderSpec& s) {
+  // Radii and length: positive and finite, inner < outer.
+  if (!(s.inner_radius > 0.0) || !std::isfinite(s.inner_radius)) fail_spec("inner_radius", "must be > 0 and finite", s.inner_radius);
+  if (!(s.outer_radius > 0.0) || !std::isfinite(s.outer_radius)) fail_spec("outer_radius", "must be > 0 and finite", s.outer_radius);
+  if (!(s.inner_radius < s.outer_radius)) fail_spec("inner_radius", "must be < outer_radius", s.inner_radius);
+  if (!(s.length > 0.0) || !std::isfinite(s.length)) fail_spec("length", "must be > 0 and finite", s.length);
+  // Cell counts.
+  if (s.segments_around < 3) fail_spec("segments_around", "must be >= 3", s.segments_around);
+  if (s.segments_along < 1) fail_spec("segments_along", "must be >= 1", s.segments_along);
+  if (s.layers < 1) fail_spec("layers", "must be >= 1", s.layers);
+  // Bend: 0 (straight) or a radius larger than the tube, and an arc shorter than a full turn.
+  if (s.bend_radius != 0.0) {
+    if (!(s.bend_radius > s.outer_radius) || !std::isfinite(s.bend_radius))
+      fail_spec("bend_radius", "must be 0 (straight) or finite and > outer_radius", s.bend_radius);
+    if (!(s.length / s.bend_radius < 2.0 * kPi))
+      fail_spec("bend_radius", "must make the arc angle length / bend_radius < 2 pi", s.bend_radius);
+  }
+}
+
+}  // namespace
+
+TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec) {
+  validate(spec);
+  const int na = spec.segments_around;  // cells around (periodic)
+  const int nl = spec.segments_along;   // cells along
+  const int nr = spec.layers;           // cells through the wall
+  const int n_nodes = na * (nl + 1) * (nr + 1);
+  // Node id of grid point (i around, j along, k layer); i is taken modulo na.
+  auto node = [&](int i, int j, int k) { return (j * (nr + 1) + k) * na + (i % na); };
+
+  TetMesh mesh;
+  mesh.rest.resize(n_nodes, 3);
+
+  // Node positions: ring at arc length s, radius r, angle theta in the local frame (e1, e2) of the centreline.
+  // Straight: centreline is the z axis, e1 = x, e2 = y. Bent: centreline c(s) = (R - R cos phi, 0, R sin phi),
+  // phi = s / R (centre of curvature at (R, 0, 0)), e1 = (cos phi, 0, -sin phi), e2 = y, tangent (sin phi, 0, cos phi).
+  for (int j = 0; j <= nl; ++j) {
+    const double s = spec.length * j / nl;
+    Eigen::Vector3d c(0.0, 0.0, s), e1(1.0, 0.0, 0.0);
+    const Eigen::Vector3d e2(0.0, 1.0, 0.0);
+    if (spec.bend_radius > 0.0) {
+      const double R = spec.bend_radius, phi = s / R;
+      c = Eigen::Vector3d(R - R * std::cos(phi), 0.0, R * std::sin(phi));
+      e1 = Eigen::Vector3d(std::cos(phi), 0.0, -std::sin(phi));
+    }
+    for (int k = 0; k <= nr; ++k) {
+      const double r = spec.inner_radius + (spec.outer_radius - spec.inner_radius) * k / nr;
+      for (int i = 0; i < na; ++i) {
+        const double theta = 2.0 * kPi * i / na;
+        mesh.rest.row(node(i, j, k)) = (c + r * std::cos(theta) * e1 + r * std::sin(theta) * e2).transpose();
+      }
+    }
+  }
+
+  // Tets: Kuhn split of each hex cell along its (0,0,0)-(1,1,1) diagonal in local (around, along, layer) axes.
+  // Every cell uses the same split, so shared faces carry the same diagonal (conforming, also across the seam).
+  // The local axes (theta, z, r) form a right-handed frame, so a tet from an even axis permutation is positive;
+  // odd permutations swap their last two vertices.
+  static const int kPerm[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}};
+  mesh.tets.resize(6 * na * nl * nr, 4);
+  int t = 0;
+  for (int j = 0; j < nl; ++j)
+    for (int k = 0; k < nr; ++k)
+      for (int i = 0; i < na; ++i)
+        for (int p = 0; p < 6; ++p) {
+          int a[3] = {i, j, k};
+          int v[4];
+          v[0] = node(a[0], a[1], a[2]);
+          for (int q = 0; q < 3; ++q) {
+            ++a[kPerm[p][q]];
+            v[q + 1] = node(a[0], a[1], a[2]);
+          }
+          if (p >= 3) std::swap(v[2], v[3]);
+          mesh.tets.row(t++) << v[0], v[1], v[2], v[3];
+        }
+
+  // Inner (k = 0) and outer (k = nr) walls: each quad split on its (i, j)-(i+1, j+1) diagonal like the tets.
+  // (p00, p10, p11) has normal along +r, so the inner wall reverses it to point into the lumen.
+  mesh.inner.resize(2 * na * nl, 3);
+  mesh.outer.resize(2 * na * nl, 3);
+  int f = 0;
+  for (int j = 0; j < nl; ++j)
+    for (int i = 0; i < na; ++i) {
+      mesh.inner.row(f) << node(i, j, 0), node(i + 1, j + 1, 0), node(i + 1, j, 0);
+      mesh.inner.row(f + 1) << node(i, j, 0), node(i, j + 1, 0), node(i + 1, j + 1, 0);
+      mesh.outer.row(f) << node(i, j, nr), node(i + 1, j, nr), node(i + 1, j + 1, nr);
+      mesh.outer.row(f + 1) << node(i, j, nr), node(i + 1, j + 1, nr), node(i, j + 1, nr);
+      f += 2;
+    }
+
+  // End caps: quads in (i, k) split on the (i, k)-(i+1, k+1) diagonal. (p00, p10, p11) has normal along -z,
+  // which is outward at the start end; the stop end reverses it.
+  mesh.ends.resize(4 * na * nr, 3);
+  f = 0;
+  for (int k = 0; k < nr; ++k)
+    for (int i = 0; i < na; ++i) {
+      mesh.ends.row(f++) << node(i, 0, k), node(i + 1, 0, k), node(i + 1, 0, k + 1);
+      mesh.ends.row(f++) << node(i, 0, k), node(i + 1, 0, k + 1), node(i, 0, k + 1);
+      mesh.ends.row(f++) << node(i, nl, k), node(i + 1, nl, k + 1), node(i + 1, nl, k);
+      mesh.ends.row(f++) << node(i, nl, k), node(i, nl, k + 1), node(i + 1, nl, k + 1);
+    }
+
+  // End node lists: every node of the first and last ring of cells.
+  for (int k = 0; k <= nr; ++k)
+    for (int i = 0; i < na; ++i) {
+      mesh.end_nodes_start.push_back(node(i, 0, k));
+      mesh.end_nodes_stop.push_back(node(i, nl, k));
+    }
+  return mesh;
+}
+
+double tet_volume(const Points& x, const Tets& tets, int t) {
+  if (t < 0 || t >= tets.rows()) {
+    throw std::invalid_argument("tet_volume: t must be in [0, " + std::to_string(tets.rows()) + "), got " +
+                                std::to_string(t));
+  }
+  const Eigen::Vector3d x0 = x.row(tets(t, 0)).transpose();
+  const Eigen::Vector3d e1 = x.row(tets(t, 1)).transpose() - x0;
+  const Eigen::Vector3d e2 = x.row(tets(t, 2)).transpose() - x0;
+  const Eigen::Vector3d e3 = x.row(tets(t, 3)).transpose() - x0;
+  return e1.dot(e2.cross(e3)) / 6.0;
+}
+
+}  // namespace lumen::physics

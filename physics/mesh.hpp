@@ -1,0 +1,41 @@
+#pragma once
+// Tetrahedral mesh with tagged surfaces, and the hollow-cylinder generator.
+#include <vector>
+
+#include "physics/types.hpp"
+
+namespace lumen::physics {
+
+// A tetrahedral volume mesh with its boundary surfaces as index maps onto its vertices.
+struct TetMesh {
+  Points rest;               // rest positions, n_nodes x 3, metres
+  Tets tets;                 // elements, n_tets x 4, positive volume
+  Tris inner;                // inner (lumen) wall, n_inner x 3, normals point into the lumen (toward the axis)
+  Tris outer;                // outer wall, n_outer x 3, normals point away from the axis
+  Tris ends;                 // end caps, n_end x 3, normals point out of the volume
+  std::vector<int> end_nodes_start;  // node ids on the end z = 0 (or centreline start)
+  std::vector<int> end_nodes_stop;   // node ids on the end z = length (or centreline end)
+  int n_nodes() const { return static_cast<int>(rest.rows()); }
+};
+
+// Parameters of a hollow cylinder along +z from z = 0 to z = length, axis through the origin.
+struct HollowCylinderSpec {
+  double inner_radius = 0.01;   // metres
+  double outer_radius = 0.013;  // metres
+  double length = 0.1;          // metres
+  int segments_around = 20;     // cells around the circumference
+  int segments_along = 26;      // cells along the axis
+  int layers = 3;               // cells through the wall
+  // Optional bend: the centreline is an arc of this radius in the x-z plane (0 = straight), metres.
+  double bend_radius = 0.0;
+};
+
+// Structured hex grid (around x along x layers), 6 tets per hex (consistent diagonals, conforming).
+// Nodes: around * (along + 1) * (layers + 1); tets: 6 * around * along * layers;
+// inner triangles: 2 * around * along.
+TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec);
+
+// Signed volume of tet t at the given positions (positive when not inverted), cubic metres.
+double tet_volume(const Points& x, const Tets& tets, int t);
+
+}  // namespace lumen::physics

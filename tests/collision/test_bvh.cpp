@@ -1,0 +1,572 @@
+// k-DOPs, the swept BVH and SelfCollision against brute-force twins (all pairs, direct enumeration).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <random>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "collision/kdop.hpp"
+#include "collision/self_collision.hpp"
+
+namespace lumen::collision {
+namespace {
+
+using Points = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+using Tris = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Open tube of nz x nth quads (2 triangles each) along z: radius r, length len (metres).
+void make_tube(int nz, int nth, double r, double len, Points& x, Tris& tris) {
+  x.resize((nz + 1) * nth, 3);
+  for (int k = 0; k <= nz; ++k) {
+    for (int j = 0; j < nth; ++j) {
+      const double th = 2.0 * kPi * j / nth;
+      x.row(k * nth + j) << r * std::cos(th), r * std::sin(th), len * k / nz;
+    }
+  }
+  tris.resize(2 * nz * nth, 3);
+  for (int k = 0; k < nz; ++k) {
+    for (int j = 0; j < nth; ++j) {
+      const int v00 = k * nth + j, v01 = k * nth + (j + 1) % nth;
+      const int v10 = (k + 1) * nth + j, v11 = (k + 1) * nth + (j + 1) % nth;
+      tris.row(2 * (k * nth + j)) << v00, v01, v11;
+      tris.row(2 * (k * nth + j) + 1) << v00, v11, v10;
+    }
+  }
+}
+
+// Random smooth deformation plus noise, with a pinch of amplitude `pinch` (1 = walls meet) around mid-length.
+Points deform(const Points& rest, double r, double len, double pinch, double noise, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  const double zc = len * (0.5 + 0.2 * u(rng)), w = len * (0.15 + 0.05 * u(rng));
+  const double ax = 0.1 * r * u(rng), ay = 0.1 * r * u(rng), fx = 2.0 + u(rng), fy = 2.0 + u(rng);
+  const double px = kPi * u(rng), py = kPi * u(rng);
+  Points x = rest;
+  for (int i = 0; i < x.rows(); ++i) {
+    const double z = rest(i, 2);
+    const double g = std::exp(-((z - zc) / w) * ((z - zc) / w));
+    x(i, 1) *= 1.0 - pinch * g;
+    x(i, 0) += ax * std::sin(fx * kPi * z / len + px) + noise * u(rng);
+    x(i, 1) += ay * std::sin(fy * kPi * z / len + py) + noise * u(rng);
+    x(i, 2) += noise * u(rng);
+  }
+  return x;
+}
+
+// Brute-force projection of p on the paper's axis `id` (generic dot product).
+double project(const double* p, int id) {
+  return p[0] * kKdopAxes[id][0] + p[1] * kKdopAxes[id][1] + p[2] * kKdopAxes[id][2];
+}
+
+// Contacts as a set of (kind, vertex ids).
+using ContactKey = std::tuple<int, int, int, int, int>;
+std::set<ContactKey> contact_set(const std::vector<Contact>& cs) {
+  std::set<ContactKey> s;
+  for (const Contact& c : cs) s.emplace(static_cast<int>(c.kind), c.v[0], c.v[1], c.v[2], c.v[3]);
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------------
+// k-DOP type.
+
+TEST(Kdop, ValidateAcceptsOnlyThePapersK) {
+  for (int k : {6, 14, 18, 26}) EXPECT_EQ(validate_kdop(k), k);
+  for (int k : {0, 8, 12, 27, -6}) {
+    try {
+      validate_kdop(k);
+      ADD_FAILURE() << "k = " << k << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("kdop"), std::string::npos);
+      EXPECT_NE(std::string(e.what()).find(std::to_string(k)), std::string::npos);
+    }
+  }
+}
+
+TEST(Kdop, AxesAreThePapersInOrderAndSubsetsNest) {
+  // The 13 axes of the paper, in its order.
+  const int expected[13][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 1},  {1, 1, -1}, {1, -1, 1}, {1, -1, -1},
+                               {1, 1, 0}, {1, 0, 1}, {0, 1, 1}, {1, -1, 0}, {1, 0, -1}, {0, 1, -1}};
+  for (int i = 0; i < 13; ++i) {
+    for (int d = 0; d < 3; ++d) EXPECT_EQ(kKdopAxes[i][d], expected[i][d]);
+  }
+  // k = 14: the 3 axes and the 4 diagonals; k = 18: the 3 axes and the 6 edge axes.
+  EXPECT_EQ(std::vector<int>(std::begin(KdopAxisIds<6>::ids), std::end(KdopAxisIds<6>::ids)), (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(std::vector<int>(std::begin(KdopAxisIds<14>::ids), std::end(KdopAxisIds<14>::ids)),
+            (std::vector<int>{0, 1, 2, 3, 4, 5, 6}));
+  EXPECT_EQ(std::vector<int>(std::begin(KdopAxisIds<18>::ids), std::end(KdopAxisIds<18>::ids)),
+            (std::vector<int>{0, 1, 2, 7, 8, 9, 10, 11, 12}));
+  EXPECT_EQ(Kdop<26>::kAxes, 13);
+}
+
+// Bounds contain every point and are attained (tight), overlap equals the per-axis definition, and points
+// within 2 * margin of each other make the inflated k-DOPs overlap.
+template <int K>
+void check_kdop_against_brute(std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int overlaps = 0, separated = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    // Two clouds of 1..6 points (swept triangles have 6), random centres.
+    std::vector<std::array<double, 3>> pa(1 + trial % 6), pb(1 + (trial / 6) % 6);
+    const double ca[3] = {u(rng), u(rng), u(rng)}, cb[3] = {u(rng), u(rng), u(rng)};
+    for (auto& p : pa) p = {ca[0] + 0.4 * u(rng), ca[1] + 0.4 * u(rng), ca[2] + 0.4 * u(rng)};
+    for (auto& p : pb) p = {cb[0] + 0.4 * u(rng), cb[1] + 0.4 * u(rng), cb[2] + 0.4 * u(rng)};
+    Kdop<K> a, b;
+    a.clear();
+    b.clear();
+    for (const auto& p : pa) a.add_point(p.data());
+    for (const auto& p : pb) b.add_point(p.data());
+    // Tight containment per axis.
+    bool brute_overlap = true;
+    for (int ax = 0; ax < Kdop<K>::kAxes; ++ax) {
+      const int id = KdopAxisIds<K>::ids[ax];
+      double lo_a = 1e300, hi_a = -1e300, lo_b = 1e300, hi_b = -1e300;
+      for (const auto& p : pa) lo_a = std::min(lo_a, project(p.data(), id)), hi_a = std::max(hi_a, project(p.data(), id));
+      for (const auto& p : pb) lo_b = std::min(lo_b, project(p.data(), id)), hi_b = std::max(hi_b, project(p.data(), id));
+      ASSERT_EQ(a.lo[ax], lo_a);
+      ASSERT_EQ(a.hi[ax], hi_a);
+      if (lo_a > hi_b || lo_b > hi_a) brute_overlap = false;
+    }
+    for (const auto& p : pa) ASSERT_TRUE(a.contains(p.data()));
+    ASSERT_EQ(a.overlaps(b), brute_overlap);
+    ASSERT_EQ(b.overlaps(a), brute_overlap);
+    (brute_overlap ? overlaps : separated)++;
+    // Inflation: any two points within 2 * margin force an overlap.
+    double dmin = 1e300;
+    for (const auto& p : pa) {
+      for (const auto& q : pb) {
+        dmin = std::min(dmin, std::sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
+                                        (p[2] - q[2]) * (p[2] - q[2])));
+      }
+    }
+    const double margin = 0.5 * dmin * (0.999 + 0.5 * (u(rng) + 1.0));  // around dmin / 2, both sides
+    Kdop<K> ia = a, ib = b;
+    ia.inflate(margin);
+    ib.inflate(margin);
+    if (2.0 * margin >= dmin) ASSERT_TRUE(ia.overlaps(ib));
+  }
+  // Both outcomes were exercised.
+  EXPECT_GT(overlaps, 100);
+  EXPECT_GT(separated, 100);
+}
+
+TEST(Kdop, BoundsAndOverlapMatchBruteDefinitions) {
+  std::mt19937 rng(7);
+  check_kdop_against_brute<6>(rng);
+  check_kdop_against_brute<14>(rng);
+  check_kdop_against_brute<18>(rng);
+  check_kdop_against_brute<26>(rng);
+}
+
+TEST(Kdop, InflationCoversRoundingAtExactTouching) {
+  // Two points separated along each of the 13 axes, each k-DOP inflated by half their distance: the
+  // inflated k-DOPs touch exactly on that axis, so rounding of the projections must not separate them.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int trial = 0; trial < 3000; ++trial) {
+    const int id = trial % 13;
+    const double p[3] = {100.0 * u(rng), 100.0 * u(rng), 100.0 * u(rng)};
+    const double s = std::ldexp(u(rng), -(trial % 40));
+    const double q[3] = {p[0] + s * kKdopAxes[id][0], p[1] + s * kKdopAxes[id][1], p[2] + s * kKdopAxes[id][2]};
+    const double dist = std::sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
+                                  (p[2] - q[2]) * (p[2] - q[2]));
+    Kdop<26> a, b;
+    a.clear();
+    b.clear();
+    a.add_point(p);
+    b.add_point(q);
+    a.inflate(0.5 * dist);
+    b.inflate(0.5 * dist);
+    ASSERT_TRUE(a.overlaps(b)) << "axis " << id << " trial " << trial;
+  }
+}
+
+// Number of overlapping pairs among k-DOPs of the given segments.
+template <int K>
+int count_overlapping_pairs(const std::vector<std::array<double, 6>>& segs) {
+  std::vector<Kdop<K>> boxes(segs.size());
+  for (std::size_t i = 0; i < segs.size(); ++i) {
+    boxes[i].clear();
+    boxes[i].add_point(&segs[i][0]);
+    boxes[i].add_point(&segs[i][3]);
+  }
+  int n = 0;
+  for (std::size_t i = 0; i < segs.size(); ++i) {
+    for (std::size_t j = i + 1; j < segs.size(); ++j) n += boxes[i].overlaps(boxes[j]);
+  }
+  return n;
+}
+
+TEST(Kdop, DiagonalConfigurationFewerOverlapsWithMoreAxes) {
+  // Parallel segments along the (1, 1, 1) diagonal, offset sideways on a grid: AABBs overlap heavily,
+  // the diagonal-aligned axes of larger k separate them.
+  std::vector<std::array<double, 6>> segs;
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 6; ++j) {
+      const double o[3] = {0.3 * i, 0.3 * j, -0.3 * (i + j) / 2.0};
+      segs.push_back({o[0], o[1], o[2], o[0] + 1.0, o[1] + 1.0, o[2] + 1.0});
+    }
+  }
+  const int c6 = count_overlapping_pairs<6>(segs), c14 = count_overlapping_pairs<14>(segs);
+  const int c18 = count_overlapping_pairs<18>(segs), c26 = count_overlapping_pairs<26>(segs);
+  // Nested axis sets: never more overlaps with more axes; strictly fewer on this configuration.
+  EXPECT_GE(c6, c14);
+  EXPECT_GE(c6, c18);
+  EXPECT_GE(c14, c26);
+  EXPECT_GE(c18, c26);
+  EXPECT_GT(c6, c26);
+  EXPECT_GT(c26, 0);
+}
+
+// ---------------------------------------------------------------------------------------------------
+// BVH self-traversal.
+
+template <int K>
+void check_bvh_pairs(std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int n : {1, 2, 3, 17, 200}) {
+    // Random small boxes: one point cloud of 3 points per primitive.
+    std::vector<double> pts(static_cast<std::size_t>(9 * n)), centres(static_cast<std::size_t>(3 * n));
+    for (int i = 0; i < n; ++i) {
+      const double c[3] = {u(rng), u(rng), u(rng)};
+      for (int k = 0; k < 3; ++k) {
+        for (int d = 0; d < 3; ++d) pts[static_cast<std::size_t>(9 * i + 3 * k + d)] = c[d] + 0.1 * u(rng);
+      }
+      for (int d = 0; d < 3; ++d) centres[static_cast<std::size_t>(3 * i + d)] = c[d];
+    }
+    KdopBvh<K> bvh;
+    bvh.build(centres.data(), n);
+    ASSERT_EQ(bvh.num_nodes(), 2 * n - 1);
+    std::vector<Kdop<K>> boxes(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) {
+      boxes[static_cast<std::size_t>(i)].clear();
+      for (int k = 0; k < 3; ++k) boxes[static_cast<std::size_t>(i)].add_point(&pts[static_cast<std::size_t>(9 * i + 3 * k)]);
+      bvh.leaf_box(i) = boxes[static_cast<std::size_t>(i)];
+    }
+    bvh.refit();
+    // Root bounds every leaf.
+    for (int i = 0; i < n; ++i) {
+      for (int k = 0; k < 3; ++k) ASSERT_TRUE(bvh.node_box(0).contains(&pts[static_cast<std::size_t>(9 * i + 3 * k)]));
+    }
+    std::vector<std::pair<int, int>> got;
+    bvh.self_pairs([&](int a, int b) { got.emplace_back(std::min(a, b), std::max(a, b)); });
+    std::vector<std::pair<int, int>> want;
+    for (int a = 0; a < n; ++a) {
+      for (int b = a + 1; b < n; ++b) {
+        if (boxes[static_cast<std::size_t>(a)].overlaps(boxes[static_cast<std::size_t>(b)])) want.emplace_back(a, b);
+      }
+    }
+    std::sort(got.begin(), got.end());
+    // Same pairs, each reported once.
+    EXPECT_EQ(got, want) << "n = " << n << " k = " << K;
+  }
+}
+
+TEST(KdopBvh, SelfTraversalReportsEachOverlappingPairOnce) {
+  std::mt19937 rng(11);
+  check_bvh_pairs<6>(rng);
+  check_bvh_pairs<14>(rng);
+  check_bvh_pairs<18>(rng);
+  check_bvh_pairs<26>(rng);
+}
+
+// ---------------------------------------------------------------------------------------------------
+// SelfCollision.
+
+TEST(SelfCollision, ValidatesInputsNamingFieldAndValue) {
+  Points x;
+  Tris tris;
+  make_tube(2, 6, 0.01, 0.02, x, tris);
+  const int n = static_cast<int>(x.rows());
+  const auto message = [](auto&& f) {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no throw");
+  };
+  EXPECT_NE(message([&] { SelfCollision(tris, n, 8); }).find("kdop must be 6, 14, 18 or 26, got 8"), std::string::npos);
+  Tris bad = tris;
+  bad(1, 2) = n;
+  EXPECT_NE(message([&] { SelfCollision(bad, n, 26); }).find("tris(1, 2)"), std::string::npos);
+  EXPECT_NE(message([&] { SelfCollision(bad, n, 26); }).find(std::to_string(n)), std::string::npos);
+  bad = tris;
+  bad(0, 1) = -3;
+  EXPECT_NE(message([&] { SelfCollision(bad, n, 26); }).find("-3"), std::string::npos);
+  bad = tris;
+  bad(2, 1) = bad(2, 0);
+  EXPECT_NE(message([&] { SelfCollision(bad, n, 26); }).find("tris row 2"), std::string::npos);
+
+  SelfCollision sc(tris, n, 14);
+  std::vector<Contact> out;
+  Points short_x = x.topRows(n - 1);
+  EXPECT_NE(message([&] { sc.detect(short_x, x, 0.0, out); }).find("x0 has " + std::to_string(n - 1) + " rows"),
+            std::string::npos);
+  Points nan_x = x;
+  nan_x(3, 1) = std::nan("");
+  EXPECT_NE(message([&] { sc.detect(x, nan_x, 0.0, out); }).find("x1(3, 1)"), std::string::npos);
+  EXPECT_NE(message([&] { sc.detect(x, x, -1e-3, out); }).find("gap"), std::string::npos);
+  EXPECT_NE(message([&] { sc.detect_brute_force(x, x, -1e-3, out); }).find("-0.001"), std::string::npos);
+}
+
+TEST(SelfCollision, StaticTubeHasNoContactsButTestsNeighbours) {
+  Points x;
+  Tris tris;
+  make_tube(6, 10, 0.01, 0.03, x, tris);
+  SelfCollision sc(tris, static_cast<int>(x.rows()), 26);
+  EXPECT_EQ(sc.num_triangles(), 120);
+  EXPECT_EQ(sc.num_edges(), 6 * 10 * 3 + 10);  // per quad: ring edge, axial edge, diagonal; plus the last ring
+  std::vector<Contact> out{Contact{}};
+  CollisionStats st;
+  sc.detect(x, x, 1e-5, out, &st);
+  EXPECT_TRUE(out.empty());
+  EXPECT_EQ(st.contacts, 0);
+  // Neighbouring triangles always overlap, so their non-shared features are still tested.
+  EXPECT_GT(st.bv_overlaps, 0);
+  EXPECT_GT(st.feature_tests, 0);
+}
+
+// BVH contacts and statistics equal the all-pairs ones on random deformed tubes.
+void check_bvh_equals_brute(int k, unsigned seed, bool build_over_rest) {
+  const double r = 0.01, len = 0.05;
+  Points rest;
+  Tris tris;
+  make_tube(12, 16, r, len, rest, tris);
+  std::mt19937 rng(seed);
+  const Points x0 = deform(rest, r, len, 0.3, 1e-4, rng);
+  const Points x1 = deform(rest, r, len, 1.1 + 0.4 * (seed % 3) / 2.0, 2e-4, rng);  // walls pushed through
+  const double gap = 1e-4;
+  SelfCollision sc = build_over_rest ? SelfCollision(tris, rest, k) : SelfCollision(tris, static_cast<int>(rest.rows()), k);
+  std::vector<Contact> bvh, brute;
+  CollisionStats sb, sf;
+  sc.detect(x0, x1, gap, bvh, &sb);
+  const std::vector<FeaturePair> tested_bvh = sc.tested_features();
+  sc.detect_brute_force(x0, x1, gap, brute, &sf);
+  EXPECT_EQ(contact_set(bvh), contact_set(brute)) << "k = " << k << " seed = " << seed;
+  EXPECT_EQ(sb.bv_overlaps, sf.bv_overlaps);
+  EXPECT_EQ(sb.feature_tests, sf.feature_tests);
+  EXPECT_EQ(sb.contacts, sf.contacts);
+  EXPECT_EQ(sb.contacts, static_cast<long>(bvh.size()));
+  EXPECT_EQ(tested_bvh.size(), sc.tested_features().size());
+  // Same order and same times (each feature pair run once, deterministically).
+  ASSERT_EQ(bvh.size(), brute.size());
+  for (std::size_t i = 0; i < bvh.size(); ++i) EXPECT_EQ(bvh[i].toi, brute[i].toi);
+  // The walls were pushed through each other: there are contacts of both kinds.
+  const auto s = contact_set(bvh);
+  EXPECT_TRUE(std::any_of(s.begin(), s.end(), [](const ContactKey& c) { return std::get<0>(c) == 0; }));
+  EXPECT_TRUE(std::any_of(s.begin(), s.end(), [](const ContactKey& c) { return std::get<0>(c) == 1; }));
+}
+
+TEST(SelfCollision, BvhContactsEqualBruteForceOnDeformedTubes) {
+  for (int k : {6, 14, 18, 26}) {
+    for (unsigned seed : {1u, 2u, 3u}) check_bvh_equals_brute(k, seed, seed == 2u);
+  }
+}
+
+TEST(SelfCollision, RefitOverManyFramesMatchesBruteForce) {
+  // Topology built over the rest shape, then refitted over a sequence of ever larger deformations.
+  const double r = 0.01, len = 0.05;
+  Points rest;
+  Tris tris;
+  make_tube(10, 12, r, len, rest, tris);
+  SelfCollision sc(tris, rest, 18);
+  std::mt19937 rng(5);
+  Points x0 = rest;
+  long total = 0;
+  for (int frame = 0; frame < 4; ++frame) {
+    const Points x1 = deform(rest, r, len, 0.45 * (frame + 1), 1e-4, rng);
+    std::vector<Contact> a, b;
+    sc.detect(x0, x1, 5e-5, a);
+    sc.detect_brute_force(x0, x1, 5e-5, b);
+    EXPECT_EQ(contact_set(a), contact_set(b)) << "frame " << frame;
+    total += static_cast<long>(a.size());
+    x0 = x1;
+  }
+  EXPECT_GT(total, 0);
+}
+
+// Each candidate feature pair is run exactly once; the set equals a direct enumeration of the feature
+// pairs (not sharing a vertex) of which some pair of containing triangles has overlapping swept k-DOPs.
+template <int K>
+void check_features_tested_once(unsigned seed) {
+  const double r = 0.01, len = 0.04;
+  Points rest;
+  Tris tris;
+  make_tube(8, 10, r, len, rest, tris);
+  std::mt19937 rng(seed);
+  const Points x0 = deform(rest, r, len, 0.2, 1e-4, rng);
+  const Points x1 = deform(rest, r, len, 1.2, 1e-4, rng);
+  const double gap = 2e-4;
+  const int nt = static_cast<int>(tris.rows()), np = static_cast<int>(rest.rows());
+  SelfCollision sc(tris, np, K);
+  std::vector<Contact> out;
+  CollisionStats st;
+  sc.detect(x0, x1, gap, out, &st);
+  const std::vector<FeaturePair>& tested = sc.tested_features();
+
+  // Swept k-DOPs of the triangles, computed here.
+  std::vector<Kdop<K>> box(static_cast<std::size_t>(nt));
+  for (int t = 0; t < nt; ++t) {
+    box[static_cast<std::size_t>(t)].clear();
+    for (int j = 0; j < 3; ++j) {
+      const Eigen::RowVector3d p0 = x0.row(tris(t, j)), p1 = x1.row(tris(t, j));
+      box[static_cast<std::size_t>(t)].add_point(p0.data());
+      box[static_cast<std::size_t>(t)].add_point(p1.data());
+    }
+    box[static_cast<std::size_t>(t)].inflate(gap);
+  }
+  const auto overlap = [&](int a, int b) { return a != b && box[static_cast<std::size_t>(a)].overlaps(box[static_cast<std::size_t>(b)]); };
+  const auto in_tri = [&](int t, int v) { return tris(t, 0) == v || tris(t, 1) == v || tris(t, 2) == v; };
+
+  // Vertex-face pairs: vertex v not in face f, some triangle containing v overlaps f.
+  std::vector<std::vector<int>> vertex_tris(static_cast<std::size_t>(np));
+  for (int t = 0; t < nt; ++t) {
+    for (int j = 0; j < 3; ++j) vertex_tris[static_cast<std::size_t>(tris(t, j))].push_back(t);
+  }
+  std::set<std::array<int, 5>> want;
+  for (int v = 0; v < np; ++v) {
+    for (int f = 0; f < nt; ++f) {
+      if (in_tri(f, v)) continue;
+      bool cand = false;
+      for (int t : vertex_tris[static_cast<std::size_t>(v)]) cand = cand || overlap(t, f);
+      if (cand) want.insert({0, v, tris(f, 0), tris(f, 1), tris(f, 2)});
+    }
+  }
+  // Edge-edge pairs: unique edges (sorted ids), no shared vertex, some containing triangles overlap.
+  std::set<std::pair<int, int>> edge_set;
+  for (int t = 0; t < nt; ++t) {
+    for (int j = 0; j < 3; ++j) {
+      const int a = tris(t, j), b = tris(t, (j + 1) % 3);
+      edge_set.emplace(std::min(a, b), std::max(a, b));
+    }
+  }
+  const std::vector<std::pair<int, int>> edges(edge_set.begin(), edge_set.end());
+  std::vector<std::vector<int>> edge_tris(edges.size());
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    for (int t = 0; t < nt; ++t) {
+      if (in_tri(t, edges[e].first) && in_tri(t, edges[e].second)) edge_tris[e].push_back(t);
+    }
+  }
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    for (std::size_t g = e + 1; g < edges.size(); ++g) {
+      const auto [a, b] = edges[e];
+      const auto [c, d] = edges[g];
+      if (a == c || a == d || b == c || b == d) continue;
+      bool cand = false;
+      for (int ta : edge_tris[e]) {
+        for (int tb : edge_tris[g]) cand = cand || overlap(ta, tb);
+      }
+      if (cand) want.insert({1, a, b, c, d});
+    }
+  }
+
+  // Tested once each, and exactly the enumerated set.
+  std::set<std::array<int, 5>> got;
+  for (const FeaturePair& fp : tested) {
+    const bool inserted = got.insert({static_cast<int>(fp.kind), fp.v[0], fp.v[1], fp.v[2], fp.v[3]}).second;
+    EXPECT_TRUE(inserted) << "feature pair tested twice";
+  }
+  EXPECT_EQ(got, want) << "k = " << K;
+  EXPECT_EQ(st.feature_tests, static_cast<long>(want.size()));
+  // Deduplication matters: the triangle pairs alone would have run more elementary tests.
+  EXPECT_LT(st.feature_tests, 15 * st.bv_overlaps);
+  EXPECT_GT(st.contacts, 0);
+}
+
+TEST(SelfCollision, EachFeaturePairTestedOnce) {
+  for (unsigned seed : {4u, 9u}) {
+    check_features_tested_once<6>(seed);
+    check_features_tested_once<14>(seed);
+    check_features_tested_once<18>(seed);
+    check_features_tested_once<26>(seed);
+  }
+}
+
+TEST(SelfCollision, SharedVertexNeighboursStillReportVertexFaceContact) {
+  // Triangles (0 1 2) and (0 3 4) share vertex 0; vertex 3 moves through the interior of (0 1 2).
+  Points x0(5, 3), x1(5, 3);
+  x0 << 0, 0, 0,  //
+      1, 0, 0,    //
+      0, 1, 0,    //
+      0.3, 0.3, 0.5,  //
+      -1, -1, 0.5;
+  x1 = x0;
+  x1(3, 2) = -0.5;
+  Tris tris(2, 3);
+  tris << 0, 1, 2,  //
+      0, 3, 4;
+  for (int k : {6, 14, 18, 26}) {
+    SelfCollision sc(tris, 5, k);
+    std::vector<Contact> out;
+    CollisionStats st;
+    sc.detect(x0, x1, 0.0, out, &st);
+    EXPECT_EQ(st.bv_overlaps, 1);
+    // Vertices 3, 4 against face (0 1 2) and 1, 2 against (0 3 4); edge pairs sharing no vertex:
+    // (0 1) x (3 4), (1 2) x (0 3), (1 2) x (3 4), (1 2) x (0 4), (0 2) x (3 4).
+    EXPECT_EQ(st.feature_tests, 9);
+    const auto s = contact_set(out);
+    EXPECT_EQ(s.count(ContactKey{0, 3, 0, 1, 2}), 1u) << "k = " << k;
+    for (const FeaturePair& fp : sc.tested_features()) {
+      if (fp.kind == FeatureKind::VertexFace) {
+        EXPECT_NE(fp.v[0], 0);  // the shared vertex is never tested against a face containing it
+      } else {
+        EXPECT_TRUE(fp.v[0] != fp.v[2] && fp.v[0] != fp.v[3] && fp.v[1] != fp.v[2] && fp.v[1] != fp.v[3]);
+      }
+    }
+    for (const Contact& c : out) {
+      if (c.kind == FeatureKind::VertexFace && c.v[0] == 3) {
+        EXPECT_GE(c.toi, 0.0);
+        EXPECT_LE(c.toi, 0.5 + 1e-9);  // crosses z = 0 at t = 0.5 (conservative: never later)
+      }
+    }
+  }
+}
+
+TEST(SelfCollision, EdgeNeighboursTestOppositeVertexAndFarEdges) {
+  // Triangles (0 1 2) and (0 1 3) share edge (0 1): the features left are 2 vs (0 1 3), 3 vs (0 1 2) and
+  // edge (1 2) x (0 3), (0 2) x (1 3). Vertex 3 folds through triangle (0 1 2).
+  Points x0(4, 3), x1(4, 3);
+  x0 << 0, 0, 0,  //
+      1, 0, 0,    //
+      0.3, 1, 0,  //
+      0.3, 0.3, 1;
+  x1 = x0;
+  x1.row(3) << 0.3, 0.3, -1;
+  Tris tris(2, 3);
+  tris << 0, 1, 2,  //
+      0, 1, 3;
+  SelfCollision sc(tris, 4, 26);
+  std::vector<Contact> out;
+  CollisionStats st;
+  sc.detect(x0, x1, 0.0, out, &st);
+  EXPECT_EQ(st.feature_tests, 4);
+  EXPECT_EQ(contact_set(out).count(ContactKey{0, 3, 0, 1, 2}), 1u);
+}
+
+TEST(SelfCollision, EmptyAndSingleTriangle) {
+  Points x(3, 3);
+  x << 0, 0, 0, 1, 0, 0, 0, 1, 0;
+  Tris none(0, 3), one(1, 3);
+  one << 0, 1, 2;
+  std::vector<Contact> out;
+  CollisionStats st;
+  SelfCollision a(none, 3, 6);
+  a.detect(x, x, 0.1, out, &st);
+  EXPECT_TRUE(out.empty());
+  EXPECT_EQ(st.feature_tests, 0);
+  SelfCollision b(one, 3, 6);
+  b.detect(x, x, 0.1, out, &st);
+  EXPECT_TRUE(out.empty());
+  EXPECT_EQ(st.bv_overlaps, 0);
+}
+
+}  // namespace
+}  // namespace lumen::collision

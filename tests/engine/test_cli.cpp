@@ -1,0 +1,157 @@
+// The lumen program end to end: bad input exits 2 with a message naming file, key and value, and leaves the
+// output folder empty; a short run writes frames, video and a report whose numbers agree with each other.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "render/writers.hpp"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Run {
+  int code = -1;
+  std::string output;  // stdout + stderr
+};
+
+Run run_lumen(const std::string& args) {
+  Run r;
+  const std::string cmd = std::string(LUMEN_BINARY) + " " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.output.append(buf, n);
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+fs::path temp_dir(const std::string& name) {
+  fs::path d = fs::temp_directory_path() / ("lumen_cli_" + name);
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+std::string small_scene(const std::string& name, const std::string& extra_render = "") {
+  return R"({"name": ")" + name + R"(",
+    "mesh": {"type": "hollow_cylinder", "inner_radius": 0.01, "outer_radius": 0.013, "length": 0.1,
+             "segments_around": 12, "segments_along": 10, "layers": 2},
+    "material": {"model": "linear", "young_modulus": 5000.0, "poisson_ratio": 0.45},
+    "fixed": ["ends"],
+    "probes": [{"point": [0.0, 0.013, 0.05], "track": [{"t": 0.0, "force": [0, 0, 0]}, {"t": 0.2, "force": [0, -0.3, 0]}]}],
+    "frames": 6, "fps": 40,
+    "render": {"width": 160, "height": 120, "camera": "side", "video": true)" + extra_render + R"(}})";
+}
+
+bool is_empty_dir(const fs::path& d) { return !fs::exists(d) || fs::is_empty(d); }
+
+}  // namespace
+
+TEST(Cli, BadSceneExitsTwoNamingFileKeyValueAndWritesNothing) {
+  const fs::path d = temp_dir("bad");
+  std::string text = small_scene("bad");
+  text.replace(text.find("0.45"), 4, "0.7");
+  std::ofstream(d / "bad.json") << text;
+  const fs::path out = d / "out";
+  Run r = run_lumen("run " + (d / "bad.json").string() + " --out " + out.string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find((d / "bad.json").string() + ": material.poisson_ratio: out of range (-1, 0.5) (value 0.7)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_TRUE(is_empty_dir(out));
+}
+
+TEST(Cli, MissingSceneAndUnwritableOutput) {
+  Run r = run_lumen("run /nonexistent/scene.json --no-render");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("/nonexistent/scene.json: cannot read scene file"), std::string::npos) << r.output;
+
+  const fs::path d = temp_dir("unwritable");
+  std::ofstream(d / "s.json") << small_scene("s");
+  std::ofstream(d / "file") << "x";  // a file where the output folder should be
+  r = run_lumen("run " + (d / "s.json").string() + " --out " + (d / "file" / "out").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find((d / "file" / "out").string() + ": cannot create output folder"), std::string::npos) << r.output;
+}
+
+TEST(Cli, BadReplayFileExitsTwoBeforeWriting) {
+  const fs::path d = temp_dir("replay");
+  std::ofstream(d / "r.csv") << "0,0,0.013,0.05,0,0,0\n0.1,0,0.013,0.05,0,oops,0\n";
+  std::string text = small_scene("replay");
+  const std::string track = R"("track": [{"t": 0.0, "force": [0, 0, 0]}, {"t": 0.2, "force": [0, -0.3, 0]}])";
+  text.replace(text.find(track), track.size(), R"("replay": "r.csv")");
+  std::ofstream(d / "s.json") << text;
+  Run r = run_lumen("run " + (d / "s.json").string() + " --out " + (d / "out").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find((d / "r.csv").string() + ": line 2: field fy: not a number (value \"oops\")"), std::string::npos)
+      << r.output;
+  EXPECT_TRUE(is_empty_dir(d / "out"));
+}
+
+TEST(Cli, RunWritesFramesVideoReportAndSurface) {
+  const fs::path d = temp_dir("run");
+  std::ofstream(d / "s.json") << small_scene("small");
+  const fs::path out = d / "out";
+  Run r = run_lumen("run " + (d / "s.json").string() + " --out " + out.string() + " --export-surface --check");
+  ASSERT_EQ(r.code, 0) << r.output;
+  for (int i = 1; i <= 6; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%06d.png", i);
+    EXPECT_TRUE(fs::exists(out / "frames" / name)) << name;
+    std::snprintf(name, sizeof name, "inner_%06d.obj", i);
+    EXPECT_TRUE(fs::exists(out / "surface" / name)) << name;
+  }
+  EXPECT_FALSE(fs::exists(out / "frames" / "frame_000007.png"));
+  // No temporary file is left behind anywhere.
+  for (const auto& e : fs::recursive_directory_iterator(out))
+    EXPECT_EQ(e.path().string().find(".tmp"), std::string::npos) << e.path();
+  // The video decodes to one frame per simulated frame.
+  auto info = lumen::render::probe_video((out / "video.mp4").string());
+  EXPECT_EQ(info.frames, 6);
+  EXPECT_EQ(info.width, 160);
+  EXPECT_EQ(info.height, 120);
+  // Report: counts agree with the mesh formula, one per_frame entry per frame, stage stats ordered.
+  std::ifstream in(out / "report.json");
+  auto rep = nlohmann::json::parse(in);
+  EXPECT_EQ(rep["scene"], "small");
+  EXPECT_EQ(rep["frames"], 6);
+  EXPECT_DOUBLE_EQ(rep["budget_ms"].get<double>(), 25.0);
+  EXPECT_EQ(rep["mesh"]["nodes"], 12 * 11 * 3);
+  EXPECT_EQ(rep["mesh"]["tets"], 6 * 12 * 10 * 2);
+  EXPECT_EQ(rep["mesh"]["inner_triangles"], 2 * 12 * 10);
+  ASSERT_EQ(rep["per_frame"].size(), 6u);
+  for (const char* s : {"input", "physics", "collision", "response", "render", "total"}) {
+    const auto& st = rep["stages"][s];
+    EXPECT_LE(st["median_ms"].get<double>(), st["p95_ms"].get<double>()) << s;
+    EXPECT_LE(st["p95_ms"].get<double>(), st["p99_ms"].get<double>()) << s;
+    EXPECT_LE(st["p99_ms"].get<double>(), st["max_ms"].get<double>()) << s;
+  }
+  long over = 0;
+  for (const auto& f : rep["per_frame"]) {
+    over += f["over_budget"].get<bool>();
+    EXPECT_EQ(f["intersecting_pairs"], 0);
+    EXPECT_EQ(f["over_budget"].get<bool>(), f["total_ms"].get<double>() > 25.0);
+  }
+  EXPECT_EQ(rep["over_budget_frames"].get<long>(), over);
+  // The probe pushes -y: the last frame moved the wall, the first (zero force) hardly.
+  EXPECT_GT(rep["per_frame"][5]["max_displacement_m"].get<double>(), 1e-4);
+}
+
+TEST(Cli, BenchPrintsStageTableAsJson) {
+  const fs::path d = temp_dir("bench");
+  std::ofstream(d / "s.json") << small_scene("small");
+  Run r = run_lumen("bench " + (d / "s.json").string() + " --frames 4 --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  auto j = nlohmann::json::parse(r.output);
+  EXPECT_EQ(j["frames"], 4);
+  EXPECT_TRUE(j["stages"].contains("total"));
+  EXPECT_FALSE(fs::exists(fs::path("out") / "small" / "frames"));
+}

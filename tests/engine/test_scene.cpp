@@ -1,0 +1,182 @@
+// Scene loader: every refused input names the file, the key path and the value.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/scene.hpp"
+
+using lumen::engine::InputError;
+using lumen::engine::parse_scene;
+using nlohmann::json;
+
+namespace {
+
+json good_scene() {
+  return json::parse(R"({
+    "name": "t",
+    "mesh": {"type": "hollow_cylinder", "inner_radius": 0.01, "outer_radius": 0.013, "length": 0.1,
+             "segments_around": 20, "segments_along": 26, "layers": 3},
+    "material": {"model": "linear", "young_modulus": 5000.0, "poisson_ratio": 0.45, "density": 1050.0},
+    "fixed": ["ends"],
+    "probes": [{"point": [0.0, 0.013, 0.05], "track": [{"t": 0.0, "force": [0, 0, 0]}, {"t": 2.0, "force": [0, -0.4, 0]}]}],
+    "frames": 120, "fps": 40,
+    "render": {"width": 640, "height": 480, "camera": "diagonal", "video": true}
+  })");
+}
+
+// Message of the InputError thrown for `scene`, or "" when accepted.
+std::string error_of(const json& scene) {
+  try {
+    parse_scene(scene.dump(), "dir/s.json");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(Scene, AcceptsTheIssueExampleWithItsValues) {
+  auto s = parse_scene(good_scene().dump(), "dir/s.json");
+  EXPECT_EQ(s.name, "t");
+  EXPECT_EQ(s.mesh.segments_around, 20);
+  EXPECT_DOUBLE_EQ(s.material.poisson_ratio, 0.45);
+  ASSERT_EQ(s.probes.size(), 1u);
+  ASSERT_EQ(s.probes[0].track.size(), 2u);
+  EXPECT_DOUBLE_EQ(s.probes[0].track[1].force.y(), -0.4);
+  EXPECT_EQ(s.render.camera, "diagonal");
+  EXPECT_TRUE(s.render.video);
+  EXPECT_FALSE(s.collision.self);
+}
+
+TEST(Scene, MalformedJsonNamesTheFile) {
+  try {
+    parse_scene("{\"name\": ", "dir/s.json");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("dir/s.json: malformed JSON"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Scene, UnknownKeyIsNamedWithItsPath) {
+  json s = good_scene();
+  s["material"]["stiffness"] = 3;
+  EXPECT_EQ(error_of(s), "dir/s.json: material.stiffness: unknown key");
+  s = good_scene();
+  s["colour"] = "red";
+  EXPECT_EQ(error_of(s), "dir/s.json: colour: unknown key");
+}
+
+TEST(Scene, MissingKeyIsNamed) {
+  json s = good_scene();
+  s["mesh"].erase("layers");
+  EXPECT_EQ(error_of(s), "dir/s.json: mesh.layers: missing key");
+  s = good_scene();
+  s.erase("fps");
+  EXPECT_EQ(error_of(s), "dir/s.json: fps: missing key");
+}
+
+TEST(Scene, WrongTypesNameKeyAndValue) {
+  json s = good_scene();
+  s["mesh"]["inner_radius"] = "0.01";
+  EXPECT_EQ(error_of(s), "dir/s.json: mesh.inner_radius: must be a number (value \"0.01\")");
+  s = good_scene();
+  s["mesh"]["layers"] = 2.5;
+  EXPECT_EQ(error_of(s), "dir/s.json: mesh.layers: must be an integer (value 2.5)");
+  s = good_scene();
+  s["render"]["video"] = 1;
+  EXPECT_EQ(error_of(s), "dir/s.json: render.video: must be true or false (value 1)");
+  s = good_scene();
+  s["probes"][0]["point"] = json::array({0, 1});
+  EXPECT_EQ(error_of(s), "dir/s.json: probes[0].point: must be an array of 3 numbers (value [0,1])");
+}
+
+TEST(Scene, OutOfRangeValues) {
+  json s = good_scene();
+  s["mesh"]["inner_radius"] = 0.0;
+  EXPECT_EQ(error_of(s), "dir/s.json: mesh.inner_radius: must be > 0 (value 0.0)");
+  s = good_scene();
+  s["mesh"]["inner_radius"] = -0.01;
+  EXPECT_EQ(error_of(s), "dir/s.json: mesh.inner_radius: must be > 0 (value -0.01)");
+  s = good_scene();
+  s["mesh"]["inner_radius"] = 0.02;
+  EXPECT_NE(error_of(s).find("dir/s.json: mesh.inner_radius: must be < mesh.outer_radius"), std::string::npos);
+  EXPECT_NE(error_of(s).find("(value 0.02)"), std::string::npos);
+  s = good_scene();
+  s["material"]["poisson_ratio"] = 0.5;
+  EXPECT_EQ(error_of(s), "dir/s.json: material.poisson_ratio: out of range (-1, 0.5) (value 0.5)");
+  s = good_scene();
+  s["material"]["poisson_ratio"] = -1.0;
+  EXPECT_EQ(error_of(s), "dir/s.json: material.poisson_ratio: out of range (-1, 0.5) (value -1.0)");
+  s = good_scene();
+  s["fps"] = 0;
+  EXPECT_EQ(error_of(s), "dir/s.json: fps: out of range (0, 10000] (value 0)");
+  s = good_scene();
+  s["render"]["width"] = 641;
+  EXPECT_EQ(error_of(s), "dir/s.json: render.width: must be even (video encoding) (value 641)");
+  s = good_scene();
+  s["render"]["camera"] = "top";
+  EXPECT_EQ(error_of(s), "dir/s.json: render.camera: must be one of side, diagonal, endoscope (value \"top\")");
+  s = good_scene();
+  s["fixed"] = json::array({"both"});
+  EXPECT_EQ(error_of(s), "dir/s.json: fixed[0]: must be one of ends, start, stop (value \"both\")");
+}
+
+TEST(Scene, NonFiniteNumbersAreRefused) {
+  // JSON has no NaN literal; a huge exponent overflows to infinity when read.
+  std::string text = good_scene().dump();
+  const std::string key = "\"young_modulus\":5000.0";
+  ASSERT_NE(text.find(key), std::string::npos);
+  text.replace(text.find(key), key.size(), "\"young_modulus\":1e999");
+  try {
+    parse_scene(text, "dir/s.json");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("dir/s.json: material.young_modulus: must be finite"), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(Scene, TrackMustBeNonEmptyAndIncreasing) {
+  json s = good_scene();
+  s["probes"][0]["track"] = json::array();
+  EXPECT_EQ(error_of(s), "dir/s.json: probes[0].track: must not be empty (value [])");
+  s = good_scene();
+  s["probes"][0]["track"][1]["t"] = 0.0;
+  EXPECT_EQ(error_of(s), "dir/s.json: probes[0].track[1].t: track times must be strictly increasing (value 0.0)");
+  s = good_scene();
+  s["probes"][0]["track"][0]["force"][2] = "x";
+  EXPECT_EQ(error_of(s), "dir/s.json: probes[0].track[0].force[2]: must be a number (value \"x\")");
+}
+
+TEST(Scene, ReplayPathIsResolvedBesideTheScene) {
+  json s = good_scene();
+  s["probes"][0].erase("track");
+  s["probes"][0]["replay"] = "session.csv";
+  auto scene = parse_scene(s.dump(), "dir/s.json");
+  EXPECT_EQ(scene.probes[0].replay, "dir/session.csv");
+  s["probes"][0]["track"] = good_scene()["probes"][0]["track"];
+  EXPECT_EQ(error_of(s), "dir/s.json: probes[0]: needs exactly one of \"track\" or \"replay\"");
+}
+
+TEST(Scene, CollisionKeys) {
+  json s = good_scene();
+  s["collision"] = {{"self", true}, {"kdop", 18}, {"response", "paper"}, {"gap", 1e-4}};
+  auto scene = parse_scene(s.dump(), "dir/s.json");
+  EXPECT_TRUE(scene.collision.self);
+  EXPECT_EQ(scene.collision.kdop, 18);
+  EXPECT_EQ(scene.collision.response, "paper");
+  s["collision"]["kdop"] = 10;
+  EXPECT_EQ(error_of(s), "dir/s.json: collision.kdop: must be one of 6, 14, 18, 26 (value 10)");
+}
+
+TEST(Scene, UnreadableFile) {
+  try {
+    lumen::engine::load_scene("/nonexistent/scene.json");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "/nonexistent/scene.json: cannot read scene file");
+  }
+}

@@ -1,0 +1,318 @@
+// Element stiffness vs finite differences of the energy, rigid modes, assembly, and the CHOLMOD solver
+// against Eigen's dense Cholesky.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <Eigen/SparseCore>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+#include "physics/fem.hpp"
+#include "physics/mesh.hpp"
+
+namespace lumen::physics {
+namespace {
+
+using Mat43 = Eigen::Matrix<double, 4, 3>;
+using Mat12 = Eigen::Matrix<double, 12, 12>;
+
+// A random positively oriented tet of size ~1 cm.
+Mat43 random_tet(std::mt19937& rng) {
+  std::uniform_real_distribution<double> d(-0.01, 0.01);
+  for (;;) {
+    Mat43 X;
+    for (int i = 0; i < 4; ++i)
+      for (int c = 0; c < 3; ++c) X(i, c) = d(rng);
+    Eigen::Matrix3d Dm;
+    for (int a = 0; a < 3; ++a) Dm.col(a) = (X.row(a + 1) - X.row(0)).transpose();
+    const double det = Dm.determinant();
+    if (std::abs(det) < 1e-7) continue;  // skip slivers
+    if (det < 0) X.row(1).swap(X.row(2));
+    return X;
+  }
+}
+
+Mat43 unflatten(const Eigen::Matrix<double, 12, 1>& u) {
+  Mat43 m;
+  for (int a = 0; a < 4; ++a) m.row(a) = u.segment<3>(3 * a).transpose();
+  return m;
+}
+
+const LinearMaterial kMaterials[] = {{5000.0, 0.45}, {1e5, 0.0}, {300.0, -0.5}, {5000.0, 0.499}};
+
+TEST(TetStiffness, GradientAndHessianMatchFiniteDifferencesOfEnergy) {
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> du(-1e-3, 1e-3);
+  for (const LinearMaterial& mat : kMaterials)
+    for (int trial = 0; trial < 5; ++trial) {
+      const Mat43 X = random_tet(rng);
+      const Mat12 K = tet_stiffness(X, mat);
+      Eigen::Matrix<double, 12, 1> u;
+      for (int i = 0; i < 12; ++i) u[i] = du(rng);
+      const auto energy = [&](const Eigen::Matrix<double, 12, 1>& v) { return tet_energy(X, unflatten(v), mat); };
+      const double h = 1e-5;
+      // Gradient: central differences of the energy vs K u.
+      const Eigen::Matrix<double, 12, 1> f = K * u;
+      for (int i = 0; i < 12; ++i) {
+        Eigen::Matrix<double, 12, 1> e = Eigen::Matrix<double, 12, 1>::Unit(i) * h;
+        const double fd = (energy(u + e) - energy(u - e)) / (2 * h);
+        EXPECT_NEAR(fd, f[i], 1e-6 * f.norm() + 1e-9 * K.norm() * h) << "dof " << i;
+      }
+      // Hessian: second central differences vs K.
+      for (int i = 0; i < 12; ++i)
+        for (int j = 0; j < 12; ++j) {
+          const Eigen::Matrix<double, 12, 1> ei = Eigen::Matrix<double, 12, 1>::Unit(i) * h;
+          const Eigen::Matrix<double, 12, 1> ej = Eigen::Matrix<double, 12, 1>::Unit(j) * h;
+          const double fd =
+              (energy(u + ei + ej) - energy(u + ei - ej) - energy(u - ei + ej) + energy(u - ei - ej)) / (4 * h * h);
+          EXPECT_NEAR(fd, K(i, j), 1e-6 * K.norm()) << "entry " << i << ", " << j;
+        }
+      // Symmetric, and the energy is the quadratic form.
+      EXPECT_LE((K - K.transpose()).norm(), 1e-14 * K.norm());
+      EXPECT_NEAR(energy(u), 0.5 * u.dot(K * u), 1e-10 * energy(u));
+    }
+}
+
+TEST(TetStiffness, RigidMotionsGiveZeroForceAndRankIsSix) {
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<double> d(-1.0, 1.0);
+  for (const LinearMaterial& mat : kMaterials) {
+    const Mat43 X = random_tet(rng);
+    const Mat12 K = tet_stiffness(X, mat);
+    for (int trial = 0; trial < 5; ++trial) {
+      const Eigen::Vector3d t(d(rng), d(rng), d(rng)), w(d(rng), d(rng), d(rng));
+      Eigen::Matrix<double, 12, 1> u_t, u_r;
+      for (int a = 0; a < 4; ++a) {
+        u_t.segment<3>(3 * a) = t;
+        u_r.segment<3>(3 * a) = w.cross(X.row(a).transpose());
+      }
+      EXPECT_LE((K * u_t).norm(), 1e-12 * K.norm() * u_t.norm());
+      EXPECT_LE((K * u_r).norm(), 1e-12 * K.norm() * u_r.norm());
+    }
+    // Six zero eigenvalues (rigid modes) and six positive ones.
+    const Eigen::SelfAdjointEigenSolver<Mat12> eig(K);
+    const auto ev = eig.eigenvalues();
+    for (int i = 0; i < 6; ++i) EXPECT_LE(std::abs(ev[i]), 1e-12 * ev[11]);
+    for (int i = 6; i < 12; ++i) EXPECT_GT(ev[i], 1e-6 * ev[11]);
+  }
+}
+
+TEST(TetStiffness, RejectsInvalidMaterialAndInvertedTets) {
+  std::mt19937 rng(3);
+  const Mat43 X = random_tet(rng);
+  auto expect_msg = [&](const LinearMaterial& m, const std::string& field) {
+    try {
+      tet_stiffness(X, m);
+      ADD_FAILURE() << "accepted " << field;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(validate_material(m), std::invalid_argument);
+  };
+  expect_msg({0.0, 0.3}, "young_modulus");
+  expect_msg({-5.0, 0.3}, "young_modulus");
+  expect_msg({std::numeric_limits<double>::infinity(), 0.3}, "young_modulus");
+  expect_msg({std::nan(""), 0.3}, "young_modulus");
+  expect_msg({5000.0, 0.5}, "poisson_ratio");
+  expect_msg({5000.0, -1.0}, "poisson_ratio");
+  expect_msg({5000.0, std::nan("")}, "poisson_ratio");
+  Mat43 inverted = X;
+  inverted.row(1).swap(inverted.row(2));
+  EXPECT_THROW(tet_stiffness(inverted, LinearMaterial{}), std::invalid_argument);
+  EXPECT_THROW(tet_energy(inverted, Mat43::Zero(), LinearMaterial{}), std::invalid_argument);
+}
+
+// A small mesh for the global tests.
+TetMesh small_mesh() {
+  HollowCylinderSpec s;
+  s.segments_around = 8, s.segments_along = 4, s.layers = 2, s.length = 0.04;
+  return make_hollow_cylinder(s);
+}
+
+// Dense K restricted to the DOFs not in `fixed`, and the index map.
+Eigen::MatrixXd restrict(const Eigen::MatrixXd& K, const std::vector<char>& fixed, std::vector<int>& free) {
+  free.clear();
+  for (int d = 0; d < K.rows(); ++d)
+    if (!fixed[d]) free.push_back(d);
+  Eigen::MatrixXd Kf(free.size(), free.size());
+  for (size_t i = 0; i < free.size(); ++i)
+    for (size_t j = 0; j < free.size(); ++j) Kf(i, j) = K(free[i], free[j]);
+  return Kf;
+}
+
+TEST(Assembly, SymmetricRigidModesAndEnergyIsSumOfElements) {
+  const TetMesh mesh = small_mesh();
+  const LinearMaterial mat{5000.0, 0.45};
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, mat);
+  ASSERT_EQ(K.rows(), 3 * mesh.n_nodes());
+  const Eigen::SparseMatrix<double> Kt = K.transpose();
+  EXPECT_EQ((K - Kt).norm(), 0.0);
+  // Rigid translation and infinitesimal rotation of the whole mesh: no force.
+  const int n = mesh.n_nodes();
+  Eigen::VectorXd ut(3 * n), ur(3 * n);
+  const Eigen::Vector3d t(0.3, -0.2, 0.7), w(-1.0, 0.5, 2.0);
+  for (int v = 0; v < n; ++v) {
+    ut.segment<3>(3 * v) = t;
+    ur.segment<3>(3 * v) = w.cross(mesh.rest.row(v).transpose());
+  }
+  const double knorm = Eigen::MatrixXd(K).norm();
+  EXPECT_LE((K * ut).norm(), 1e-12 * knorm * ut.norm());
+  EXPECT_LE((K * ur).norm(), 1e-12 * knorm * ur.norm());
+  // 1/2 u^T K u equals the sum of the element energies.
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> d(-1e-3, 1e-3);
+  Eigen::VectorXd u(3 * n);
+  for (int i = 0; i < 3 * n; ++i) u[i] = d(rng);
+  double e = 0.0;
+  for (int tt = 0; tt < mesh.tets.rows(); ++tt) {
+    Mat43 X, ue;
+    for (int a = 0; a < 4; ++a) {
+      X.row(a) = mesh.rest.row(mesh.tets(tt, a));
+      ue.row(a) = u.segment<3>(3 * mesh.tets(tt, a)).transpose();
+    }
+    e += tet_energy(X, ue, mat);
+  }
+  EXPECT_NEAR(0.5 * u.dot(K * u), e, 1e-10 * e);
+}
+
+TEST(StaticSolver, PositiveDefiniteWithEndsFixedAndMatchesDenseCholesky) {
+  const TetMesh mesh = small_mesh();
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
+  std::vector<int> fixed_nodes = mesh.end_nodes_start;
+  fixed_nodes.insert(fixed_nodes.end(), mesh.end_nodes_stop.begin(), mesh.end_nodes_stop.end());
+  const StaticSolver solver(K, fixed_nodes);
+  const int n = mesh.n_nodes();
+  EXPECT_EQ(solver.n_dofs(), 3 * n);
+  EXPECT_EQ(solver.n_free_dofs(), 3 * (n - static_cast<int>(fixed_nodes.size())));
+  EXPECT_GT(solver.factor_nonzeros(), 0);
+
+  // Independent twin: Eigen dense Cholesky of K on the free DOFs succeeds; x^T K x > 0 for random x.
+  std::vector<char> fixed(3 * n, 0);
+  for (int v : fixed_nodes)
+    for (int c = 0; c < 3; ++c) fixed[3 * v + c] = 1;
+  for (int d = 0; d < 3 * n; ++d) EXPECT_EQ(solver.is_fixed_dof(d), fixed[d] != 0);
+  std::vector<int> free;
+  const Eigen::MatrixXd Kf = restrict(Eigen::MatrixXd(K), fixed, free);
+  const Eigen::LLT<Eigen::MatrixXd> llt(Kf);
+  ASSERT_EQ(llt.info(), Eigen::Success);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> d;
+  for (int trial = 0; trial < 20; ++trial) {
+    Eigen::VectorXd x(free.size());
+    for (int i = 0; i < x.size(); ++i) x[i] = d(rng);
+    EXPECT_GT(x.dot(Kf * x), 0.0);
+  }
+
+  // solve() vs the dense solve; fixed DOFs come back 0 whatever f holds there.
+  Eigen::VectorXd f(3 * n);
+  for (int i = 0; i < 3 * n; ++i) f[i] = d(rng);
+  Eigen::VectorXd ff(free.size());
+  for (size_t i = 0; i < free.size(); ++i) ff[i] = f[free[i]];
+  const Eigen::VectorXd uf = llt.solve(ff);
+  Eigen::VectorXd u;
+  solver.solve(f, u);
+  ASSERT_EQ(u.size(), 3 * n);
+  for (size_t i = 0; i < free.size(); ++i) EXPECT_NEAR(u[free[i]], uf[i], 1e-10 * uf.cwiseAbs().maxCoeff());
+  for (int dd = 0; dd < 3 * n; ++dd) {
+    if (fixed[dd]) {
+      EXPECT_EQ(u[dd], 0.0);
+    }
+  }
+
+  // solve_many == solve column by column.
+  Eigen::MatrixXd F(3 * n, 5);
+  for (int i = 0; i < F.size(); ++i) F.data()[i] = d(rng);
+  const Eigen::MatrixXd U = solver.solve_many(F);
+  for (int c = 0; c < 5; ++c) {
+    solver.solve(F.col(c), u);
+    EXPECT_LE((U.col(c) - u).norm(), 1e-12 * u.norm());
+  }
+}
+
+TEST(StaticSolver, SingleFixedDofsMatchDenseSolve) {
+  const TetMesh mesh = small_mesh();
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{2000.0, 0.3});
+  const int n = mesh.n_nodes();
+  // u_z = 0 on the start end, u_x = u_y = 0 on three start nodes (enough to remove rigid motion).
+  std::vector<FixedDof> dofs;
+  for (int v : mesh.end_nodes_start) dofs.push_back({v, 2});
+  dofs.push_back({mesh.end_nodes_start[0], 0});
+  dofs.push_back({mesh.end_nodes_start[0], 1});
+  dofs.push_back({mesh.end_nodes_start[3], 0});
+  const StaticSolver solver(K, dofs);
+  std::vector<char> fixed(3 * n, 0);
+  for (const FixedDof& fd : dofs) fixed[3 * fd.node + fd.component] = 1;
+  std::vector<int> free;
+  const Eigen::MatrixXd Kf = restrict(Eigen::MatrixXd(K), fixed, free);
+  EXPECT_EQ(solver.n_free_dofs(), static_cast<int>(free.size()));
+  std::mt19937 rng(6);
+  std::normal_distribution<double> d;
+  Eigen::VectorXd f(3 * n);
+  for (int i = 0; i < 3 * n; ++i) f[i] = d(rng);
+  Eigen::VectorXd ff(free.size());
+  for (size_t i = 0; i < free.size(); ++i) ff[i] = f[free[i]];
+  const Eigen::VectorXd uf = Kf.ldlt().solve(ff);
+  Eigen::VectorXd u;
+  solver.solve(f, u);
+  for (size_t i = 0; i < free.size(); ++i) EXPECT_NEAR(u[free[i]], uf[i], 1e-9 * uf.cwiseAbs().maxCoeff());
+  for (const FixedDof& fd : dofs) EXPECT_EQ(u[3 * fd.node + fd.component], 0.0);
+}
+
+// Patch test: a linear displacement field prescribed on the surface nodes is reproduced exactly inside.
+TEST(StaticSolver, PatchTestReproducesLinearField) {
+  HollowCylinderSpec s;
+  s.segments_around = 6, s.segments_along = 3, s.layers = 3, s.length = 0.03;
+  const TetMesh mesh = make_hollow_cylinder(s);
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
+  const int n = mesh.n_nodes();
+  std::vector<char> on_surface(n, 0);
+  for (const Tris* t : {&mesh.inner, &mesh.outer, &mesh.ends})
+    for (int i = 0; i < t->size(); ++i) on_surface[t->data()[i]] = 1;
+  std::vector<int> boundary;
+  for (int v = 0; v < n; ++v)
+    if (on_surface[v]) boundary.push_back(v);
+  ASSERT_LT(static_cast<int>(boundary.size()), n);  // interior nodes exist
+  Eigen::Matrix3d G;
+  G << 1e-3, 2e-3, -1e-3, 0.5e-3, -2e-3, 3e-3, 1e-3, 0.2e-3, 0.7e-3;
+  const Eigen::Vector3d c(1e-4, -2e-4, 3e-4);
+  Eigen::VectorXd u_lin(3 * n), u_b = Eigen::VectorXd::Zero(3 * n);
+  for (int v = 0; v < n; ++v) u_lin.segment<3>(3 * v) = G * mesh.rest.row(v).transpose() + c;
+  for (int v : boundary) u_b.segment<3>(3 * v) = u_lin.segment<3>(3 * v);
+  // K_ff u_f = -K_fb u_b.
+  const StaticSolver solver(K, boundary);
+  Eigen::VectorXd u;
+  solver.solve(-(K * u_b), u);
+  for (int v = 0; v < n; ++v) {
+    if (!on_surface[v]) {
+      EXPECT_LE((u.segment<3>(3 * v) - u_lin.segment<3>(3 * v)).norm(), 1e-10 * u_lin.segment<3>(3 * v).norm());
+    }
+  }
+}
+
+TEST(StaticSolver, RejectsBadInput) {
+  const TetMesh mesh = small_mesh();
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{});
+  // Nothing fixed: rigid motion left, not positive definite.
+  EXPECT_THROW(StaticSolver(K, std::vector<int>{}), std::invalid_argument);
+  // Only one node fixed: rotations about it remain.
+  EXPECT_THROW(StaticSolver(K, std::vector<int>{0}), std::invalid_argument);
+  EXPECT_THROW(StaticSolver(K, std::vector<int>{mesh.n_nodes()}), std::invalid_argument);
+  EXPECT_THROW(StaticSolver(K, std::vector<FixedDof>{{0, 3}}), std::invalid_argument);
+  Eigen::SparseMatrix<double> rect(6, 9);
+  EXPECT_THROW(StaticSolver(rect, std::vector<int>{}), std::invalid_argument);
+  const StaticSolver solver(K, mesh.end_nodes_start);
+  Eigen::VectorXd u;
+  EXPECT_THROW(solver.solve(Eigen::VectorXd::Zero(5), u), std::invalid_argument);
+  EXPECT_THROW(solver.solve_many(Eigen::MatrixXd::Zero(5, 2)), std::invalid_argument);
+  EXPECT_THROW(solver.is_fixed_dof(-1), std::invalid_argument);
+  // Moved-from and moved-to solvers keep working.
+  StaticSolver moved = StaticSolver(K, mesh.end_nodes_start);
+  Eigen::VectorXd f = Eigen::VectorXd::Ones(3 * mesh.n_nodes()), u1, u2;
+  moved.solve(f, u1);
+  solver.solve(f, u2);
+  EXPECT_LE((u1 - u2).norm(), 1e-12 * u2.norm());
+}
+
+}  // namespace
+}  // namespace lumen::physics

@@ -1,0 +1,260 @@
+// Hollow-cylinder generator: counts, conformity, boundary = tagged surfaces, orientation, geometry, validation.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <set>
+#include <stdexcept>
+#include <string>
+
+#include "physics/mesh.hpp"
+
+namespace lumen::physics {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+using Tri = std::array<int, 3>;
+
+// Triangle with its cyclic order kept and the smallest index first (same orientation <=> same key).
+Tri oriented_key(int a, int b, int c) {
+  Tri t{a, b, c};
+  std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+  return t;
+}
+Tri sorted_key(Tri t) {
+  std::sort(t.begin(), t.end());
+  return t;
+}
+
+// Centreline geometry of a spec: the centreline point and tangent nearest to p, for straight or bent tubes.
+struct Frame {
+  Eigen::Vector3d c, t;
+};
+Frame frame_at(const HollowCylinderSpec& s, const Eigen::Vector3d& p) {
+  if (s.bend_radius == 0.0) return {Eigen::Vector3d(0, 0, p.z()), Eigen::Vector3d::UnitZ()};
+  const double R = s.bend_radius;
+  const Eigen::Vector3d d = p - Eigen::Vector3d(R, 0, 0);
+  const double phi = std::atan2(d.z(), -d.x());
+  return {Eigen::Vector3d(R - R * std::cos(phi), 0, R * std::sin(phi)),
+          Eigen::Vector3d(std::sin(phi), 0, std::cos(phi))};
+}
+Eigen::Vector3d point(const TetMesh& m, int v) { return m.rest.row(v).transpose(); }
+Eigen::Vector3d area_normal(const TetMesh& m, const Tris& tris, int f) {
+  const Eigen::Vector3d a = point(m, tris(f, 0)), b = point(m, tris(f, 1)), c = point(m, tris(f, 2));
+  return 0.5 * (b - a).cross(c - a);
+}
+
+std::vector<HollowCylinderSpec> specs() {
+  std::vector<HollowCylinderSpec> out;
+  out.push_back(HollowCylinderSpec{});  // the paper mesh
+  HollowCylinderSpec s;
+  s.segments_around = 3, s.segments_along = 1, s.layers = 1;  // the coarsest
+  out.push_back(s);
+  s.segments_around = 7, s.segments_along = 5, s.layers = 2, s.bend_radius = 0.05;  // bent, odd counts
+  out.push_back(s);
+  s.segments_around = 12, s.segments_along = 9, s.layers = 3, s.bend_radius = 0.02, s.length = 0.11;  // strong bend
+  out.push_back(s);
+  return out;
+}
+
+TEST(HollowCylinder, PaperMeshCounts) {
+  const TetMesh m = make_hollow_cylinder(HollowCylinderSpec{});
+  EXPECT_EQ(m.n_nodes(), 2160);
+  EXPECT_EQ(m.tets.rows(), 9360);
+  EXPECT_EQ(m.inner.rows(), 1040);
+  EXPECT_EQ(m.outer.rows(), 1040);
+  EXPECT_EQ(m.ends.rows(), 2 * 2 * 20 * 3);
+  EXPECT_EQ(m.end_nodes_start.size(), 80u);
+  EXPECT_EQ(m.end_nodes_stop.size(), 80u);
+}
+
+TEST(HollowCylinder, CountsFollowTheSpec) {
+  for (const HollowCylinderSpec& s : specs()) {
+    const TetMesh m = make_hollow_cylinder(s);
+    const int A = s.segments_around, L = s.segments_along, R = s.layers;
+    EXPECT_EQ(m.n_nodes(), A * (L + 1) * (R + 1));
+    EXPECT_EQ(m.tets.rows(), 6 * A * L * R);
+    EXPECT_EQ(m.inner.rows(), 2 * A * L);
+    EXPECT_EQ(m.outer.rows(), 2 * A * L);
+    EXPECT_EQ(m.ends.rows(), 4 * A * R);
+  }
+}
+
+TEST(HollowCylinder, AllTetsPositive) {
+  for (const HollowCylinderSpec& s : specs()) {
+    const TetMesh m = make_hollow_cylinder(s);
+    for (int t = 0; t < m.tets.rows(); ++t) ASSERT_GT(tet_volume(m.rest, m.tets, t), 0.0) << "tet " << t;
+  }
+}
+
+// Faces of the tets: interior faces shared by exactly two tets with opposite orientation, boundary faces by
+// one, and the boundary (outward orientation) is exactly inner + outer + ends with their stored orientation.
+TEST(HollowCylinder, ConformingAndBoundaryIsTheTaggedSurfaces) {
+  for (const HollowCylinderSpec& s : specs()) {
+    const TetMesh m = make_hollow_cylinder(s);
+    std::map<Tri, std::vector<Tri>> faces;  // sorted -> oriented occurrences (outward from their tet)
+    static const int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+    for (int t = 0; t < m.tets.rows(); ++t)
+      for (const auto& f : kFace) {
+        const Tri o = oriented_key(m.tets(t, f[0]), m.tets(t, f[1]), m.tets(t, f[2]));
+        faces[sorted_key(o)].push_back(o);
+      }
+    std::set<Tri> boundary;
+    for (const auto& [key, occ] : faces) {
+      ASSERT_LE(occ.size(), 2u);
+      if (occ.size() == 2) {
+        EXPECT_NE(occ[0], occ[1]) << "interior face with the same orientation in both tets";
+      } else {
+        boundary.insert(occ[0]);
+      }
+    }
+    std::set<Tri> tagged;
+    for (const Tris* tris : {&m.inner, &m.outer, &m.ends})
+      for (int f = 0; f < tris->rows(); ++f)
+        EXPECT_TRUE(tagged.insert(oriented_key((*tris)(f, 0), (*tris)(f, 1), (*tris)(f, 2))).second);
+    EXPECT_EQ(boundary.size(), tagged.size());
+    EXPECT_TRUE(boundary == tagged) << "boundary faces differ from inner + outer + ends (or their orientation)";
+  }
+}
+
+TEST(HollowCylinder, SurfacesLieOnTheirRadiiWithStatedNormals) {
+  for (const HollowCylinderSpec& s : specs()) {
+    const TetMesh m = make_hollow_cylinder(s);
+    const double tol = 1e-12;
+    // Inner wall: vertices at the inner radius, normals toward the centreline (into the lumen).
+    for (int f = 0; f < m.inner.rows(); ++f) {
+      for (int c = 0; c < 3; ++c) {
+        const Eigen::Vector3d p = point(m, m.inner(f, c));
+        const Frame fr = frame_at(s, p);
+        EXPECT_NEAR((p - fr.c).norm(), s.inner_radius, tol);
+        EXPECT_NEAR((p - fr.c).dot(fr.t), 0.0, tol);
+      }
+      const Eigen::Vector3d ctr = (point(m, m.inner(f, 0)) + point(m, m.inner(f, 1)) + point(m, m.inner(f, 2))) / 3;
+      EXPECT_LT(area_normal(m, m.inner, f).dot(ctr - frame_at(s, ctr).c), 0.0);
+    }
+    // Outer wall: outer radius, normals away from the centreline.
+    for (int f = 0; f < m.outer.rows(); ++f) {
+      for (int c = 0; c < 3; ++c) {
+        const Eigen::Vector3d p = point(m, m.outer(f, c));
+        EXPECT_NEAR((p - frame_at(s, p).c).norm(), s.outer_radius, tol);
+      }
+      const Eigen::Vector3d ctr = (point(m, m.outer(f, 0)) + point(m, m.outer(f, 1)) + point(m, m.outer(f, 2))) / 3;
+      EXPECT_GT(area_normal(m, m.outer, f).dot(ctr - frame_at(s, ctr).c), 0.0);
+    }
+    // End caps: the start cap lies in z = 0 with normal -z; the stop cap is perpendicular to the end tangent
+    // with the normal along it.
+    const double phi_end = s.bend_radius > 0 ? s.length / s.bend_radius : 0.0;
+    const Eigen::Vector3d t_end = s.bend_radius > 0 ? Eigen::Vector3d(std::sin(phi_end), 0, std::cos(phi_end))
+                                                    : Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d c_end =
+        s.bend_radius > 0 ? Eigen::Vector3d(s.bend_radius * (1 - std::cos(phi_end)), 0, s.bend_radius * std::sin(phi_end))
+                          : Eigen::Vector3d(0, 0, s.length);
+    std::set<int> start(m.end_nodes_start.begin(), m.end_nodes_start.end());
+    std::set<int> stop(m.end_nodes_stop.begin(), m.end_nodes_stop.end());
+    EXPECT_EQ(start.size(), static_cast<size_t>(s.segments_around * (s.layers + 1)));
+    EXPECT_EQ(stop.size(), start.size());
+    for (int v : start) {
+      EXPECT_NEAR(m.rest(v, 2), 0.0, tol);
+      const double r = point(m, v).norm();
+      EXPECT_GE(r, s.inner_radius - tol);
+      EXPECT_LE(r, s.outer_radius + tol);
+    }
+    for (int v : stop) {
+      EXPECT_NEAR((point(m, v) - c_end).dot(t_end), 0.0, tol);
+      const double r = (point(m, v) - c_end).norm();
+      EXPECT_GE(r, s.inner_radius - tol);
+      EXPECT_LE(r, s.outer_radius + tol);
+    }
+    int n_start = 0, n_stop = 0;
+    for (int f = 0; f < m.ends.rows(); ++f) {
+      const bool on_start = start.count(m.ends(f, 0)) && start.count(m.ends(f, 1)) && start.count(m.ends(f, 2));
+      const bool on_stop = stop.count(m.ends(f, 0)) && stop.count(m.ends(f, 1)) && stop.count(m.ends(f, 2));
+      ASSERT_TRUE(on_start != on_stop) << "end triangle " << f << " is not on exactly one end";
+      const Eigen::Vector3d nrm = area_normal(m, m.ends, f).normalized();
+      if (on_start) {
+        EXPECT_NEAR(nrm.z(), -1.0, 1e-12);
+        ++n_start;
+      } else {
+        EXPECT_NEAR(nrm.dot(t_end), 1.0, 1e-12);
+        ++n_stop;
+      }
+    }
+    EXPECT_EQ(n_start, n_stop);
+  }
+}
+
+// The straight mesh fills the prism over the inscribed polygons exactly.
+TEST(HollowCylinder, VolumeOfStraightMeshIsThePolygonalAnnulusPrism) {
+  HollowCylinderSpec s;
+  s.segments_around = 9, s.segments_along = 4, s.layers = 2, s.length = 0.07;
+  const TetMesh m = make_hollow_cylinder(s);
+  double v = 0.0;
+  for (int t = 0; t < m.tets.rows(); ++t) v += tet_volume(m.rest, m.tets, t);
+  const int A = s.segments_around;
+  const double area = 0.5 * A * std::sin(2 * kPi / A) *
+                      (s.outer_radius * s.outer_radius - s.inner_radius * s.inner_radius);
+  EXPECT_NEAR(v, area * s.length, 1e-12 * area * s.length);
+}
+
+// The bent mesh is the straight mesh rolled onto the arc: inner-wall centroids stay at the inner radius from
+// the arc, and the end ring sits at arc length = length.
+TEST(HollowCylinder, BendFollowsTheArc) {
+  HollowCylinderSpec s;
+  s.segments_around = 8, s.segments_along = 6, s.layers = 2, s.bend_radius = 0.04, s.length = 0.05;
+  const TetMesh m = make_hollow_cylinder(s);
+  const double R = s.bend_radius;
+  for (int v = 0; v < m.n_nodes(); ++v) {
+    const Eigen::Vector3d p = point(m, v);
+    EXPECT_NEAR((p - frame_at(s, p).c).dot(frame_at(s, p).t), 0.0, 1e-12);
+    // Distance from the centre of curvature in the bend plane is R -/+ the wall offset.
+    const double rho = std::hypot(p.x() - R, p.z());
+    EXPECT_GE(rho, R - s.outer_radius - 1e-12);
+    EXPECT_LE(rho, R + s.outer_radius + 1e-12);
+  }
+  // Angle of the stop ring from the centre of curvature: length / R.
+  for (int v : m.end_nodes_stop) {
+    const Eigen::Vector3d p = point(m, v);
+    EXPECT_NEAR(std::atan2(p.z(), R - p.x()), s.length / R, 1e-12);
+  }
+}
+
+template <typename F>
+void expect_invalid(F&& make, const std::string& field, const std::string& value) {
+  try {
+    make();
+    ADD_FAILURE() << "no exception for " << field;
+  } catch (const std::invalid_argument& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find(field), std::string::npos) << msg;
+    EXPECT_NE(msg.find(value), std::string::npos) << msg;
+  }
+}
+
+TEST(HollowCylinder, RejectsInvalidSpecsNamingFieldAndValue) {
+  auto with = [](auto edit) {
+    HollowCylinderSpec s;
+    edit(s);
+    return [s] { make_hollow_cylinder(s); };
+  };
+  expect_invalid(with([](auto& s) { s.inner_radius = -0.5; }), "inner_radius", "-0.5");
+  expect_invalid(with([](auto& s) { s.outer_radius = 0.0; }), "outer_radius", "0");
+  expect_invalid(with([](auto& s) { s.inner_radius = 0.02; }), "inner_radius", "0.02");
+  expect_invalid(with([](auto& s) { s.length = -1.0; }), "length", "-1");
+  expect_invalid(with([](auto& s) { s.segments_around = 2; }), "segments_around", "2");
+  expect_invalid(with([](auto& s) { s.segments_along = 0; }), "segments_along", "0");
+  expect_invalid(with([](auto& s) { s.layers = 0; }), "layers", "0");
+  expect_invalid(with([](auto& s) { s.bend_radius = 0.012; }), "bend_radius", "0.012");
+  expect_invalid(with([](auto& s) { s.bend_radius = -0.5; }), "bend_radius", "-0.5");
+  expect_invalid(with([](auto& s) { s.bend_radius = 0.014; }), "bend_radius", "0.014");  // arc > 2 pi
+  expect_invalid(with([](auto& s) { s.inner_radius = std::nan(""); }), "inner_radius", "nan");
+  HollowCylinderSpec ok;
+  ok.bend_radius = 0.02;
+  EXPECT_NO_THROW(make_hollow_cylinder(ok));
+  const TetMesh m = make_hollow_cylinder(HollowCylinderSpec{});
+  expect_invalid([&] { tet_volume(m.rest, m.tets, 9360); }, "t", "9360");
+}
+
+}  // namespace
+}  // namespace lumen::physics

@@ -1,0 +1,403 @@
+// Renderer tests on real pixels: framing of the camera presets, cut-away, lighting, contact colour, probe arrows.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <vector>
+
+#include "render/renderer.hpp"
+
+namespace lumen::render {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Hollow tube along +z from z = 0 to z = length: outer ring nodes, then inner ring nodes; surface triangles
+// wound so their normals point out of the wall (outer: away from the axis, inner: toward it, ends: along -z / +z).
+struct Tube {
+  int around = 20, along = 10;
+  double inner_radius = 0.01, outer_radius = 0.013, length = 0.1;  // metres
+  std::vector<double> pos;                                          // n x 3, metres
+  std::vector<int> outer, inner, ends;                              // triangles, n x 3
+
+  int n_points() const { return static_cast<int>(pos.size() / 3); }
+  int outer_node(int i, int j) const { return j * around + (i % around); }
+  int inner_node(int i, int j) const { return (along + 1) * around + j * around + (i % around); }
+  bool is_inner(int k) const { return k >= (along + 1) * around; }
+
+  Tube() {
+    // Nodes: rings of `around` points at `along + 1` stations, outer layer first.
+    for (double r : {outer_radius, inner_radius})
+      for (int j = 0; j <= along; ++j)
+        for (int i = 0; i < around; ++i) {
+          const double th = 2 * kPi * i / around;
+          pos.insert(pos.end(), {r * std::cos(th), r * std::sin(th), length * j / along});
+        }
+    // Walls: two triangles per quad.
+    for (int j = 0; j < along; ++j)
+      for (int i = 0; i < around; ++i) {
+        const int a = outer_node(i, j), b = outer_node(i + 1, j), c = outer_node(i + 1, j + 1), d = outer_node(i, j + 1);
+        outer.insert(outer.end(), {a, b, d, b, c, d});
+        const int e = inner_node(i, j), f = inner_node(i + 1, j), g = inner_node(i + 1, j + 1), h = inner_node(i, j + 1);
+        inner.insert(inner.end(), {e, h, f, f, h, g});
+      }
+    // End annuli at z = 0 (facing -z) and z = length (facing +z).
+    for (int i = 0; i < around; ++i) {
+      int i0 = inner_node(i, 0), i1 = inner_node(i + 1, 0), o0 = outer_node(i, 0), o1 = outer_node(i + 1, 0);
+      ends.insert(ends.end(), {i0, o1, o0, i0, i1, o1});
+      i0 = inner_node(i, along), i1 = inner_node(i + 1, along), o0 = outer_node(i, along), o1 = outer_node(i + 1, along);
+      ends.insert(ends.end(), {i0, o0, o1, i0, o1, i1});
+    }
+  }
+
+  Framing framing(double cutaway_degrees) const {
+    Framing f;
+    f.center = Eigen::Vector3d(0, 0, length / 2);
+    f.radius = std::hypot(length / 2, outer_radius);
+    f.axis = Eigen::Vector3d::UnitZ();
+    f.lumen_radius = inner_radius;
+    f.half_length = length / 2;
+    f.cutaway_degrees = cutaway_degrees;
+    return f;
+  }
+
+  FrameView view() const {
+    FrameView v;
+    v.positions = pos.data();
+    v.n_points = n_points();
+    v.outer = outer.data();
+    v.n_outer = static_cast<int>(outer.size() / 3);
+    v.inner = inner.data();
+    v.n_inner = static_cast<int>(inner.size() / 3);
+    v.ends = ends.data();
+    v.n_ends = static_cast<int>(ends.size() / 3);
+    return v;
+  }
+};
+
+constexpr int kW = 320, kH = 240;
+
+struct Rgb {
+  int r, g, b;
+};
+Rgb pixel(const Image& im, int x, int y) {
+  const std::uint8_t* p = &im.rgb[(static_cast<size_t>(y) * im.width + x) * 3];
+  return {p[0], p[1], p[2]};
+}
+double luminance(Rgb c) { return 0.2126 * c.r + 0.7152 * c.g + 0.0722 * c.b; }
+bool differs(const Image& a, const Image& b, int x, int y) {
+  const Rgb p = pixel(a, x, y), q = pixel(b, x, y);
+  return std::abs(p.r - q.r) + std::abs(p.g - q.g) + std::abs(p.b - q.b) > 24;
+}
+// Colour classes of the renderer's palette (tissue is red-dominant; the inner wall is orange: g clearly above b).
+bool is_inner_colour(Rgb c) { return c.r > 60 && c.r > c.g + 25 && c.g > c.b + 12; }
+bool is_contact_colour(Rgb c) { return c.g > c.r + 20 && c.g > c.b + 60; }
+bool is_probe_colour(Rgb c) { return c.b > c.r + 60 && c.b > c.g + 30; }
+
+struct Box {
+  int x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+  long count = 0;
+  void add(double x, double y) {
+    x0 = std::min(x0, static_cast<int>(std::floor(x)));
+    y0 = std::min(y0, static_cast<int>(std::floor(y)));
+    x1 = std::max(x1, static_cast<int>(std::floor(x)));
+    y1 = std::max(y1, static_cast<int>(std::floor(y)));
+    ++count;
+  }
+};
+
+template <class Pred>
+Box pixel_box(const Image& im, Pred pred) {
+  Box b;
+  for (int y = 0; y < im.height; ++y)
+    for (int x = 0; x < im.width; ++x)
+      if (pred(x, y)) b.add(x, y);
+  return b;
+}
+
+Image draw(Renderer& r, const FrameView& v) {
+  Image im;
+  r.draw(v, im);
+  return im;
+}
+
+// The background alone: the independent reference for "organ pixels".
+Image background(Renderer& r) { return draw(r, FrameView{}); }
+
+TEST(Renderer, ParseCamera) {
+  EXPECT_EQ(parse_camera("side"), CameraPreset::Side);
+  EXPECT_EQ(parse_camera("diagonal"), CameraPreset::Diagonal);
+  EXPECT_EQ(parse_camera("endoscope"), CameraPreset::Endoscope);
+  EXPECT_THROW(parse_camera("top"), std::invalid_argument);
+}
+
+TEST(Renderer, RejectsBadParameters) {
+  const Tube t;
+  EXPECT_THROW(Renderer(0, kH, CameraPreset::Side, t.framing(100)), std::invalid_argument);
+  Framing f = t.framing(100);
+  f.radius = -1;
+  EXPECT_THROW(Renderer(kW, kH, CameraPreset::Side, f), std::invalid_argument);
+  f = t.framing(100);
+  f.axis = Eigen::Vector3d::Zero();
+  EXPECT_THROW(Renderer(kW, kH, CameraPreset::Side, f), std::invalid_argument);
+  f = t.framing(270);
+  EXPECT_THROW(Renderer(kW, kH, CameraPreset::Side, f), std::invalid_argument);
+
+  Renderer r(kW, kH, CameraPreset::Side, t.framing(100));
+  Image im;
+  std::vector<int> bad = t.outer;
+  bad[7] = t.n_points();
+  FrameView v = t.view();
+  v.outer = bad.data();
+  try {
+    r.draw(v, im);
+    FAIL() << "index out of range accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("outer[7]"), std::string::npos) << e.what();
+  }
+  v = t.view();
+  v.positions = nullptr;
+  EXPECT_THROW(r.draw(v, im), std::invalid_argument);
+  v = t.view();
+  v.probes.push_back({Eigen::Vector3d(0, 0, NAN), Eigen::Vector3d::Zero()});
+  EXPECT_THROW(r.draw(v, im), std::invalid_argument);
+}
+
+TEST(Renderer, ImageSizeAndRowsTopDown) {
+  // The background gradient is lighter at the top: row 0 must be the top of the image.
+  const Tube t;
+  Renderer r(kW, kH, CameraPreset::Side, t.framing(100));
+  const Image bg = background(r);
+  ASSERT_EQ(bg.width, kW);
+  ASSERT_EQ(bg.height, kH);
+  ASSERT_EQ(bg.rgb.size(), static_cast<size_t>(kW * kH * 3));
+  EXPECT_GT(luminance(pixel(bg, kW / 2, 2)), luminance(pixel(bg, kW / 2, kH - 3)) + 10);
+}
+
+TEST(Renderer, SideAndDiagonalFrameTheWholeOrgan) {
+  const Tube t;
+  for (CameraPreset preset : {CameraPreset::Side, CameraPreset::Diagonal}) {
+    SCOPED_TRACE(preset == CameraPreset::Side ? "side" : "diagonal");
+    Renderer r(kW, kH, preset, t.framing(100));
+    const Image bg = background(r);
+    const Image im = draw(r, t.view());
+    // A plausible fraction of the image is organ, and its bounding box is roughly centred.
+    const Box organ = pixel_box(im, [&](int x, int y) { return differs(im, bg, x, y); });
+    const double fraction = static_cast<double>(organ.count) / (kW * kH);
+    EXPECT_GT(fraction, 0.10);
+    EXPECT_LT(fraction, 0.90);
+    EXPECT_NEAR(0.5 * (organ.x0 + organ.x1), kW / 2.0, 0.1 * kW);
+    EXPECT_NEAR(0.5 * (organ.y0 + organ.y1), kH / 2.0, 0.1 * kH);
+    // Nothing touches the image border: the whole organ is in view.
+    EXPECT_GT(organ.x0, 0);
+    EXPECT_GT(organ.y0, 0);
+    EXPECT_LT(organ.x1, kW - 1);
+    EXPECT_LT(organ.y1, kH - 1);
+    // The rasterised silhouette matches the projection of the outer-wall vertices.
+    Box projected;
+    for (int k = 0; k < t.n_points(); ++k) {
+      const Eigen::Vector2d p = r.project(Eigen::Vector3d(t.pos[3 * k], t.pos[3 * k + 1], t.pos[3 * k + 2]));
+      projected.add(p.x(), p.y());
+    }
+    EXPECT_NEAR(organ.x0, projected.x0, 2);
+    EXPECT_NEAR(organ.x1, projected.x1, 2);
+    EXPECT_NEAR(organ.y0, projected.y0, 2);
+    EXPECT_NEAR(organ.y1, projected.y1, 2);
+  }
+}
+
+TEST(Renderer, SideLooksAcrossTheAxisDiagonalFromAbove) {
+  const Tube t;
+  const Framing f = t.framing(100);
+  const Eigen::Vector3d start = f.center - f.half_length * f.axis, stop = f.center + f.half_length * f.axis;
+  {
+    // Side: the axis projects horizontally, left to right; +y (up) is up in the image; the eye is level.
+    Renderer r(kW, kH, CameraPreset::Side, f);
+    const Eigen::Vector2d a = r.project(start), b = r.project(stop), c = r.project(f.center);
+    EXPECT_NEAR(a.y(), b.y(), 0.5);
+    EXPECT_GT(b.x() - a.x(), 0.5 * kW);
+    EXPECT_LT(r.project(f.center + Eigen::Vector3d(0, t.outer_radius, 0)).y(), c.y() - 5);
+    const Eigen::Vector3d to_eye = (r.eye() - f.center).normalized();
+    EXPECT_NEAR(to_eye.dot(f.axis), 0.0, 1e-9);
+    EXPECT_NEAR(to_eye.y(), 0.0, 1e-9);
+  }
+  {
+    // Diagonal: elevation 35..45 degrees above the axis plane, and not square to the axis.
+    Renderer r(kW, kH, CameraPreset::Diagonal, f);
+    const Eigen::Vector3d to_eye = (r.eye() - f.center).normalized();
+    const double elevation = std::asin(to_eye.y()) * 180 / kPi;
+    EXPECT_GE(elevation, 35.0);
+    EXPECT_LE(elevation, 45.0);
+    EXPECT_GT(std::abs(to_eye.dot(f.axis)), 0.2);
+  }
+}
+
+TEST(Renderer, EndoscopeSeesTheInnerWallAroundAndTheFarLumenInTheCentre) {
+  const Tube t;
+  const Framing f = t.framing(100);
+  Renderer r(kW, kH, CameraPreset::Endoscope, f);
+  // The eye is inside the lumen, on the axis, near one end.
+  const Eigen::Vector3d eye = r.eye();
+  EXPECT_LT(std::hypot(eye.x(), eye.y()), 1e-9);
+  EXPECT_GT(eye.z(), 0.0);
+  EXPECT_LT(eye.z(), 0.25 * t.length);
+  // Every border pixel shows the inner wall.
+  const Image bg = background(r);
+  const Image im = draw(r, t.view());
+  long border = 0, wall = 0;
+  double border_lum = 0;
+  for (int x = 0; x < kW; ++x)
+    for (int y : {0, kH - 1}) {
+      ++border;
+      wall += differs(im, bg, x, y) && is_inner_colour(pixel(im, x, y));
+      border_lum += luminance(pixel(im, x, y));
+    }
+  for (int y = 0; y < kH; ++y)
+    for (int x : {0, kW - 1}) {
+      ++border;
+      wall += differs(im, bg, x, y) && is_inner_colour(pixel(im, x, y));
+      border_lum += luminance(pixel(im, x, y));
+    }
+  EXPECT_EQ(wall, border);
+  // The far lumen (central tenth of the image) is much darker than the near walls.
+  double centre_lum = 0;
+  long centre = 0;
+  for (int y = kH * 9 / 20; y < kH * 11 / 20; ++y)
+    for (int x = kW * 9 / 20; x < kW * 11 / 20; ++x) {
+      centre_lum += luminance(pixel(im, x, y));
+      ++centre;
+    }
+  EXPECT_LT(centre_lum / centre, 0.5 * border_lum / border);
+}
+
+TEST(Renderer, CutAwayShowsTheInnerWall) {
+  // Without the cut only the outer wall is seen from the side; with it the inner wall shows through.
+  const Tube t;
+  Renderer closed(kW, kH, CameraPreset::Side, t.framing(0));
+  Renderer cut(kW, kH, CameraPreset::Side, t.framing(100));
+  const Image a = draw(closed, t.view()), b = draw(cut, t.view());
+  const long inner_closed = pixel_box(a, [&](int x, int y) { return is_inner_colour(pixel(a, x, y)); }).count;
+  const long inner_cut = pixel_box(b, [&](int x, int y) { return is_inner_colour(pixel(b, x, y)); }).count;
+  EXPECT_EQ(inner_closed, 0);
+  EXPECT_GT(inner_cut, kW * kH / 20);
+}
+
+TEST(Renderer, LightingIsNotFlat) {
+  // Down the image column through the centre, the lit outer wall's luminance varies with its normal.
+  const Tube t;
+  Renderer r(kW, kH, CameraPreset::Side, t.framing(0));
+  const Image bg = background(r);
+  const Image im = draw(r, t.view());
+  const int x = static_cast<int>(r.project(t.framing(0).center).x());
+  std::vector<double> lum;
+  for (int y = 0; y < kH; ++y)
+    if (differs(im, bg, x, y)) lum.push_back(luminance(pixel(im, x, y)));
+  ASSERT_GT(lum.size(), 20u);
+  double mean = 0, var = 0;
+  for (double l : lum) mean += l / lum.size();
+  for (double l : lum) var += (l - mean) * (l - mean) / lum.size();
+  EXPECT_GT(std::sqrt(var), 10.0);
+  EXPECT_GT(*std::max_element(lum.begin(), lum.end()) - *std::min_element(lum.begin(), lum.end()), 40.0);
+}
+
+TEST(Renderer, ContactColourOnlyWhereFlagged) {
+  const Tube t;
+  Renderer r(kW, kH, CameraPreset::Side, t.framing(100));
+  FrameView v = t.view();
+  // No flags (null or all zero): no contact colour anywhere, and the two images are the same.
+  const Image none = draw(r, v);
+  std::vector<std::uint8_t> flags(t.n_points(), 0);
+  v.contact = flags.data();
+  const Image zeros = draw(r, v);
+  EXPECT_EQ(none.rgb, zeros.rgb);
+  EXPECT_EQ(pixel_box(none, [&](int x, int y) { return is_contact_colour(pixel(none, x, y)); }).count, 0);
+  // Flag a patch of the lower inner wall (seen through the cut) in the middle third of the length.
+  Box flagged;
+  for (int k = 0; k < t.n_points(); ++k) {
+    const double y = t.pos[3 * k + 1], z = t.pos[3 * k + 2];
+    if (t.is_inner(k) && y < -0.5 * t.inner_radius && z > t.length / 3 && z < 2 * t.length / 3) {
+      flags[k] = 1;
+      const Eigen::Vector2d p = r.project(Eigen::Vector3d(t.pos[3 * k], y, z));
+      flagged.add(p.x(), p.y());
+    }
+  }
+  const Image im = draw(r, v);
+  const Box contact = pixel_box(im, [&](int x, int y) { return is_contact_colour(pixel(im, x, y)); });
+  EXPECT_GT(contact.count, 100);
+  // The contact colour lies within the projected patch (one triangle ring of blending around it).
+  EXPECT_GE(contact.x0, flagged.x0 - 20);
+  EXPECT_LE(contact.x1, flagged.x1 + 20);
+  EXPECT_GE(contact.y0, flagged.y0 - 20);
+  EXPECT_LE(contact.y1, flagged.y1 + 20);
+}
+
+TEST(Renderer, ProbeArrowEndsAtThePointAndGrowsWithForce) {
+  const Tube t;
+  const Framing f = t.framing(0);
+  Renderer r(kW, kH, CameraPreset::Side, f);
+  const Eigen::Vector3d point(0, t.outer_radius, t.length / 2);
+  const Eigen::Vector2d tip = r.project(point);
+  long previous = 0;
+  for (double force : {0.0, 1.0, 2.0}) {
+    SCOPED_TRACE(force);
+    FrameView v = t.view();
+    v.force_scale = 0.015;
+    v.probes.push_back({point, Eigen::Vector3d(0, -force, 0)});
+    const Image im = draw(r, v);
+    const Box arrow = pixel_box(im, [&](int x, int y) { return is_probe_colour(pixel(im, x, y)); });
+    ASSERT_GT(arrow.count, 0);
+    // The arrow ends at the probe point, pushing down into it, centred on it horizontally.
+    EXPECT_NEAR(arrow.y1, tip.y(), 3.0);  // the last pixels of the cone tip are sub-pixel wide
+    EXPECT_NEAR(0.5 * (arrow.x0 + arrow.x1), tip.x(), 1.5);
+    if (force > 0) {
+      // Its tail is at point - force * force_scale (projected), above the point.
+      const Eigen::Vector2d tail = r.project(point - v.force_scale * v.probes[0].force);
+      EXPECT_NEAR(arrow.y0, tail.y(), 2.5);
+    }
+    EXPECT_GT(arrow.count, previous);
+    previous = arrow.count;
+  }
+}
+
+TEST(Renderer, TranslatingTheOrganMovesItsPixels) {
+  // Positions are read every frame: shifting them along the axis shifts the silhouette by the projected amount.
+  const Tube t;
+  Renderer r(kW, kH, CameraPreset::Side, t.framing(0));
+  const Image bg = background(r);
+  const Image a = draw(r, t.view());
+  Tube moved = t;
+  const double dz = 0.01;
+  for (int k = 0; k < moved.n_points(); ++k) moved.pos[3 * k + 2] += dz;
+  const Image b = draw(r, moved.view());
+  const Box ba = pixel_box(a, [&](int x, int y) { return differs(a, bg, x, y); });
+  const Box bb = pixel_box(b, [&](int x, int y) { return differs(b, bg, x, y); });
+  // Expected: the shift of the right-most projected vertex.
+  auto right_most = [&](const Tube& tube) {
+    double x = -1e9;
+    for (int k = 0; k < tube.n_points(); ++k)
+      x = std::max(x, r.project(Eigen::Vector3d(tube.pos[3 * k], tube.pos[3 * k + 1], tube.pos[3 * k + 2])).x());
+    return x;
+  };
+  const double shift = right_most(moved) - right_most(t);
+  EXPECT_GT(shift, 5.0);
+  EXPECT_NEAR(bb.x1 - ba.x1, shift, 2.0);
+}
+
+TEST(Renderer, SeveralRenderersOnOneThread) {
+  // Each draw makes its own context current: interleaved renderers give the same images as alone.
+  const Tube t;
+  Renderer side(kW, kH, CameraPreset::Side, t.framing(100));
+  Renderer endo(kW, kH, CameraPreset::Endoscope, t.framing(100));
+  const Image s1 = draw(side, t.view());
+  const Image e1 = draw(endo, t.view());
+  const Image s2 = draw(side, t.view());
+  const Image e2 = draw(endo, t.view());
+  EXPECT_EQ(s1.rgb, s2.rgb);
+  EXPECT_EQ(e1.rgb, e2.rgb);
+  EXPECT_NE(s1.rgb, e1.rgb);
+}
+
+}  // namespace
+}  // namespace lumen::render

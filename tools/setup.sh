@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# Install the Debian packages Lumen builds and runs with (idempotent).
+set -euo pipefail
+pkgs=(build-essential cmake pkg-config libeigen3-dev libsuitesparse-dev libosmesa6-dev
+      libassimp-dev libpng-dev libavcodec-dev libavformat-dev libavutil-dev libswscale-dev
+      nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev ffmpeg python3-matplotlib)
+missing=()
+for p in "${pkgs[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
+if [ ${#missing[@]} -gt 0 ]; then
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y --no-install-recommends "${missing[@]}"
+fi
