@@ -194,7 +194,8 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   json root;
   try {
     root = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
+    // Syntax errors, and numbers that overflow a double (1e999): name the file and the parser's reason.
     throw InputError(path + ": malformed JSON: " + e.what());
   }
   r.only_keys(root, "", {"name", "mesh", "material", "fixed", "probes", "frames", "fps", "render", "collision"});

@@ -27,6 +27,7 @@ render::Framing framing_of(const Model& model) {
   f.radius = 0.5 * (hi - lo).norm();
   f.axis = Eigen::Vector3d::UnitZ();
   f.lumen_radius = model.scene.mesh.inner_radius;
+  f.half_length = 0.5 * model.scene.mesh.length;
   return f;
 }
 

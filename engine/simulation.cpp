@@ -47,12 +47,11 @@ Eigen::Vector3d closest_barycentric(const Eigen::Vector3d& p, const Eigen::Vecto
   return {1 - v - w, v, w};
 }
 
-// Nodal force vector (3n) for probe loads at surface points.
+}  // namespace
+
 void add_point_load(const SurfacePoint& sp, const Eigen::Vector3d& force, Eigen::VectorXd& f) {
   for (int k = 0; k < 3; ++k) f.segment<3>(3 * sp.node[k]) += sp.weight[k] * force;
 }
-
-}  // namespace
 
 SurfacePoint snap_to_surface(const Points& x, const Tris& tris, const Eigen::Vector3d& p) {
   SurfacePoint best;

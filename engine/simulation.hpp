@@ -26,6 +26,8 @@ struct SurfacePoint {
 
 // Nearest point of the outer wall (rest positions) to `p`.
 SurfacePoint snap_to_surface(const Points& x, const Tris& tris, const Eigen::Vector3d& p);
+// Spread a force at a surface point over its triangle's nodes with the barycentric weights: f (3n) += ...
+void add_point_load(const SurfacePoint& sp, const Eigen::Vector3d& force, Eigen::VectorXd& f);
 
 // Everything fixed for a session: mesh, material, factorisation, precomputed responses, collision topology.
 struct Model {

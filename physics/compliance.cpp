@@ -3,7 +3,6 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -106,8 +105,8 @@ SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vect
   for (int a = 0; a < s; ++a) {
     const int v = nodes_[a];
     if (v < 0 || v >= n_mesh)
-      fail("SurfaceCompliance: nodes[" + std::to_string(a) + "] must be in [0, " + std::to_string(n_mesh) +
-           "), got " + std::to_string(v));
+      fail("SurfaceCompliance: nodes[" + std::to_string(a) + "] must be in [0, " + std::to_string(n_mesh) + "), got " +
+           std::to_string(v));
     if (index_[v] >= 0) fail("SurfaceCompliance: nodes[" + std::to_string(a) + "] repeats node " + std::to_string(v));
     index_[v] = a;
   }
@@ -138,8 +137,7 @@ void SurfaceCompliance::ensure_columns(const std::vector<int>& nodes) {
   std::vector<int> missing;
   for (int v : nodes) {
     check_node(v, "node");
-    if (index_[v] < 0 && extra_index_[v] < 0 &&
-        std::find(missing.begin(), missing.end(), v) == missing.end())
+    if (index_[v] < 0 && extra_index_[v] < 0 && std::find(missing.begin(), missing.end(), v) == missing.end())
       missing.push_back(v);
   }
   if (missing.empty()) return;
@@ -205,35 +203,56 @@ Eigen::MatrixXd coupling_matrix(SurfaceCompliance& compliance, const std::vector
   const int m = static_cast<int>(rows.size());
   // Columns of every touched node outside the set, in one solve.
   std::vector<int> touched;
-  for (const ContactRow& row : rows)
-    for (int k = 0; k < 4; ++k)
-      if (row.node[k] >= 0) touched.push_back(row.node[k]);
-  compliance.ensure_columns(touched);
-  // A_rs = sum_kl w_rk w_sl n_r^T C(node_rk, node_sl) n_s, symmetrised.
-  Eigen::MatrixXd A(m, m);
+  std::vector<char> outside(m, 0);  // row touches a node outside the set
   for (int r = 0; r < m; ++r)
-    for (int s = r; s < m; ++s) {
-      double a = 0.0;
+    for (int k = 0; k < 4; ++k)
+      if (rows[r].node[k] >= 0) {
+        touched.push_back(rows[r].node[k]);
+        outside[r] = outside[r] || compliance.index_of(rows[r].node[k]) < 0;
+      }
+  compliance.ensure_columns(touched);
+  // Set-set part: Y = C h_s over the whole set (columns of C are contiguous, C is symmetric), then
+  // A_rs = h_r . Y_s on the set nodes of row r.
+  const Eigen::MatrixXd& C = compliance.matrix();
+  Eigen::MatrixXd Y = Eigen::MatrixXd::Zero(C.rows(), m);
+  for (int s = 0; s < m; ++s)
+    for (int l = 0; l < 4; ++l) {
+      const int ib = rows[s].node[l] >= 0 ? compliance.index_of(rows[s].node[l]) : -1;
+      if (ib >= 0) Y.col(s).noalias() += rows[s].weight[l] * (C.middleCols<3>(3 * ib) * rows[s].n);
+    }
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
+  for (int r = 0; r < m; ++r)
+    for (int k = 0; k < 4; ++k) {
+      const int ia = rows[r].node[k] >= 0 ? compliance.index_of(rows[r].node[k]) : -1;
+      if (ia < 0) continue;
+      const Eigen::RowVector3d hn = rows[r].weight[k] * rows[r].n.transpose();
+      A.row(r).noalias() += hn * Y.middleRows<3>(3 * ia);
+    }
+  // Terms with a node outside the set: from the cached columns, pair by pair.
+  for (int r = 0; r < m; ++r)
+    for (int s = 0; s < m; ++s) {
+      if (!outside[r] && !outside[s]) continue;
       for (int k = 0; k < 4; ++k) {
-        if (rows[r].node[k] < 0) continue;
+        const int a = rows[r].node[k];
+        if (a < 0) continue;
         for (int l = 0; l < 4; ++l) {
-          if (rows[s].node[l] < 0) continue;
-          a += rows[r].weight[k] * rows[s].weight[l] *
-               rows[r].n.dot(compliance.block(rows[r].node[k], rows[s].node[l]) * rows[s].n);
+          const int b = rows[s].node[l];
+          if (b < 0 || (compliance.index_of(a) >= 0 && compliance.index_of(b) >= 0)) continue;
+          A(r, s) += rows[r].weight[k] * rows[s].weight[l] * rows[r].n.dot(compliance.block(a, b) * rows[s].n);
         }
       }
-      A(r, s) = a;
     }
-  for (int r = 0; r < m; ++r)
-    for (int s = r + 1; s < m; ++s) A(s, r) = A(r, s);
+  // Symmetrise (C is symmetric up to round-off).
+  const Eigen::MatrixXd At = A.transpose();
+  A = 0.5 * (A + At);
   return A;
 }
 
 namespace {
 
 // Force, correction (one back-substitution) and the row values after correction.
-Eigen::VectorXd finish(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows, const Eigen::VectorXd& u_free,
-                       ContactResult& out) {
+Eigen::VectorXd finish(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
+                       const Eigen::VectorXd& u_free, ContactResult& out) {
   const int n = compliance.solver().n_dofs();
   out.force = contact_force(rows, out.lambda, n);
   compliance.solver().solve(out.force, out.correction);
@@ -336,26 +355,33 @@ LcpResult solve_lcp_dense(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, co
   // Variables: w_i -> i, z_i -> m + i, artificial z0 -> 2m. System: w - A z - e z0 = q, basis starts at w.
   // Binv is the inverse of the basis matrix, x the basic values (kept >= 0).
   const int z0 = 2 * m;
-  auto column = [&](int var) -> Eigen::VectorXd {
-    if (var < m) return Eigen::VectorXd::Unit(m, var);
-    if (var < 2 * m) return -A.col(var - m);
-    return -Eigen::VectorXd::Ones(m);
-  };
   std::vector<int> basis(m);
   for (int i = 0; i < m; ++i) basis[i] = i;
   Eigen::MatrixXd Binv = Eigen::MatrixXd::Identity(m, m);
   Eigen::VectorXd x = q;
+  Eigen::VectorXd d(m), dd(m);
+  Eigen::RowVectorXd br(m);
 
-  // Pivot: variable `enter` with direction d = Binv * column(enter) replaces the basic variable of row r.
-  auto pivot = [&](int r, int enter, const Eigen::VectorXd& d) {
+  // d = Binv * (column of variable var); columns: w_i -> e_i, z_i -> -A e_i, z0 -> -1.
+  auto direction = [&](int var) {
+    if (var < m) {
+      d = Binv.col(var);
+    } else if (var < 2 * m) {
+      d.noalias() = -(Binv * A.col(var - m));
+    } else {
+      d = -Binv.rowwise().sum();
+    }
+  };
+  // Pivot: variable `enter` with direction d replaces the basic variable of row r (rank-one update of Binv).
+  auto pivot = [&](int r, int enter) {
     const double dr = d[r];
     Binv.row(r) /= dr;
     x[r] /= dr;
-    for (int i = 0; i < m; ++i) {
-      if (i == r || d[i] == 0.0) continue;
-      Binv.row(i) -= d[i] * Binv.row(r);
-      x[i] -= d[i] * x[r];
-    }
+    dd = d;
+    dd[r] = 0.0;
+    br = Binv.row(r);
+    Binv.noalias() -= dd * br;
+    x -= dd * x[r];
     const int leave = basis[r];
     basis[r] = enter;
     return leave;
@@ -364,14 +390,15 @@ LcpResult solve_lcp_dense(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, co
   // First pivot: z0 enters at the most negative q.
   int r0 = 0;
   q.minCoeff(&r0);
-  int leaving = pivot(r0, z0, Binv * column(z0));
+  direction(z0);
+  int leaving = pivot(r0, z0);
   int it = 1;
   bool done = false;
   while (it < max_it) {
     // The complement of the variable that just left enters.
     const int enter = leaving < m ? leaving + m : leaving - m;
-    const Eigen::VectorXd d = Binv * column(enter);
-    const double piv_tol = 1e-12 * std::max(1.0, d.cwiseAbs().maxCoeff());
+    direction(enter);
+    const double piv_tol = 1e-12 * d.cwiseAbs().maxCoeff();
     // Minimum ratio x_i / d_i over d_i > 0; ties go to z0 (finishes at once), then lexicographically smaller
     // rows of Binv / d_i (the rule that rules out cycling under degeneracy).
     auto prefer = [&](int i, int r) {
@@ -383,7 +410,9 @@ LcpResult solve_lcp_dense(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, co
       }
       return false;
     };
-    const double tie = 1e-12 * x.cwiseAbs().maxCoeff() / std::max(d.maxCoeff(), piv_tol);
+    const double dmax = d.maxCoeff();
+    if (!(dmax > piv_tol)) break;  // ray termination: infeasible (or not copositive-plus)
+    const double tie = 1e-12 * x.cwiseAbs().maxCoeff() / dmax;
     int r = -1;
     double best = 0.0;
     for (int i = 0; i < m; ++i) {
@@ -395,8 +424,7 @@ LcpResult solve_lcp_dense(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, co
         r = i, best = std::min(best, ratio);
       }
     }
-    if (r < 0) break;  // ray termination: infeasible (or not copositive-plus)
-    leaving = pivot(r, enter, d);
+    leaving = pivot(r, enter);
     ++it;
     if (leaving == z0) {
       done = true;

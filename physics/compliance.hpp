@@ -9,9 +9,8 @@
 // of a constraint matrix H; their coupling A = H C H^T is small and dense, so the multipliers lambda come from
 // a dense solve (equality, the paper's "hold the colliding vertices") or a dense LCP (non-penetration), and
 // the whole-mesh correction is one back-substitution du = K^-1 H^T lambda.
-#include <vector>
-
 #include <Eigen/Core>
+#include <vector>
 
 #include "physics/fem.hpp"
 #include "physics/types.hpp"
@@ -77,10 +76,10 @@ class SurfaceCompliance {
   void check_node(int node, const char* what) const;
   const StaticSolver* solver_;
   std::vector<int> nodes_;
-  std::vector<int> index_;                 // mesh node -> position in nodes_, or -1
-  Eigen::MatrixXd C_;                      // 3s x 3s, m/N
-  std::vector<int> extra_index_;           // mesh node -> position in extra_nodes_, or -1
-  std::vector<int> extra_nodes_;           // nodes outside the set with cached columns
+  std::vector<int> index_;                   // mesh node -> position in nodes_, or -1
+  Eigen::MatrixXd C_;                        // 3s x 3s, m/N
+  std::vector<int> extra_index_;             // mesh node -> position in extra_nodes_, or -1
+  std::vector<int> extra_nodes_;             // nodes outside the set with cached columns
   std::vector<Eigen::MatrixXd> extra_cols_;  // per cached node: 3n x 3, K^-1 columns of its DOFs, m/N
 };
 

@@ -35,7 +35,8 @@ struct FixedDof {
   int component;
 };
 
-// K u = f with some nodes fixed (u = 0 there), factorised once with CHOLMOD (supernodal).
+// K u = f with some nodes fixed (u = 0 there), factorised once with CHOLMOD (supernodal LL^T; the factor is
+// then kept in simplicial form, whose back-substitution is the faster one with the system's reference BLAS).
 // All vectors are full length 3n; entries of fixed DOFs in f are ignored and returned as 0 in u.
 // K is read once (its lower triangle on the free DOFs) and not kept. A solve reuses workspace inside the
 // solver, so one solver must not be used from two threads at once.

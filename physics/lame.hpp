@@ -17,14 +17,14 @@ struct LameSetup {
   // Section length, metres; 0 = segments_along x the circumferential cell size at mid-wall (near-cubic cells).
   double length = 0.0;
   LinearMaterial material{5000.0, 0.45};
-  double pressure = 100.0;      // internal pressure p, pascals
+  double pressure = 100.0;  // internal pressure p, pascals
 };
 
 struct LameResult {
-  double rel_l2_error = 0.0;     // sqrt(sum (u_r - u_r*)^2 / sum u_r*^2) over all nodes
-  double max_rel_error = 0.0;    // max |u_r - u_r*| / max |u_r*|
-  double max_tangential = 0.0;   // max |u_theta| / max |u_r*| (exact: 0)
-  double max_axial = 0.0;        // max |u_z| / max |u_r*| (exact: 0)
+  double rel_l2_error = 0.0;    // sqrt(sum (u_r - u_r*)^2 / sum u_r*^2) over all nodes
+  double max_rel_error = 0.0;   // max |u_r - u_r*| / max |u_r*|
+  double max_tangential = 0.0;  // max |u_theta| / max |u_r*| (exact: 0)
+  double max_axial = 0.0;       // max |u_z| / max |u_r*| (exact: 0)
   int n_nodes = 0;
   int n_tets = 0;
 };

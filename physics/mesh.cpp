@@ -23,8 +23,10 @@ template <typename T>
 
 void validate(const HollowCylinderSpec& s) {
   // Radii and length: positive and finite, inner < outer.
-  if (!(s.inner_radius > 0.0) || !std::isfinite(s.inner_radius)) fail_spec("inner_radius", "must be > 0 and finite", s.inner_radius);
-  if (!(s.outer_radius > 0.0) || !std::isfinite(s.outer_radius)) fail_spec("outer_radius", "must be > 0 and finite", s.outer_radius);
+  if (!(s.inner_radius > 0.0) || !std::isfinite(s.inner_radius))
+    fail_spec("inner_radius", "must be > 0 and finite", s.inner_radius);
+  if (!(s.outer_radius > 0.0) || !std::isfinite(s.outer_radius))
+    fail_spec("outer_radius", "must be > 0 and finite", s.outer_radius);
   if (!(s.inner_radius < s.outer_radius)) fail_spec("inner_radius", "must be < outer_radius", s.inner_radius);
   if (!(s.length > 0.0) || !std::isfinite(s.length)) fail_spec("length", "must be > 0 and finite", s.length);
   // Cell counts.

@@ -33,6 +33,14 @@ struct HollowCylinderSpec {
 // Structured hex grid (around x along x layers), 6 tets per hex (consistent diagonals, conforming).
 // Nodes: around * (along + 1) * (layers + 1); tets: 6 * around * along * layers;
 // inner triangles: 2 * around * along.
+// Node id of ring j (0..along), layer k (0 = inner wall .. layers = outer wall), angle step i (0..around-1):
+// (j * (layers + 1) + k) * around + i, at angle 2 pi i / around from the local x axis. End node lists are the
+// rings j = 0 and j = along in that order (inner layer first).
+// Bent tube: the centreline is the arc c(s) = (R - R cos(s/R), 0, R sin(s/R)), R = bend_radius, starting at the
+// origin along +z and curving toward +x (centre of curvature at (R, 0, 0)); each ring lies in the plane normal
+// to the arc, with local axes (cos(s/R), 0, -sin(s/R)) and y. Straight: rings at z = s in the x-y plane.
+// Throws std::invalid_argument naming the field and value when the spec is invalid (also when a bend would
+// close the tube on itself: length / bend_radius must be < 2 pi).
 TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec);
 
 // Signed volume of tet t at the given positions (positive when not inverted), cubic metres.

@@ -29,6 +29,7 @@ namespace lumen::render {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+static_assert(sizeof(int) == sizeof(GLuint), "index arrays are passed to GL as GL_UNSIGNED_INT");
 
 // Colours, linear RGB in [0, 1].
 constexpr float kOuterColor[3] = {0.92f, 0.62f, 0.60f};    // tissue pink (serosa)
@@ -152,8 +153,8 @@ Renderer::Renderer(int width, int height, CameraPreset camera, const Framing& fr
     throw std::invalid_argument("Framing.axis must be a non-zero finite vector (value " + vec_text(framing.axis) + ")");
   if (!(framing.lumen_radius > 0) || !(framing.lumen_radius < framing.radius))
     throw std::invalid_argument("Framing.lumen_radius must be in (0, radius) (value " + std::to_string(framing.lumen_radius) + ")");
-  if (!(framing.half_length >= 0) || !(framing.half_length <= framing.radius))
-    throw std::invalid_argument("Framing.half_length must be in [0, radius] (value " + std::to_string(framing.half_length) + ")");
+  if (!(framing.half_length >= 0) || !std::isfinite(framing.half_length))
+    throw std::invalid_argument("Framing.half_length must be finite and >= 0 (value " + std::to_string(framing.half_length) + ")");
   if (!(framing.cutaway_degrees >= 0 && framing.cutaway_degrees <= 180))
     throw std::invalid_argument("Framing.cutaway_degrees must be in [0, 180] (value " + std::to_string(framing.cutaway_degrees) + ")");
 
@@ -179,18 +180,17 @@ Renderer::Renderer(int width, int height, CameraPreset camera, const Framing& fr
   }
   m.setup_camera();
   m.setup_gl_state();
+  // Release the context: each draw() binds it on the calling thread and releases it again (a fraction of a
+  // microsecond), so no thread keeps it bound between frames.
+  OSMesaMakeCurrent(nullptr, nullptr, 0, 0, 0);
 }
 
 Renderer::~Renderer() {
-  // Release the context; unbind it first if it is this thread's current one.
-  if (impl_ && impl_->ctx) {
-    if (OSMesaGetCurrentContext() == impl_->ctx) OSMesaMakeCurrent(nullptr, nullptr, 0, 0, 0);
-    OSMesaDestroyContext(impl_->ctx);
-  }
+  // The context is never left bound (see draw()), so it can go directly.
+  if (impl_ && impl_->ctx) OSMesaDestroyContext(impl_->ctx);
 }
 
 void Renderer::Impl::make_current() {
-  if (OSMesaGetCurrentContext() == ctx) return;
   if (!OSMesaMakeCurrent(ctx, color_buffer.data(), GL_UNSIGNED_BYTE, width, height))
     throw std::runtime_error("Renderer: OSMesaMakeCurrent failed for " + std::to_string(width) + "x" + std::to_string(height));
 }
@@ -377,7 +377,10 @@ void Renderer::Impl::draw_surfaces(const FrameView& f, bool ghost) {
     if (counts[0] > 0) glDrawElements(GL_TRIANGLES, 3 * counts[0], GL_UNSIGNED_INT, tris[0]);
   } else {
     glEnableClientState(GL_COLOR_ARRAY);
-    for (int g = 0; g < 3; ++g) {
+    // Nearest surfaces first so hidden fragments fail the depth test early: from outside the outer wall, from
+    // inside the lumen the inner wall.
+    const int outside_order[3] = {0, 2, 1}, inside_order[3] = {1, 2, 0};
+    for (int g : preset == CameraPreset::Endoscope ? inside_order : outside_order) {
       if (counts[g] == 0) continue;
       glNormalPointer(GL_FLOAT, 0, normals[g].data());
       glColorPointer(3, GL_FLOAT, 0, colors[g].data());
@@ -482,7 +485,11 @@ void Renderer::draw(const FrameView& f, Image& out) {
       throw std::invalid_argument("FrameView.probes[" + std::to_string(i) + "] must be finite (point " + vec_text(f.probes[i].point) +
                                   ", force " + vec_text(f.probes[i].force) + ")");
   }
+  // Bind the context on this thread for the duration of the call.
   m.make_current();
+  struct Release {
+    ~Release() { OSMesaMakeCurrent(nullptr, nullptr, 0, 0, 0); }
+  } release;
 
   // Geometry of this frame: float positions, then normals and colours per surface.
   m.pos.resize(static_cast<size_t>(f.n_points) * 3);
@@ -505,6 +512,12 @@ void Renderer::draw(const FrameView& f, Image& out) {
     glEnable(GL_CLIP_PLANE1);
     m.draw_surfaces(f, false);
     glDisable(GL_CLIP_PLANE1);
+  } else if (m.preset == CameraPreset::Endoscope) {
+    // From inside the lumen every visible wall faces the eye: cull back faces (the outer wall, hidden anyway).
+    glEnable(GL_CULL_FACE);
+    glCullFace(GL_BACK);
+    m.draw_surfaces(f, false);
+    glDisable(GL_CULL_FACE);
   } else {
     m.draw_surfaces(f, false);
   }
@@ -541,16 +554,17 @@ void Renderer::draw(const FrameView& f, Image& out) {
   // Read back (bottom row first) and flip so row 0 is the top of the image.
   glFinish();
   glReadPixels(0, 0, m.width, m.height, GL_RGBA, GL_UNSIGNED_BYTE, m.readback.data());
+  const size_t w = static_cast<size_t>(m.width), h = static_cast<size_t>(m.height);
   out.width = m.width;
   out.height = m.height;
-  out.rgb.resize(static_cast<size_t>(m.width) * m.height * 3);
-  for (int y = 0; y < m.height; ++y) {
-    const unsigned char* src = &m.readback[static_cast<size_t>(m.height - 1 - y) * m.width * 4];
-    unsigned char* dst = &out.rgb[static_cast<size_t>(y) * m.width * 3];
-    for (int x = 0; x < m.width; ++x) {
-      dst[3 * x + 0] = src[4 * x + 0];
-      dst[3 * x + 1] = src[4 * x + 1];
-      dst[3 * x + 2] = src[4 * x + 2];
+  out.rgb.resize(w * h * 3);
+  for (size_t y = 0; y < h; ++y) {
+    const unsigned char* src = m.readback.data() + (h - 1 - y) * w * 4;
+    unsigned char* dst = out.rgb.data() + y * w * 3;
+    for (size_t x = 0; x < w; ++x, src += 4, dst += 3) {
+      dst[0] = src[0];
+      dst[1] = src[1];
+      dst[2] = src[2];
     }
   }
 }

@@ -56,7 +56,8 @@ struct Image {
   std::vector<std::uint8_t> rgb;  // width * height * 3
 };
 
-// One OSMesa context per Renderer, made current on the calling thread by draw(); use from one thread.
+// One OSMesa context per Renderer, bound on the calling thread only for the duration of draw(); any thread may
+// draw, one at a time (not thread-safe).
 class Renderer {
  public:
   Renderer(int width, int height, CameraPreset camera, const Framing& framing);

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <set>
 #include <stdexcept>
@@ -43,19 +44,26 @@ void make_tube(int nz, int nth, double r, double len, Points& x, Tris& tris) {
   }
 }
 
-// Random smooth deformation plus noise, with a pinch of amplitude `pinch` (1 = walls meet) around mid-length.
-Points deform(const Points& rest, double r, double len, double pinch, double noise, std::mt19937& rng) {
+// A random smooth deformation of a tube of radius r, length len (metres): a pinch at a random place
+// plus a sideways bend.
+struct Shape {
+  double zc, w, ax, ay, fx, fy, px, py;
+};
+Shape random_shape(double r, double len, std::mt19937& rng) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
-  const double zc = len * (0.5 + 0.2 * u(rng)), w = len * (0.15 + 0.05 * u(rng));
-  const double ax = 0.1 * r * u(rng), ay = 0.1 * r * u(rng), fx = 2.0 + u(rng), fy = 2.0 + u(rng);
-  const double px = kPi * u(rng), py = kPi * u(rng);
+  return Shape{len * (0.5 + 0.2 * u(rng)), len * (0.15 + 0.05 * u(rng)), 0.1 * r * u(rng), 0.1 * r * u(rng),
+               2.0 + u(rng), 2.0 + u(rng), kPi * u(rng), kPi * u(rng)};
+}
+// The shape with pinch amplitude `pinch` (1 = the walls meet) and uniform noise of `noise` metres.
+Points deform(const Points& rest, const Shape& s, double len, double pinch, double noise, std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
   Points x = rest;
   for (int i = 0; i < x.rows(); ++i) {
     const double z = rest(i, 2);
-    const double g = std::exp(-((z - zc) / w) * ((z - zc) / w));
+    const double g = std::exp(-((z - s.zc) / s.w) * ((z - s.zc) / s.w));
     x(i, 1) *= 1.0 - pinch * g;
-    x(i, 0) += ax * std::sin(fx * kPi * z / len + px) + noise * u(rng);
-    x(i, 1) += ay * std::sin(fy * kPi * z / len + py) + noise * u(rng);
+    x(i, 0) += s.ax * std::sin(s.fx * kPi * z / len + s.px) + noise * u(rng);
+    x(i, 1) += s.ay * std::sin(s.fy * kPi * z / len + s.py) + noise * u(rng);
     x(i, 2) += noise * u(rng);
   }
   return x;
@@ -115,7 +123,7 @@ void check_kdop_against_brute(std::mt19937& rng) {
   for (int trial = 0; trial < 2000; ++trial) {
     // Two clouds of 1..6 points (swept triangles have 6), random centres.
     std::vector<std::array<double, 3>> pa(1 + trial % 6), pb(1 + (trial / 6) % 6);
-    const double ca[3] = {u(rng), u(rng), u(rng)}, cb[3] = {u(rng), u(rng), u(rng)};
+    const double ca[3] = {0.5 * u(rng), 0.5 * u(rng), 0.5 * u(rng)}, cb[3] = {0.5 * u(rng), 0.5 * u(rng), 0.5 * u(rng)};
     for (auto& p : pa) p = {ca[0] + 0.4 * u(rng), ca[1] + 0.4 * u(rng), ca[2] + 0.4 * u(rng)};
     for (auto& p : pb) p = {cb[0] + 0.4 * u(rng), cb[1] + 0.4 * u(rng), cb[2] + 0.4 * u(rng)};
     Kdop<K> a, b;
@@ -150,7 +158,9 @@ void check_kdop_against_brute(std::mt19937& rng) {
     Kdop<K> ia = a, ib = b;
     ia.inflate(margin);
     ib.inflate(margin);
-    if (2.0 * margin >= dmin) ASSERT_TRUE(ia.overlaps(ib));
+    if (2.0 * margin >= dmin) {
+      ASSERT_TRUE(ia.overlaps(ib));
+    }
   }
   // Both outcomes were exercised.
   EXPECT_GT(overlaps, 100);
@@ -188,34 +198,33 @@ TEST(Kdop, InflationCoversRoundingAtExactTouching) {
   }
 }
 
-// Number of overlapping pairs among k-DOPs of the given segments.
+// Number of overlapping pairs among k-DOPs of the given triangles (9 doubles each).
 template <int K>
-int count_overlapping_pairs(const std::vector<std::array<double, 6>>& segs) {
-  std::vector<Kdop<K>> boxes(segs.size());
-  for (std::size_t i = 0; i < segs.size(); ++i) {
+int count_overlapping_pairs(const std::vector<std::array<double, 9>>& prims) {
+  std::vector<Kdop<K>> boxes(prims.size());
+  for (std::size_t i = 0; i < prims.size(); ++i) {
     boxes[i].clear();
-    boxes[i].add_point(&segs[i][0]);
-    boxes[i].add_point(&segs[i][3]);
+    for (int k = 0; k < 3; ++k) boxes[i].add_point(&prims[i][static_cast<std::size_t>(3 * k)]);
   }
   int n = 0;
-  for (std::size_t i = 0; i < segs.size(); ++i) {
-    for (std::size_t j = i + 1; j < segs.size(); ++j) n += boxes[i].overlaps(boxes[j]);
+  for (std::size_t i = 0; i < prims.size(); ++i) {
+    for (std::size_t j = i + 1; j < prims.size(); ++j) n += boxes[i].overlaps(boxes[j]);
   }
   return n;
 }
 
 TEST(Kdop, DiagonalConfigurationFewerOverlapsWithMoreAxes) {
-  // Parallel segments along the (1, 1, 1) diagonal, offset sideways on a grid: AABBs overlap heavily,
-  // the diagonal-aligned axes of larger k separate them.
-  std::vector<std::array<double, 6>> segs;
+  // Thin triangles along the (1, 1, 1) diagonal, offset sideways on a grid: AABBs overlap heavily, the
+  // diagonal-aligned axes of larger k separate most of them.
+  std::vector<std::array<double, 9>> prims;
   for (int i = 0; i < 6; ++i) {
     for (int j = 0; j < 6; ++j) {
-      const double o[3] = {0.3 * i, 0.3 * j, -0.3 * (i + j) / 2.0};
-      segs.push_back({o[0], o[1], o[2], o[0] + 1.0, o[1] + 1.0, o[2] + 1.0});
+      const double o[3] = {0.15 * i, 0.15 * j, -0.15 * (i + j) / 2.0};
+      prims.push_back({o[0], o[1], o[2], o[0] + 1.0, o[1] + 1.0, o[2] + 1.0, o[0] + 0.2, o[1] - 0.2, o[2]});
     }
   }
-  const int c6 = count_overlapping_pairs<6>(segs), c14 = count_overlapping_pairs<14>(segs);
-  const int c18 = count_overlapping_pairs<18>(segs), c26 = count_overlapping_pairs<26>(segs);
+  const int c6 = count_overlapping_pairs<6>(prims), c14 = count_overlapping_pairs<14>(prims);
+  const int c18 = count_overlapping_pairs<18>(prims), c26 = count_overlapping_pairs<26>(prims);
   // Nested axis sets: never more overlaps with more axes; strictly fewer on this configuration.
   EXPECT_GE(c6, c14);
   EXPECT_GE(c6, c18);
@@ -223,6 +232,7 @@ TEST(Kdop, DiagonalConfigurationFewerOverlapsWithMoreAxes) {
   EXPECT_GE(c18, c26);
   EXPECT_GT(c6, c26);
   EXPECT_GT(c26, 0);
+  std::printf("diagonal triangles: overlapping pairs k=6 %d, k=14 %d, k=18 %d, k=26 %d\n", c6, c14, c18, c26);
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -339,10 +349,12 @@ void check_bvh_equals_brute(int k, unsigned seed, bool build_over_rest) {
   const double r = 0.01, len = 0.05;
   Points rest;
   Tris tris;
-  make_tube(12, 16, r, len, rest, tris);
+  make_tube(10, 14, r, len, rest, tris);
   std::mt19937 rng(seed);
-  const Points x0 = deform(rest, r, len, 0.3, 1e-4, rng);
-  const Points x1 = deform(rest, r, len, 1.1 + 0.4 * (seed % 3) / 2.0, 2e-4, rng);  // walls pushed through
+  // One frame of a pinch pushing the walls through each other, plus noise.
+  const Shape shape = random_shape(r, len, rng);
+  const Points x0 = deform(rest, shape, len, 0.85, 1e-4, rng);
+  const Points x1 = deform(rest, shape, len, 1.1 + 0.1 * (seed % 3), 1e-4, rng);
   const double gap = 1e-4;
   SelfCollision sc = build_over_rest ? SelfCollision(tris, rest, k) : SelfCollision(tris, static_cast<int>(rest.rows()), k);
   std::vector<Contact> bvh, brute;
@@ -367,22 +379,23 @@ void check_bvh_equals_brute(int k, unsigned seed, bool build_over_rest) {
 
 TEST(SelfCollision, BvhContactsEqualBruteForceOnDeformedTubes) {
   for (int k : {6, 14, 18, 26}) {
-    for (unsigned seed : {1u, 2u, 3u}) check_bvh_equals_brute(k, seed, seed == 2u);
+    for (unsigned seed : {1u, 2u}) check_bvh_equals_brute(k, seed + 10u * static_cast<unsigned>(k), seed == 2u);
   }
 }
 
 TEST(SelfCollision, RefitOverManyFramesMatchesBruteForce) {
-  // Topology built over the rest shape, then refitted over a sequence of ever larger deformations.
+  // Topology built over the rest shape, then refitted over a sequence of frames pinching ever further.
   const double r = 0.01, len = 0.05;
   Points rest;
   Tris tris;
-  make_tube(10, 12, r, len, rest, tris);
+  make_tube(8, 12, r, len, rest, tris);
   SelfCollision sc(tris, rest, 18);
   std::mt19937 rng(5);
+  const Shape shape = random_shape(r, len, rng);
   Points x0 = rest;
   long total = 0;
   for (int frame = 0; frame < 4; ++frame) {
-    const Points x1 = deform(rest, r, len, 0.45 * (frame + 1), 1e-4, rng);
+    const Points x1 = deform(rest, shape, len, 0.3 * (frame + 1), 1e-4, rng);
     std::vector<Contact> a, b;
     sc.detect(x0, x1, 5e-5, a);
     sc.detect_brute_force(x0, x1, 5e-5, b);
@@ -402,8 +415,9 @@ void check_features_tested_once(unsigned seed) {
   Tris tris;
   make_tube(8, 10, r, len, rest, tris);
   std::mt19937 rng(seed);
-  const Points x0 = deform(rest, r, len, 0.2, 1e-4, rng);
-  const Points x1 = deform(rest, r, len, 1.2, 1e-4, rng);
+  const Shape shape = random_shape(r, len, rng);
+  const Points x0 = deform(rest, shape, len, 0.8, 1e-4, rng);
+  const Points x1 = deform(rest, shape, len, 1.2, 1e-4, rng);
   const double gap = 2e-4;
   const int nt = static_cast<int>(tris.rows()), np = static_cast<int>(rest.rows());
   SelfCollision sc(tris, np, K);
@@ -482,12 +496,10 @@ void check_features_tested_once(unsigned seed) {
 }
 
 TEST(SelfCollision, EachFeaturePairTestedOnce) {
-  for (unsigned seed : {4u, 9u}) {
-    check_features_tested_once<6>(seed);
-    check_features_tested_once<14>(seed);
-    check_features_tested_once<18>(seed);
-    check_features_tested_once<26>(seed);
-  }
+  check_features_tested_once<6>(4u);
+  check_features_tested_once<14>(9u);
+  check_features_tested_once<18>(13u);
+  check_features_tested_once<26>(21u);
 }
 
 TEST(SelfCollision, SharedVertexNeighboursStillReportVertexFaceContact) {

@@ -15,13 +15,13 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Run {
+struct CliRun {
   int code = -1;
   std::string output;  // stdout + stderr
 };
 
-Run run_lumen(const std::string& args) {
-  Run r;
+CliRun run_lumen(const std::string& args) {
+  CliRun r;
   const std::string cmd = std::string(LUMEN_BINARY) + " " + args + " 2>&1";
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
@@ -61,7 +61,7 @@ TEST(Cli, BadSceneExitsTwoNamingFileKeyValueAndWritesNothing) {
   text.replace(text.find("0.45"), 4, "0.7");
   std::ofstream(d / "bad.json") << text;
   const fs::path out = d / "out";
-  Run r = run_lumen("run " + (d / "bad.json").string() + " --out " + out.string());
+  CliRun r = run_lumen("run " + (d / "bad.json").string() + " --out " + out.string());
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find((d / "bad.json").string() + ": material.poisson_ratio: out of range (-1, 0.5) (value 0.7)"),
             std::string::npos)
@@ -70,7 +70,7 @@ TEST(Cli, BadSceneExitsTwoNamingFileKeyValueAndWritesNothing) {
 }
 
 TEST(Cli, MissingSceneAndUnwritableOutput) {
-  Run r = run_lumen("run /nonexistent/scene.json --no-render");
+  CliRun r = run_lumen("run /nonexistent/scene.json --no-render");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("/nonexistent/scene.json: cannot read scene file"), std::string::npos) << r.output;
 
@@ -89,7 +89,7 @@ TEST(Cli, BadReplayFileExitsTwoBeforeWriting) {
   const std::string track = R"("track": [{"t": 0.0, "force": [0, 0, 0]}, {"t": 0.2, "force": [0, -0.3, 0]}])";
   text.replace(text.find(track), track.size(), R"("replay": "r.csv")");
   std::ofstream(d / "s.json") << text;
-  Run r = run_lumen("run " + (d / "s.json").string() + " --out " + (d / "out").string());
+  CliRun r = run_lumen("run " + (d / "s.json").string() + " --out " + (d / "out").string());
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find((d / "r.csv").string() + ": line 2: field fy: not a number (value \"oops\")"), std::string::npos)
       << r.output;
@@ -100,7 +100,7 @@ TEST(Cli, RunWritesFramesVideoReportAndSurface) {
   const fs::path d = temp_dir("run");
   std::ofstream(d / "s.json") << small_scene("small");
   const fs::path out = d / "out";
-  Run r = run_lumen("run " + (d / "s.json").string() + " --out " + out.string() + " --export-surface --check");
+  CliRun r = run_lumen("run " + (d / "s.json").string() + " --out " + out.string() + " --export-surface --check");
   ASSERT_EQ(r.code, 0) << r.output;
   for (int i = 1; i <= 6; ++i) {
     char name[32];
@@ -148,7 +148,7 @@ TEST(Cli, RunWritesFramesVideoReportAndSurface) {
 TEST(Cli, BenchPrintsStageTableAsJson) {
   const fs::path d = temp_dir("bench");
   std::ofstream(d / "s.json") << small_scene("small");
-  Run r = run_lumen("bench " + (d / "s.json").string() + " --frames 4 --json");
+  CliRun r = run_lumen("bench " + (d / "s.json").string() + " --frames 4 --json");
   ASSERT_EQ(r.code, 0) << r.output;
   auto j = nlohmann::json::parse(r.output);
   EXPECT_EQ(j["frames"], 4);

@@ -146,11 +146,11 @@ TEST(HollowCylinder, SurfacesLieOnTheirRadiiWithStatedNormals) {
     // End caps: the start cap lies in z = 0 with normal -z; the stop cap is perpendicular to the end tangent
     // with the normal along it.
     const double phi_end = s.bend_radius > 0 ? s.length / s.bend_radius : 0.0;
-    const Eigen::Vector3d t_end = s.bend_radius > 0 ? Eigen::Vector3d(std::sin(phi_end), 0, std::cos(phi_end))
-                                                    : Eigen::Vector3d::UnitZ();
-    const Eigen::Vector3d c_end =
-        s.bend_radius > 0 ? Eigen::Vector3d(s.bend_radius * (1 - std::cos(phi_end)), 0, s.bend_radius * std::sin(phi_end))
-                          : Eigen::Vector3d(0, 0, s.length);
+    const Eigen::Vector3d t_end =
+        s.bend_radius > 0 ? Eigen::Vector3d(std::sin(phi_end), 0, std::cos(phi_end)) : Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d c_end = s.bend_radius > 0 ? Eigen::Vector3d(s.bend_radius * (1 - std::cos(phi_end)), 0,
+                                                                      s.bend_radius * std::sin(phi_end))
+                                                    : Eigen::Vector3d(0, 0, s.length);
     std::set<int> start(m.end_nodes_start.begin(), m.end_nodes_start.end());
     std::set<int> stop(m.end_nodes_stop.begin(), m.end_nodes_stop.end());
     EXPECT_EQ(start.size(), static_cast<size_t>(s.segments_around * (s.layers + 1)));
@@ -193,8 +193,8 @@ TEST(HollowCylinder, VolumeOfStraightMeshIsThePolygonalAnnulusPrism) {
   double v = 0.0;
   for (int t = 0; t < m.tets.rows(); ++t) v += tet_volume(m.rest, m.tets, t);
   const int A = s.segments_around;
-  const double area = 0.5 * A * std::sin(2 * kPi / A) *
-                      (s.outer_radius * s.outer_radius - s.inner_radius * s.inner_radius);
+  const double area =
+      0.5 * A * std::sin(2 * kPi / A) * (s.outer_radius * s.outer_radius - s.inner_radius * s.inner_radius);
   EXPECT_NEAR(v, area * s.length, 1e-12 * area * s.length);
 }
 
@@ -218,6 +218,25 @@ TEST(HollowCylinder, BendFollowsTheArc) {
     const Eigen::Vector3d p = point(m, v);
     EXPECT_NEAR(std::atan2(p.z(), R - p.x()), s.length / R, 1e-12);
   }
+}
+
+TEST(HollowCylinder, NodeNumberingAsDocumented) {
+  HollowCylinderSpec s;
+  s.segments_around = 7, s.segments_along = 3, s.layers = 2, s.length = 0.06;
+  const TetMesh m = make_hollow_cylinder(s);
+  for (int j = 0; j <= 3; ++j)
+    for (int k = 0; k <= 2; ++k)
+      for (int i = 0; i < 7; ++i) {
+        const int v = (j * 3 + k) * 7 + i;
+        const double r = s.inner_radius + (s.outer_radius - s.inner_radius) * k / 2, th = 2 * kPi * i / 7;
+        EXPECT_LE((point(m, v) - Eigen::Vector3d(r * std::cos(th), r * std::sin(th), 0.02 * j)).norm(), 1e-15);
+        if (j == 0) {
+          EXPECT_EQ(m.end_nodes_start[k * 7 + i], v);
+        }
+        if (j == 3) {
+          EXPECT_EQ(m.end_nodes_stop[k * 7 + i], v);
+        }
+      }
 }
 
 template <typename F>

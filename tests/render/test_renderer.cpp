@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 #include "render/renderer.hpp"
@@ -397,6 +398,17 @@ TEST(Renderer, SeveralRenderersOnOneThread) {
   EXPECT_EQ(s1.rgb, s2.rgb);
   EXPECT_EQ(e1.rgb, e2.rgb);
   EXPECT_NE(s1.rgb, e1.rgb);
+}
+
+TEST(Renderer, DrawsOnAnotherThreadThanItWasBuiltOn) {
+  // The simulation thread draws with a renderer built elsewhere: same pixels as drawing here.
+  const Tube t;
+  Renderer r(kW, kH, CameraPreset::Diagonal, t.framing(100));
+  Image there;
+  std::thread worker([&] { r.draw(t.view(), there); });
+  worker.join();
+  const Image here = draw(r, t.view());
+  EXPECT_EQ(there.rgb, here.rgb);
 }
 
 }  // namespace

@@ -1,0 +1,495 @@
+// Corotational tet kernels (rotations, forces, warped products), PCG on the warped system, quasi-static solve.
+#include "physics/corotational.hpp"
+
+#include <Eigen/Dense>
+#include <Eigen/IterativeLinearSolvers>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace lumen::physics {
+
+namespace {
+
+// Below this det F the polar rotation comes from the SVD instead of the Newton iteration.
+constexpr double kNewtonMinDet = 1e-2;
+constexpr int kNewtonMaxIterations = 20;
+
+// Throws std::invalid_argument "<where>: <what> must <rule>, got <value>".
+template <typename T>
+[[noreturn]] void fail(const char* where, const std::string& what, const char* rule, T value) {
+  std::ostringstream msg;
+  msg.precision(17);
+  msg << where << ": " << what << " must " << rule << ", got " << value;
+  throw std::invalid_argument(msg.str());
+}
+
+// Index of the first non-finite entry of v, or -1.
+int first_non_finite(const Eigen::VectorXd& v) {
+  for (Eigen::Index i = 0; i < v.size(); ++i)
+    if (!std::isfinite(v[i])) return static_cast<int>(i);
+  return -1;
+}
+
+// Checks a 3n vector: the given size and finite entries.
+void check_vector(const char* where, const char* name, const Eigen::VectorXd& v, int n) {
+  if (v.size() != n) fail(where, std::string(name) + ".size()", ("be " + std::to_string(n)).c_str(), v.size());
+  const int bad = first_non_finite(v);
+  if (bad >= 0) fail(where, std::string(name) + "[" + std::to_string(bad) + "]", "be finite", v[bad]);
+}
+
+// Cofactor matrix of X (X^-T det X): its columns are cross products of the columns of X.
+Eigen::Matrix3d cofactor(const Eigen::Matrix3d& X) {
+  Eigen::Matrix3d C;
+  C.col(0) = X.col(1).cross(X.col(2));
+  C.col(1) = X.col(2).cross(X.col(0));
+  C.col(2) = X.col(0).cross(X.col(1));
+  return C;
+}
+
+// Isotropic linear stress (pascals) of a small strain eps: lambda tr(eps) I + 2 mu eps.
+Eigen::Matrix3d stress(const Eigen::Matrix3d& eps, double lambda, double mu) {
+  Eigen::Matrix3d s = 2.0 * mu * eps;
+  s.diagonal().array() += lambda * eps.trace();
+  return s;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------------------------
+// Rotation of a deformation gradient
+
+Eigen::Matrix3d proper_rotation(const Eigen::Matrix3d& F, bool* inverted) {
+  if (!F.allFinite()) {
+    std::ostringstream msg;
+    msg << "proper_rotation: F must be finite, got\n" << F;
+    throw std::invalid_argument(msg.str());
+  }
+  const double det = F.determinant();
+  if (inverted) *inverted = !(det > 0.0);
+  // Well-conditioned, not inverted: Newton's polar iteration X <- (g X + X^-T / g) / 2 with determinant scaling
+  // g = |det X|^(-1/3) while far from orthogonal (Higham 1986); converges quadratically to the polar rotation.
+  if (det > kNewtonMinDet) {
+    Eigen::Matrix3d X = F;
+    double detX = det;
+    bool scale = true;
+    for (int k = 0; k < kNewtonMaxIterations; ++k) {
+      const double g = scale ? std::cbrt(1.0 / detX) : 1.0;
+      const Eigen::Matrix3d next = 0.5 * (g * X + cofactor(X) / (g * detX));
+      const double step = (next - X).lpNorm<Eigen::Infinity>();
+      X = next;
+      if (step <= 1e-9) return X;  // the error of X is now about step^2
+      scale = step > 1e-2;
+      detX = X.determinant();
+    }
+  }
+  // Inverted, nearly degenerate or not converged: SVD, the smallest singular value's sign flipped when
+  // U V^T would be a reflection (Irving et al. 2004), so R is always a proper rotation.
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d U = svd.matrixU();
+  const Eigen::Matrix3d& V = svd.matrixV();
+  if ((U * V.transpose()).determinant() < 0.0) U.col(2) = -U.col(2);
+  return U * V.transpose();
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// CorotationalElements
+
+CorotationalElements::CorotationalElements(const TetMesh& mesh, const LinearMaterial& material)
+    : n_nodes_(mesh.n_nodes()), tets_(mesh.tets), material_(material) {
+  validate_material(material);
+  const double E = material.young_modulus, nu = material.poisson_ratio;
+  lambda_ = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+  mu_ = E / (2.0 * (1.0 + nu));
+  const int nt = n_tets();
+  grad_.resize(nt);
+  volume_.resize(nt);
+  // Rest edge matrix Dm (columns X_a - X_0), volume det(Dm) / 6 and gradients Dm^-1 per tet.
+  for (int t = 0; t < nt; ++t) {
+    for (int a = 0; a < 4; ++a) {
+      const int v = tets_(t, a);
+      if (v < 0 || v >= n_nodes_) {
+        fail("CorotationalElements", "mesh.tets(" + std::to_string(t) + ", " + std::to_string(a) + ")",
+             ("be a node id in [0, " + std::to_string(n_nodes_) + ")").c_str(), v);
+      }
+    }
+    Eigen::Matrix3d Dm;
+    for (int a = 0; a < 3; ++a) Dm.col(a) = (mesh.rest.row(tets_(t, a + 1)) - mesh.rest.row(tets_(t, 0))).transpose();
+    volume_[t] = Dm.determinant() / 6.0;
+    if (!(volume_[t] > 0.0) || !std::isfinite(volume_[t])) {
+      fail("CorotationalElements", "rest volume of tet " + std::to_string(t), "be > 0 and finite", volume_[t]);
+    }
+    grad_[t] = Dm.inverse();
+  }
+  // Node -> incident tets (CSR), for per-node rotations.
+  node_tet_start_.assign(n_nodes_ + 1, 0);
+  for (int t = 0; t < nt; ++t)
+    for (int a = 0; a < 4; ++a) ++node_tet_start_[tets_(t, a) + 1];
+  for (int v = 0; v < n_nodes_; ++v) node_tet_start_[v + 1] += node_tet_start_[v];
+  node_tet_.resize(node_tet_start_[n_nodes_]);
+  std::vector<int> fill(node_tet_start_.begin(), node_tet_start_.end() - 1);
+  for (int t = 0; t < nt; ++t)
+    for (int a = 0; a < 4; ++a) node_tet_[fill[tets_(t, a)]++] = t;
+}
+
+Eigen::Matrix3d CorotationalElements::deformation_gradient(const Eigen::VectorXd& u, int t) const {
+  // F = I + Du Dm^-1 with Du the displacement edges u_a - u_0 as columns.
+  const Eigen::Vector3d u0 = u.segment<3>(3 * tets_(t, 0));
+  Eigen::Matrix3d Du;
+  for (int a = 0; a < 3; ++a) Du.col(a) = u.segment<3>(3 * tets_(t, a + 1)) - u0;
+  return Eigen::Matrix3d::Identity() + Du * grad_[t];
+}
+
+int CorotationalElements::rotations(const Eigen::VectorXd& u, std::vector<Eigen::Matrix3d>& R) const {
+  check_vector("CorotationalElements::rotations", "u", u, n_dofs());
+  R.resize(n_tets());
+  int inverted_count = 0;
+  for (int t = 0; t < n_tets(); ++t) {
+    bool inverted = false;
+    R[t] = proper_rotation(deformation_gradient(u, t), &inverted);
+    inverted_count += inverted ? 1 : 0;
+  }
+  return inverted_count;
+}
+
+void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R,
+                                          Eigen::VectorXd& f) const {
+  if (static_cast<int>(R.size()) != n_tets()) {
+    fail("CorotationalElements::elastic_forces", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
+         R.size());
+  }
+  f.setZero(n_dofs());
+  for (int t = 0; t < n_tets(); ++t) {
+    // Strain of the unrotated element, eps = sym(R^T F) - I, its stress, and the nodal forces V R sigma grad N_a.
+    const Eigen::Matrix3d S = R[t].transpose() * deformation_gradient(u, t);
+    Eigen::Matrix3d eps = 0.5 * (S + S.transpose());
+    eps.diagonal().array() -= 1.0;
+    const Eigen::Matrix3d P = volume_[t] * (R[t] * stress(eps, lambda_, mu_)) * grad_[t].transpose();
+    for (int a = 0; a < 3; ++a) f.segment<3>(3 * tets_(t, a + 1)) += P.col(a);
+    f.segment<3>(3 * tets_(t, 0)) -= P.rowwise().sum();
+  }
+}
+
+void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p,
+                                          Eigen::VectorXd& y) const {
+  if (static_cast<int>(R.size()) != n_tets()) {
+    fail("CorotationalElements::warped_product", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
+         R.size());
+  }
+  if (p.size() != n_dofs()) fail("CorotationalElements::warped_product", "p.size()", "be 3n", p.size());
+  y.setZero(n_dofs());
+  for (int t = 0; t < n_tets(); ++t) {
+    // R K_e R^T p_e: strain of the unrotated displacement gradient R^T (Dp Dm^-1), stress, rotated nodal forces.
+    const Eigen::Vector3d p0 = p.segment<3>(3 * tets_(t, 0));
+    Eigen::Matrix3d Dp;
+    for (int a = 0; a < 3; ++a) Dp.col(a) = p.segment<3>(3 * tets_(t, a + 1)) - p0;
+    const Eigen::Matrix3d H = R[t].transpose() * (Dp * grad_[t]);
+    const Eigen::Matrix3d eps = 0.5 * (H + H.transpose());
+    const Eigen::Matrix3d P = volume_[t] * (R[t] * stress(eps, lambda_, mu_)) * grad_[t].transpose();
+    for (int a = 0; a < 3; ++a) y.segment<3>(3 * tets_(t, a + 1)) += P.col(a);
+    y.segment<3>(3 * tets_(t, 0)) -= P.rowwise().sum();
+  }
+}
+
+double CorotationalElements::elastic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const {
+  if (static_cast<int>(R.size()) != n_tets()) {
+    fail("CorotationalElements::elastic_energy", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
+         R.size());
+  }
+  check_vector("CorotationalElements::elastic_energy", "u", u, n_dofs());
+  double energy = 0.0;
+  for (int t = 0; t < n_tets(); ++t) {
+    // V (mu eps:eps + lambda/2 tr(eps)^2) with the unrotated strain.
+    const Eigen::Matrix3d S = R[t].transpose() * deformation_gradient(u, t);
+    Eigen::Matrix3d eps = 0.5 * (S + S.transpose());
+    eps.diagonal().array() -= 1.0;
+    const double tr = eps.trace();
+    energy += volume_[t] * (mu_ * eps.squaredNorm() + 0.5 * lambda_ * tr * tr);
+  }
+  return energy;
+}
+
+void CorotationalElements::node_rotations(const std::vector<Eigen::Matrix3d>& R,
+                                          std::vector<Eigen::Matrix3d>& node_R) const {
+  if (static_cast<int>(R.size()) != n_tets()) {
+    fail("CorotationalElements::node_rotations", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
+         R.size());
+  }
+  node_R.resize(n_nodes_);
+  for (int v = 0; v < n_nodes_; ++v) {
+    // Rotation nearest to the sum of the incident tets' rotations.
+    Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+    for (int k = node_tet_start_[v]; k < node_tet_start_[v + 1]; ++k) sum += R[node_tet_[k]];
+    node_R[v] = node_tet_start_[v + 1] > node_tet_start_[v] ? proper_rotation(sum) : Eigen::Matrix3d::Identity();
+  }
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// PCG on the warped system with Eigen's ConjugateGradient: a matrix-free operator and a CHOLMOD preconditioner.
+
+namespace {
+class WarpedOperator;
+}  // namespace
+}  // namespace lumen::physics
+
+// The operator has the traits of a sparse matrix, as in Eigen's matrix-free solver example.
+template <>
+struct Eigen::internal::traits<lumen::physics::WarpedOperator> : public traits<Eigen::SparseMatrix<double>> {};
+
+namespace lumen::physics {
+namespace {
+
+// y = A p = c_mass M p + c_stiffness K_w p, zero on the fixed DOFs (Eigen matrix-free operator).
+class WarpedOperator : public Eigen::EigenBase<WarpedOperator> {
+ public:
+  using Scalar = double;
+  using RealScalar = double;
+  using StorageIndex = int;
+  enum { ColsAtCompileTime = Eigen::Dynamic, MaxColsAtCompileTime = Eigen::Dynamic, IsRowMajor = false };
+
+  WarpedOperator(const WarpedSystem& system, const std::vector<char>& fixed) : system_(system), fixed_(fixed) {}
+  Eigen::Index rows() const { return system_.elements->n_dofs(); }
+  Eigen::Index cols() const { return system_.elements->n_dofs(); }
+
+  template <typename Rhs>
+  Eigen::Product<WarpedOperator, Rhs, Eigen::AliasFreeProduct> operator*(const Eigen::MatrixBase<Rhs>& x) const {
+    return Eigen::Product<WarpedOperator, Rhs, Eigen::AliasFreeProduct>(*this, x.derived());
+  }
+
+  // y = A p (p is zero on the fixed DOFs); a zero p (CG's initial residual with a zero guess) costs nothing.
+  void apply(const Eigen::VectorXd& p, Eigen::VectorXd& y) const {
+    if (p.isZero(0.0)) {
+      y.setZero(p.size());
+      return;
+    }
+    system_.elements->warped_product(*system_.rotations, p, y);
+    y *= system_.c_stiffness;
+    if (system_.c_mass != 0.0) y.array() += system_.c_mass * system_.mass->array() * p.array();
+    for (Eigen::Index i = 0; i < y.size(); ++i)
+      if (fixed_[i]) y[i] = 0.0;
+  }
+
+ private:
+  const WarpedSystem& system_;
+  const std::vector<char>& fixed_;
+};
+
+// z = P r with the CHOLMOD factorisation, optionally rotated per node (Eigen preconditioner interface; the
+// factorisation is built by the caller, so analyse/factorise have nothing to do).
+class CholmodPreconditioner {
+ public:
+  void set(const StaticSolver* solver, const std::vector<Eigen::Matrix3d>* node_R) {
+    solver_ = solver;
+    node_R_ = node_R;
+  }
+  template <typename M>
+  CholmodPreconditioner& analyzePattern(const M&) { return *this; }
+  template <typename M>
+  CholmodPreconditioner& factorize(const M&) { return *this; }
+  template <typename M>
+  CholmodPreconditioner& compute(const M&) { return *this; }
+  Eigen::ComputationInfo info() const { return Eigen::Success; }
+  int applications() const { return applications_; }
+
+  Eigen::VectorXd solve(const Eigen::VectorXd& r) const {
+    ++applications_;
+    Eigen::VectorXd z;
+    if (!node_R_) {
+      solver_->solve(r, z);
+      return z;
+    }
+    // Rn K^-1 Rn^T r, node by node.
+    Eigen::VectorXd rl(r.size());
+    for (size_t v = 0; v < node_R_->size(); ++v) rl.segment<3>(3 * v) = (*node_R_)[v].transpose() * r.segment<3>(3 * v);
+    solver_->solve(rl, z);
+    for (size_t v = 0; v < node_R_->size(); ++v) z.segment<3>(3 * v) = (*node_R_)[v] * z.segment<3>(3 * v).eval();
+    return z;
+  }
+
+ private:
+  const StaticSolver* solver_ = nullptr;
+  const std::vector<Eigen::Matrix3d>* node_R_ = nullptr;
+  mutable int applications_ = 0;
+};
+
+}  // namespace
+}  // namespace lumen::physics
+
+namespace Eigen::internal {
+
+// dst += alpha * A * rhs through WarpedOperator::apply.
+template <typename Rhs>
+struct generic_product_impl<lumen::physics::WarpedOperator, Rhs, SparseShape, DenseShape, GemvProduct>
+    : generic_product_impl_base<lumen::physics::WarpedOperator, Rhs,
+                                generic_product_impl<lumen::physics::WarpedOperator, Rhs>> {
+  template <typename Dest>
+  static void scaleAndAddTo(Dest& dst, const lumen::physics::WarpedOperator& lhs, const Rhs& rhs,
+                            const double& alpha) {
+    const Eigen::VectorXd p = rhs;
+    Eigen::VectorXd y;
+    lhs.apply(p, y);
+    dst += alpha * y;
+  }
+};
+
+}  // namespace Eigen::internal
+
+namespace lumen::physics {
+
+PcgResult solve_pcg(const WarpedSystem& system, const StaticSolver& preconditioner, const Eigen::VectorXd& b,
+                    Eigen::VectorXd& x, double tolerance, int max_iterations,
+                    const std::vector<Eigen::Matrix3d>* node_rotations) {
+  const char* where = "solve_pcg";
+  // Validate the system, the tolerances and the vectors.
+  if (!system.elements) throw std::invalid_argument("solve_pcg: system.elements must not be null");
+  const CorotationalElements& el = *system.elements;
+  const int n = el.n_dofs();
+  if (!system.rotations) throw std::invalid_argument("solve_pcg: system.rotations must not be null");
+  if (static_cast<int>(system.rotations->size()) != el.n_tets()) {
+    fail(where, "system.rotations->size()", ("be n_tets = " + std::to_string(el.n_tets())).c_str(),
+         system.rotations->size());
+  }
+  if (!(system.c_stiffness > 0.0) || !std::isfinite(system.c_stiffness))
+    fail(where, "system.c_stiffness", "be > 0 and finite", system.c_stiffness);
+  if (!(system.c_mass >= 0.0) || !std::isfinite(system.c_mass))
+    fail(where, "system.c_mass", "be >= 0 and finite", system.c_mass);
+  if (system.c_mass > 0.0) {
+    if (!system.mass) throw std::invalid_argument("solve_pcg: system.mass must not be null when c_mass > 0");
+    check_vector(where, "system.mass", *system.mass, n);
+  }
+  if (preconditioner.n_dofs() != n) {
+    fail(where, "preconditioner.n_dofs()", ("be " + std::to_string(n)).c_str(), preconditioner.n_dofs());
+  }
+  if (!(tolerance > 0.0 && tolerance < 1.0)) fail(where, "tolerance", "be in (0, 1)", tolerance);
+  if (max_iterations < 1) fail(where, "max_iterations", "be >= 1", max_iterations);
+  check_vector(where, "b", b, n);
+  if (x.size() == 0) x.setZero(n);
+  check_vector(where, "x", x, n);
+  // Fixed DOFs of the factorisation; per-node rotation needs whole fixed nodes.
+  std::vector<char> fixed(n);
+  for (int d = 0; d < n; ++d) fixed[d] = preconditioner.is_fixed_dof(d) ? 1 : 0;
+  if (node_rotations) {
+    if (static_cast<int>(node_rotations->size()) != el.n_nodes()) {
+      fail(where, "node_rotations->size()", ("be n_nodes = " + std::to_string(el.n_nodes())).c_str(),
+           node_rotations->size());
+    }
+    for (int v = 0; v < el.n_nodes(); ++v)
+      if (fixed[3 * v] != fixed[3 * v + 1] || fixed[3 * v] != fixed[3 * v + 2])
+        fail(where, "node " + std::to_string(v), "be fixed in all or no components with node_rotations", v);
+  }
+
+  // Right-hand side and guess restricted to the free DOFs.
+  Eigen::VectorXd bf = b;
+  for (int d = 0; d < n; ++d)
+    if (fixed[d]) bf[d] = 0.0, x[d] = 0.0;
+
+  // Eigen's preconditioned CG on the matrix-free operator.
+  const WarpedOperator A(system, fixed);
+  Eigen::ConjugateGradient<WarpedOperator, Eigen::Lower | Eigen::Upper, CholmodPreconditioner> cg;
+  cg.preconditioner().set(&preconditioner, node_rotations);
+  cg.compute(A);
+  cg.setTolerance(tolerance);
+  cg.setMaxIterations(max_iterations);
+  Eigen::VectorXd guess = x;
+  x = cg.solveWithGuess(bf, guess);
+
+  PcgResult result;
+  result.iterations = cg.preconditioner().applications();
+  result.residual = cg.error();
+  result.converged = cg.info() == Eigen::Success;
+  return result;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// CorotationalModel and the quasi-static solve
+
+CorotationalModel::CorotationalModel(const TetMesh& mesh, const LinearMaterial& material,
+                                     const std::vector<int>& fixed_nodes)
+    : elements_(mesh, material),
+      K_(assemble_stiffness(mesh, material)),
+      fixed_nodes_(fixed_nodes),
+      solver_(K_, fixed_nodes) {}
+
+void validate_options(const CorotationalOptions& o) {
+  const char* where = "CorotationalOptions";
+  if (!(o.tolerance > 0.0) || !std::isfinite(o.tolerance)) fail(where, "tolerance", "be > 0 and finite", o.tolerance);
+  if (o.max_iterations < 1) fail(where, "max_iterations", "be >= 1", o.max_iterations);
+  if (!(o.cg_tolerance > 0.0 && o.cg_tolerance < 1.0)) fail(where, "cg_tolerance", "be in (0, 1)", o.cg_tolerance);
+  if (o.max_cg_iterations < 1) fail(where, "max_cg_iterations", "be >= 1", o.max_cg_iterations);
+}
+
+CorotationalResult solve_corotational(const CorotationalModel& model, const Eigen::VectorXd& f_ext,
+                                      CorotationalState& state, const CorotationalOptions& options,
+                                      const Eigen::VectorXd& u_fixed) {
+  const char* where = "solve_corotational";
+  validate_options(options);
+  const CorotationalElements& el = model.elements();
+  const int n = model.n_dofs();
+  check_vector(where, "f_ext", f_ext, n);
+  if (u_fixed.size() != 0) check_vector(where, "u_fixed", u_fixed, n);
+  if (state.u.size() == 0) state.u.setZero(n);
+  check_vector(where, "state.u", state.u, n);
+
+  // Fixed DOFs take the prescribed values; loads act on the free DOFs only.
+  std::vector<char> fixed(n);
+  Eigen::VectorXd f = f_ext;
+  bool any_prescribed = false;
+  for (int d = 0; d < n; ++d) {
+    fixed[d] = model.is_fixed_dof(d) ? 1 : 0;
+    if (!fixed[d]) continue;
+    f[d] = 0.0;
+    state.u[d] = u_fixed.size() ? u_fixed[d] : 0.0;
+    any_prescribed = any_prescribed || state.u[d] != 0.0;
+  }
+  // No load and no prescribed displacement: the rest state.
+  if (!any_prescribed && f.isZero(0.0)) state.u.setZero();
+
+  CorotationalResult result;
+  Eigen::VectorXd r(n), du;
+  std::vector<Eigen::Matrix3d> node_R;
+  for (;;) {
+    // Rotations and elastic forces at u (reused from the last evaluation when u has not changed).
+    const bool cached = state.u_eval.size() == n && static_cast<int>(state.rotations.size()) == el.n_tets() &&
+                        state.f_int.size() == n && state.u_eval == state.u;
+    if (!cached) {
+      state.n_inverted = el.rotations(state.u, state.rotations);
+      el.elastic_forces(state.u, state.rotations, state.f_int);
+      state.u_eval = state.u;
+    }
+    // Residual on the free DOFs, relative to the loads or the support reactions.
+    double reaction2 = 0.0;
+    for (int d = 0; d < n; ++d) {
+      if (fixed[d]) {
+        r[d] = 0.0;
+        reaction2 += state.f_int[d] * state.f_int[d];
+      } else {
+        r[d] = f[d] - state.f_int[d];
+      }
+    }
+    const double scale = std::max(f.norm(), std::sqrt(reaction2));
+    const double rnorm = r.norm();
+    result.residual = rnorm == 0.0 ? 0.0 : (scale > 0.0 ? rnorm / scale : INFINITY);
+    result.n_inverted = state.n_inverted;
+    result.converged = result.residual <= options.tolerance;
+    if (result.converged || result.iterations >= options.max_iterations) break;
+
+    // Linear solve K_w du = r by PCG (rest factorisation as preconditioner), no more accurate than needed.
+    const WarpedSystem system{&el, &state.rotations, nullptr, 0.0, 1.0};
+    if (options.rotate_preconditioner) el.node_rotations(state.rotations, node_R);
+    const double cg_tol = std::max(options.cg_tolerance, std::min(0.5, 0.5 * options.tolerance * scale / rnorm));
+    du.resize(0);
+    const PcgResult pcg = solve_pcg(system, model.solver(), r, du, cg_tol, options.max_cg_iterations,
+                                    options.rotate_preconditioner ? &node_R : nullptr);
+    ++result.iterations;
+    result.cg_iterations += pcg.iterations;
+    if (!du.allFinite()) break;  // keep the last finite iterate (not converged)
+    state.u += du;
+  }
+  return result;
+}
+
+}  // namespace lumen::physics

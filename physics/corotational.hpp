@@ -1,0 +1,159 @@
+#pragma once
+// Corotational linear elasticity (stiffness warping, Mueller & Gross 2004) and its quasi-static solve.
+//
+// Each tet carries the rotation R_e of its deformation gradient F_e (polar decomposition, kept proper when the
+// element inverts, Irving et al. 2004). Its elastic force is f_e = R_e K_e (R_e^T x_e - X_e) and its warped
+// stiffness R_e K_e R_e^T, so rigid rotations cost no energy while small deformations match the linear model.
+// The nonlinear equilibrium f_int(u) = f_ext is solved by fixed-point iterations on the warped system; each
+// linear solve is CG preconditioned with the rest-state CHOLMOD factorisation (StaticSolver), never a new
+// factorisation, and warm-started from the previous frame's displacement.
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include "physics/fem.hpp"
+#include "physics/mesh.hpp"
+
+namespace lumen::physics {
+
+// Proper rotation of a deformation gradient F (3 x 3): the rotation of the polar decomposition F = R S when
+// det F > 0; when det F <= 0 (inverted), R = U V^T from the SVD F = U Sigma V^T with the sign of the smallest
+// singular value flipped so that det R = +1 (Irving et al. 2004). R^T F is then symmetric. Never NaN for finite F.
+// inverted (optional) is set to det F <= 0.
+Eigen::Matrix3d proper_rotation(const Eigen::Matrix3d& F, bool* inverted = nullptr);
+
+// Element data of a tet mesh for corotational kernels: per tet the rest shape-function gradients and volume.
+// Matrix-free: K_e is never stored; K_e p = V B^T D B p is evaluated from the gradients (the same element as
+// tet_stiffness). Keeps no reference to the mesh.
+class CorotationalElements {
+ public:
+  // Throws std::invalid_argument for an invalid material, node index or a non-positive rest volume.
+  CorotationalElements(const TetMesh& mesh, const LinearMaterial& material);
+
+  int n_nodes() const { return n_nodes_; }
+  int n_dofs() const { return 3 * n_nodes_; }
+  int n_tets() const { return static_cast<int>(tets_.rows()); }
+  const Tets& tets() const { return tets_; }
+  const LinearMaterial& material() const { return material_; }
+  // Rest volume of tet t, cubic metres.
+  double rest_volume(int t) const { return volume_[t]; }
+
+  // Deformation gradient of tet t for displacements u (3n, metres): F = I + sum_a u_a (x) grad N_a.
+  Eigen::Matrix3d deformation_gradient(const Eigen::VectorXd& u, int t) const;
+  // Per-tet rotations R (n_tets, proper) of the deformation gradients at u; returns the number of inverted tets
+  // (det F <= 0).
+  int rotations(const Eigen::VectorXd& u, std::vector<Eigen::Matrix3d>& R) const;
+  // Elastic forces f_int = sum_e R_e K_e (R_e^T x_e - X_e), 3n, newtons (x = X + u). With R_e = I this is K u.
+  void elastic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R, Eigen::VectorXd& f) const;
+  // y = K_w p with the warped stiffness K_w = sum_e R_e K_e R_e^T (p, y: 3n).
+  void warped_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p, Eigen::VectorXd& y) const;
+  // Elastic energy sum_e 1/2 (R_e^T x_e - X_e)^T K_e (R_e^T x_e - X_e), joules.
+  double elastic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const;
+  // Per-node rotations (n_nodes): the proper rotation of the sum of the rotations of the tets around each node
+  // (identity for a node in no tet).
+  void node_rotations(const std::vector<Eigen::Matrix3d>& R, std::vector<Eigen::Matrix3d>& node_R) const;
+
+ private:
+  int n_nodes_ = 0;
+  Tets tets_;                              // n_tets x 4 node ids
+  std::vector<Eigen::Matrix3d> grad_;      // per tet: rows a = 0..2 are grad N_{a+1} (= Dm^-1), 1/metres
+  std::vector<double> volume_;             // per tet rest volume, cubic metres
+  std::vector<int> node_tet_start_;        // CSR node -> incident tets, n_nodes + 1
+  std::vector<int> node_tet_;              // incident tet ids
+  LinearMaterial material_;
+  double lambda_ = 0.0, mu_ = 0.0;         // Lame parameters, pascals
+};
+
+// A symmetric positive definite system A = c_mass diag(mass) + c_stiffness K_w(R) on the free DOFs of a
+// preconditioner's factorisation. R = identity rotations gives the linear stiffness K.
+struct WarpedSystem {
+  const CorotationalElements* elements = nullptr;
+  const std::vector<Eigen::Matrix3d>* rotations = nullptr;  // per tet, n_tets
+  const Eigen::VectorXd* mass = nullptr;                     // lumped mass, 3n, kg; nullptr when c_mass = 0
+  double c_mass = 0.0;                                       // >= 0
+  double c_stiffness = 1.0;                                  // > 0
+};
+
+// Result of one preconditioned CG solve.
+struct PcgResult {
+  int iterations = 0;     // preconditioner applications (one CHOLMOD back-substitution each)
+  double residual = 0.0;  // |b - A x| / |b| on the free DOFs (0 when b = 0)
+  bool converged = false;
+};
+
+// Solves A x = b on the free DOFs of `preconditioner` by Eigen's ConjugateGradient, preconditioned with the
+// CHOLMOD factorisation (applied as z = Rn solve(Rn^T r) with per-node rotations Rn when node_rotations is
+// given; this needs whole fixed nodes). x: in the initial guess (empty = 0), out the solution; fixed DOFs of
+// x are 0. b: 3n, entries of fixed DOFs ignored. Stops when |b - A x| <= tolerance |b| or at max_iterations.
+PcgResult solve_pcg(const WarpedSystem& system, const StaticSolver& preconditioner, const Eigen::VectorXd& b,
+                    Eigen::VectorXd& x, double tolerance, int max_iterations,
+                    const std::vector<Eigen::Matrix3d>* node_rotations = nullptr);
+
+// A corotational model: element data, fixed nodes and the rest-state factorisation used as preconditioner.
+// Built once; a solve reads it and writes a CorotationalState.
+class CorotationalModel {
+ public:
+  // fixed_nodes: nodes whose displacement is prescribed (0 unless a solve is given u_fixed); must remove all
+  // rigid motion. Factorises K once (StaticSolver).
+  CorotationalModel(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes);
+
+  const CorotationalElements& elements() const { return elements_; }
+  // Rest-state stiffness K, 3n x 3n, N/m, and its CHOLMOD factorisation on the free DOFs.
+  const Eigen::SparseMatrix<double>& stiffness() const { return K_; }
+  const StaticSolver& solver() const { return solver_; }
+  const std::vector<int>& fixed_nodes() const { return fixed_nodes_; }
+  int n_dofs() const { return elements_.n_dofs(); }
+  bool is_fixed_dof(int dof) const { return solver_.is_fixed_dof(dof); }
+
+ private:
+  CorotationalElements elements_;
+  Eigen::SparseMatrix<double> K_;
+  std::vector<int> fixed_nodes_;
+  StaticSolver solver_;
+};
+
+// Iteration bounds and tolerances of the corotational solves (validated by each solve).
+struct CorotationalOptions {
+  // Outer (fixed-point) convergence: |f_ext - f_int(u)| on the free DOFs <= tolerance * force scale, where the
+  // force scale is max(|f_ext| on the free DOFs, |f_int(u)| on the fixed DOFs) (the reactions, which carry a
+  // prescribed-displacement problem); > 0.
+  double tolerance = 1e-4;
+  int max_iterations = 20;      // outer iterations (re-linearisations), >= 1
+  // Each linear solve stops at |r_cg| <= max(cg_tolerance |r|, tolerance * force scale / 2); in (0, 1).
+  double cg_tolerance = 0.1;
+  int max_cg_iterations = 100;  // per linear solve, >= 1
+  // Precondition with Rn K^-1 Rn^T (per-node average rotations) instead of K^-1.
+  bool rotate_preconditioner = false;
+};
+
+// Throws std::invalid_argument naming the field and its value unless every option is in range.
+void validate_options(const CorotationalOptions& options);
+
+// Mutable state of a quasi-static corotational simulation: the displacement (warm start of the next solve) and
+// the rotations and elastic forces evaluated at u_eval, reused while u == u_eval.
+struct CorotationalState {
+  Eigen::VectorXd u;                          // displacements, 3n, metres (empty = 0)
+  std::vector<Eigen::Matrix3d> rotations;     // per tet at u_eval
+  Eigen::VectorXd f_int;                      // elastic forces at u_eval, 3n, newtons
+  Eigen::VectorXd u_eval;                     // displacement of the cached evaluation, 3n, metres
+  int n_inverted = 0;                         // inverted tets at u_eval
+};
+
+// Result of a quasi-static solve.
+struct CorotationalResult {
+  int iterations = 0;      // outer iterations (linear solves)
+  int cg_iterations = 0;   // PCG iterations over all linear solves
+  double residual = 0.0;   // final |f_ext - f_int(u)| on the free DOFs / force scale (see CorotationalOptions)
+  bool converged = false;  // residual <= tolerance
+  int n_inverted = 0;      // tets with det F <= 0 at the returned u
+};
+
+// Quasi-static equilibrium f_int(u) = f_ext (f_ext: 3n newtons, entries of fixed DOFs ignored), starting from
+// state.u. Fixed DOFs take u_fixed (3n, metres; empty = 0). state.u holds the last iterate even when not
+// converged (never NaN).
+CorotationalResult solve_corotational(const CorotationalModel& model, const Eigen::VectorXd& f_ext,
+                                      CorotationalState& state, const CorotationalOptions& options = {},
+                                      const Eigen::VectorXd& u_fixed = Eigen::VectorXd());
+
+}  // namespace lumen::physics

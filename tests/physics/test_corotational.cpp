@@ -1,0 +1,452 @@
+// Corotational FEM against independent truths: SVD polar twin, explicit R K_e (R^T x - X) from tet_stiffness,
+// rigid rotations (zero force), the linear limit for small loads, an explicit warped K solved by SimplicialLDLT,
+// volume under a prescribed 180-degree twist, and inverted elements.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <Eigen/SparseCholesky>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "physics/corotational.hpp"
+#include "physics/fem.hpp"
+#include "physics/mesh.hpp"
+
+namespace lumen::physics {
+namespace {
+
+using Mat43 = Eigen::Matrix<double, 4, 3>;
+using Mat12 = Eigen::Matrix<double, 12, 12>;
+constexpr double kPi = 3.14159265358979323846;
+const LinearMaterial kMaterial{5000.0, 0.45};
+
+// A small tube (8 x 4 x 1 by default).
+TetMesh small_tube(int around = 8, int along = 4, int layers = 1, double length = 0.04) {
+  HollowCylinderSpec s;
+  s.segments_around = around, s.segments_along = along, s.layers = layers, s.length = length;
+  return make_hollow_cylinder(s);
+}
+
+std::vector<int> both_ends(const TetMesh& m) {
+  std::vector<int> f = m.end_nodes_start;
+  f.insert(f.end(), m.end_nodes_stop.begin(), m.end_nodes_stop.end());
+  return f;
+}
+
+// u (3n) of x = Q X + c - X for every node.
+Eigen::VectorXd rigid_displacement(const TetMesh& m, const Eigen::Matrix3d& Q, const Eigen::Vector3d& c) {
+  Eigen::VectorXd u(3 * m.n_nodes());
+  for (int v = 0; v < m.n_nodes(); ++v) {
+    const Eigen::Vector3d X = m.rest.row(v).transpose();
+    u.segment<3>(3 * v) = Q * X + c - X;
+  }
+  return u;
+}
+
+// Total signed volume of the mesh at displacement u, cubic metres.
+double mesh_volume(const TetMesh& m, const Eigen::VectorXd& u) {
+  Points x = m.rest;
+  for (int v = 0; v < m.n_nodes(); ++v) x.row(v) += u.segment<3>(3 * v).transpose();
+  double vol = 0.0;
+  for (int t = 0; t < m.tets.rows(); ++t) vol += tet_volume(x, m.tets, t);
+  return vol;
+}
+
+Mat43 rest_of(const TetMesh& m, int t) {
+  Mat43 X;
+  for (int a = 0; a < 4; ++a) X.row(a) = m.rest.row(m.tets(t, a));
+  return X;
+}
+
+// Explicit warped stiffness sum_e R_e K_e R_e^T (dense, 3n x 3n) from tet_stiffness.
+Eigen::MatrixXd explicit_warped_stiffness(const TetMesh& m, const std::vector<Eigen::Matrix3d>& R) {
+  const int n = 3 * m.n_nodes();
+  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n, n);
+  for (int t = 0; t < m.tets.rows(); ++t) {
+    const Mat12 Ke = tet_stiffness(rest_of(m, t), kMaterial);
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        K.block<3, 3>(3 * m.tets(t, a), 3 * m.tets(t, b)) += R[t] * Ke.block<3, 3>(3 * a, 3 * b) * R[t].transpose();
+  }
+  return K;
+}
+
+Eigen::Matrix3d random_rotation(std::mt19937& rng) {
+  std::normal_distribution<double> d(0.0, 1.0);
+  const Eigen::Quaterniond q(d(rng), d(rng), d(rng), d(rng));
+  return q.normalized().toRotationMatrix();
+}
+
+// Loads: a transverse force split over the stop-end nodes, newtons (3n).
+Eigen::VectorXd tip_load(const TetMesh& m, double total) {
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * m.n_nodes());
+  for (int v : m.end_nodes_stop) f[3 * v + 1] = -total / m.end_nodes_stop.size();
+  return f;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+
+TEST(ProperRotation, MatchesSvdPolarAndStaysProperWhenInverted) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> d(0.0, 0.3);
+  for (int trial = 0; trial < 200; ++trial) {
+    Eigen::Matrix3d F = random_rotation(rng);
+    for (int i = 0; i < 9; ++i) F.data()[i] += d(rng);
+    if (trial % 4 == 0) F.col(trial % 3) *= -1.0;  // some reflected (inverted) gradients
+    bool inverted = false;
+    const Eigen::Matrix3d R = proper_rotation(F, &inverted);
+    // Twin: R = U diag(1, 1, sign det(U V^T)) V^T from Eigen's SVD.
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+    D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
+    const Eigen::Matrix3d twin = svd.matrixU() * D * svd.matrixV().transpose();
+    EXPECT_EQ(inverted, F.determinant() <= 0.0);
+    EXPECT_NEAR(R.determinant(), 1.0, 1e-12);
+    EXPECT_LE((R.transpose() * R - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+    EXPECT_LE((R - twin).norm(), 1e-9) << "trial " << trial << "\nF =\n" << F;
+    const Eigen::Matrix3d S = R.transpose() * F;
+    EXPECT_LE((S - S.transpose()).norm(), 1e-9 * S.norm());
+  }
+  // Degenerate (flattened) gradient: a proper rotation, flagged inverted.
+  Eigen::Matrix3d flat = Eigen::Matrix3d::Identity();
+  flat(2, 2) = 0.0;
+  bool inverted = false;
+  const Eigen::Matrix3d R = proper_rotation(flat, &inverted);
+  EXPECT_TRUE(inverted);
+  EXPECT_TRUE(R.allFinite());
+  EXPECT_NEAR(R.determinant(), 1.0, 1e-12);
+  Eigen::Matrix3d bad = Eigen::Matrix3d::Identity();
+  bad(1, 2) = NAN;
+  EXPECT_THROW(proper_rotation(bad), std::invalid_argument);
+}
+
+TEST(CorotationalElements, ForcesAndWarpedProductMatchExplicitElementFormulas) {
+  const TetMesh m = small_tube(6, 2, 1);
+  const CorotationalElements el(m, kMaterial);
+  const int n = 3 * m.n_nodes();
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> du(-2e-3, 2e-3);
+  Eigen::VectorXd u(n);
+  for (int i = 0; i < n; ++i) u[i] = du(rng);
+  // Identity rotations: f_int = K u with the assembled linear stiffness.
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(m, kMaterial);
+  const std::vector<Eigen::Matrix3d> I(el.n_tets(), Eigen::Matrix3d::Identity());
+  Eigen::VectorXd f;
+  el.elastic_forces(u, I, f);
+  const Eigen::VectorXd Ku = K * u;
+  EXPECT_LE((f - Ku).norm(), 1e-12 * Ku.norm());
+  EXPECT_NEAR(el.elastic_energy(u, I), 0.5 * u.dot(Ku), 1e-12 * u.dot(Ku));
+
+  // A large rotation plus the small displacement: rotations from the gradients, then f = sum R K_e (R^T x - X).
+  const Eigen::Matrix3d Q = random_rotation(rng);
+  const Eigen::VectorXd w = rigid_displacement(m, Q, Eigen::Vector3d(0.01, -0.02, 0.005)) + u;
+  std::vector<Eigen::Matrix3d> R;
+  EXPECT_EQ(el.rotations(w, R), 0);
+  el.elastic_forces(w, R, f);
+  Eigen::VectorXd twin = Eigen::VectorXd::Zero(n);
+  for (int t = 0; t < el.n_tets(); ++t) {
+    const Mat43 X = rest_of(m, t);
+    Eigen::Matrix<double, 12, 1> local;
+    for (int a = 0; a < 4; ++a) {
+      const Eigen::Vector3d x = X.row(a).transpose() + w.segment<3>(3 * m.tets(t, a));
+      local.segment<3>(3 * a) = R[t].transpose() * x - X.row(a).transpose();
+    }
+    const Eigen::Matrix<double, 12, 1> fl = tet_stiffness(X, kMaterial) * local;
+    for (int a = 0; a < 4; ++a) twin.segment<3>(3 * m.tets(t, a)) += R[t] * fl.segment<3>(3 * a);
+  }
+  EXPECT_LE((f - twin).norm(), 1e-10 * twin.norm());
+
+  // Warped product against the explicit sum of R K_e R^T.
+  Eigen::VectorXd p(n);
+  for (int i = 0; i < n; ++i) p[i] = du(rng);
+  Eigen::VectorXd y;
+  el.warped_product(R, p, y);
+  const Eigen::VectorXd y_twin = explicit_warped_stiffness(m, R) * p;
+  EXPECT_LE((y - y_twin).norm(), 1e-12 * y_twin.norm());
+}
+
+TEST(CorotationalElements, RigidRotationOfFreeMeshGivesZeroForceUnlikeLinear) {
+  const TetMesh m = small_tube(8, 3, 1, 0.03);
+  const CorotationalElements el(m, kMaterial);
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(m, kMaterial);
+  // 90 degrees about a tilted axis, plus a translation.
+  const Eigen::Matrix3d Q = Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d(1.0, 2.0, -0.5).normalized()).toRotationMatrix();
+  const Eigen::VectorXd u = rigid_displacement(m, Q, Eigen::Vector3d(0.003, 0.0, -0.01));
+  std::vector<Eigen::Matrix3d> R;
+  EXPECT_EQ(el.rotations(u, R), 0);
+  for (const Eigen::Matrix3d& Re : R) EXPECT_LE((Re - Q).norm(), 1e-12);
+  Eigen::VectorXd f;
+  el.elastic_forces(u, R, f);
+  const Eigen::VectorXd f_linear = K * u;
+  // Linear: forces of the order of the stiffness times the displacement; corotational: round-off only.
+  EXPECT_GT(f_linear.norm(), 1e-3);
+  EXPECT_LE(f.norm(), 1e-12 * f_linear.norm());
+  EXPECT_LE(el.elastic_energy(u, R), 1e-12 * 0.5 * u.dot(f_linear));
+}
+
+TEST(CorotationalSolve, EqualsLinearInTheSmallLoadLimit) {
+  const TetMesh m = small_tube(8, 4, 1, 0.04);
+  const CorotationalModel model(m, kMaterial, m.end_nodes_start);
+  CorotationalOptions opt;
+  opt.tolerance = 1e-12;
+  opt.max_iterations = 100;
+  double previous = 0.0;
+  for (double s : {1.0, 0.1, 0.01, 0.001}) {
+    const Eigen::VectorXd f = tip_load(m, 0.01 * s);
+    Eigen::VectorXd u_lin;
+    model.solver().solve(f, u_lin);
+    CorotationalState state;
+    const CorotationalResult r = solve_corotational(model, f, state, opt);
+    ASSERT_TRUE(r.converged) << "scale " << s << " residual " << r.residual;
+    const double diff = (state.u - u_lin).norm() / u_lin.norm();
+    std::printf("load scale %g: tip deflection %.3g m, |u_corot - u_lin| / |u_lin| = %.3g (%d outer, %d CG)\n", s,
+                u_lin.cwiseAbs().maxCoeff(), diff, r.iterations, r.cg_iterations);
+    // Relative difference shrinks linearly with the load.
+    if (s < 1.0) {
+      EXPECT_GT(diff / previous, 0.05) << "scale " << s;
+      EXPECT_LT(diff / previous, 0.2) << "scale " << s;
+    } else {
+      EXPECT_GT(diff, 1e-3);  // nonlinear at the full load
+    }
+    previous = diff;
+  }
+  EXPECT_LT(previous, 1e-3);
+}
+
+TEST(CorotationalSolve, PcgMatchesDirectSolveOfExplicitWarpedSystem) {
+  const TetMesh m = small_tube(8, 3, 2, 0.03);
+  const CorotationalModel model(m, kMaterial, both_ends(m));
+  const int n = model.n_dofs();
+  // A strongly rotated state: each node turned about the axis by an angle growing along the tube (large twist).
+  Eigen::VectorXd u(n);
+  for (int v = 0; v < m.n_nodes(); ++v) {
+    const Eigen::Vector3d X = m.rest.row(v).transpose();
+    const Eigen::Matrix3d Q = Eigen::AngleAxisd(1.2 * X.z() / 0.03, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    u.segment<3>(3 * v) = Q * X - X;
+  }
+  std::vector<Eigen::Matrix3d> R, node_R;
+  model.elements().rotations(u, R);
+  model.elements().node_rotations(R, node_R);
+  // Twin: explicit K_w on the free DOFs, SimplicialLDLT.
+  std::vector<int> free;
+  for (int d = 0; d < n; ++d)
+    if (!model.is_fixed_dof(d)) free.push_back(d);
+  const Eigen::MatrixXd Kw = explicit_warped_stiffness(m, R);
+  Eigen::MatrixXd Kf(free.size(), free.size());
+  for (size_t i = 0; i < free.size(); ++i)
+    for (size_t j = 0; j < free.size(); ++j) Kf(i, j) = Kw(free[i], free[j]);
+  const Eigen::SparseMatrix<double> Kfs = Kf.sparseView();
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(Kfs);
+  ASSERT_EQ(ldlt.info(), Eigen::Success);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> df(-1e-3, 1e-3);
+  Eigen::VectorXd b(n);
+  for (int i = 0; i < n; ++i) b[i] = df(rng);
+  Eigen::VectorXd bf(free.size());
+  for (size_t i = 0; i < free.size(); ++i) bf[i] = b[free[i]];
+  const Eigen::VectorXd xf = ldlt.solve(bf);
+  Eigen::VectorXd twin = Eigen::VectorXd::Zero(n);
+  for (size_t i = 0; i < free.size(); ++i) twin[free[i]] = xf[i];
+
+  const WarpedSystem system{&model.elements(), &R, nullptr, 0.0, 1.0};
+  for (const bool rotate : {false, true}) {
+    Eigen::VectorXd x;
+    const PcgResult r = solve_pcg(system, model.solver(), b, x, 1e-12, 500, rotate ? &node_R : nullptr);
+    std::printf("PCG (rotated preconditioner %d): %d iterations, residual %.2g\n", rotate, r.iterations, r.residual);
+    EXPECT_TRUE(r.converged);
+    EXPECT_LE(r.residual, 1e-12);
+    EXPECT_LE((x - twin).norm(), 1e-9 * twin.norm());
+    for (int d = 0; d < n; ++d)
+      if (model.is_fixed_dof(d)) EXPECT_EQ(x[d], 0.0);
+  }
+  // With a mass term: (c_m diag(m) + c_k K_w) x = b.
+  Eigen::VectorXd mass = Eigen::VectorXd::Constant(n, 2e-4);
+  const WarpedSystem dyn{&model.elements(), &R, &mass, 3.0, 0.5};
+  const Eigen::MatrixXd Af = 3.0 * Eigen::MatrixXd(mass.head(free.size()).asDiagonal()) + 0.5 * Kf;
+  const Eigen::VectorXd xf2 = Af.ldlt().solve(bf);
+  Eigen::VectorXd x;
+  const PcgResult r = solve_pcg(dyn, model.solver(), b, x, 1e-12, 500);
+  EXPECT_TRUE(r.converged);
+  for (size_t i = 0; i < free.size(); ++i) EXPECT_NEAR(x[free[i]], xf2[i], 1e-9 * xf2.norm());
+}
+
+TEST(CorotationalSolve, TwistOfOneEndBy180DegreesKeepsVolumeUnlikeLinear) {
+  const TetMesh m = small_tube(12, 10, 1, 0.1);
+  const std::vector<int> fixed = both_ends(m);
+  const CorotationalModel model(m, kMaterial, fixed);
+  const int n = model.n_dofs();
+  const double rest_volume = mesh_volume(m, Eigen::VectorXd::Zero(n));
+  // Prescribed end displacements: the stop end turned by theta about the axis, the start end held.
+  auto twist = [&](double theta) {
+    Eigen::VectorXd u_fixed = Eigen::VectorXd::Zero(n);
+    const Eigen::Matrix3d Q = Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    for (int v : m.end_nodes_stop) {
+      const Eigen::Vector3d X = m.rest.row(v).transpose();
+      u_fixed.segment<3>(3 * v) = Q * X - X;
+    }
+    return u_fixed;
+  };
+  // Corotational: 18 increments of 10 degrees, each warm-started from the last.
+  CorotationalState state;
+  CorotationalOptions opt;
+  opt.tolerance = 1e-8;
+  opt.max_iterations = 100;
+  const Eigen::VectorXd no_load = Eigen::VectorXd::Zero(n);
+  int outer = 0, cg = 0;
+  for (int k = 1; k <= 18; ++k) {
+    const CorotationalResult r = solve_corotational(model, no_load, state, opt, twist(k * kPi / 18));
+    ASSERT_TRUE(r.converged) << "increment " << k << " residual " << r.residual;
+    EXPECT_EQ(r.n_inverted, 0);
+    outer += r.iterations, cg += r.cg_iterations;
+  }
+  const Eigen::VectorXd u_end = twist(kPi);
+  for (int v : m.end_nodes_stop) EXPECT_EQ(state.u.segment<3>(3 * v), u_end.segment<3>(3 * v));
+  // Linear: u = u_p + K_ff^-1 (-K u_p) on the free DOFs.
+  Eigen::VectorXd du;
+  model.solver().solve(-(model.stiffness() * u_end), du);
+  const Eigen::VectorXd u_lin = u_end + du;
+  const double change_corot = mesh_volume(m, state.u) / rest_volume - 1.0;
+  const double change_lin = mesh_volume(m, u_lin) / rest_volume - 1.0;
+  std::printf("180-degree twist: volume change corotational %+.2f%%, linear %+.2f%% (%d outer, %d CG iterations)\n",
+              100 * change_corot, 100 * change_lin, outer, cg);
+  RecordProperty("volume_change_corotational", std::to_string(change_corot));
+  RecordProperty("volume_change_linear", std::to_string(change_lin));
+  EXPECT_LT(std::abs(change_corot), 0.05);
+  EXPECT_GT(std::abs(change_lin), 4.0 * std::abs(change_corot));
+  EXPECT_GT(std::abs(change_lin), 0.2);
+}
+
+TEST(CorotationalElements, InvertedTetGivesFiniteRestoringForceAndIsCounted) {
+  // Unit-corner tet; node 3 (on +z) pushed through the opposite face to z = -0.5 h: F = diag(1, 1, -0.5).
+  TetMesh m;
+  const double h = 0.01;
+  m.rest.resize(4, 3);
+  m.rest << 0, 0, 0, h, 0, 0, 0, h, 0, 0, 0, h;
+  m.tets.resize(1, 4);
+  m.tets << 0, 1, 2, 3;
+  const CorotationalElements el(m, kMaterial);
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(12);
+  u[11] = -1.5 * h;
+  std::vector<Eigen::Matrix3d> R;
+  EXPECT_EQ(el.rotations(u, R), 1);
+  // Irving: the smallest singular value flips sign, so R = I and the force is the linear K_e u, pushing node 3
+  // back up (+z).
+  EXPECT_LE((R[0] - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+  Eigen::VectorXd f;
+  el.elastic_forces(u, R, f);
+  const Eigen::VectorXd twin = tet_stiffness(rest_of(m, 0), kMaterial) * u;
+  EXPECT_TRUE(f.allFinite());
+  EXPECT_LE((f - twin).norm(), 1e-12 * twin.norm());
+  EXPECT_LT(f[11], 0.0);  // f_int is along u; the restoring force -f_int pushes node 3 back to +z
+  EXPECT_GT(u.dot(f), 0.0);
+
+  // Flattened exactly (det F = 0) and inverted after a rotation: still finite, counted, energy finite.
+  for (double z : {-h, -1.7 * h}) {
+    u.setZero();
+    u[11] = z;
+    const Eigen::Matrix3d Q = Eigen::AngleAxisd(2.0, Eigen::Vector3d(0.3, -1.0, 0.4).normalized()).toRotationMatrix();
+    Eigen::VectorXd w = rigid_displacement(m, Q, Eigen::Vector3d::Zero());
+    for (int v = 0; v < 4; ++v) {
+      const Eigen::Vector3d X = m.rest.row(v).transpose() + u.segment<3>(3 * v);
+      w.segment<3>(3 * v) = Q * X - m.rest.row(v).transpose();
+    }
+    EXPECT_EQ(el.rotations(w, R), 1) << "z " << z;
+    el.elastic_forces(w, R, f);
+    EXPECT_TRUE(f.allFinite());
+    EXPECT_TRUE(std::isfinite(el.elastic_energy(w, R)));
+    EXPECT_GT(f.norm(), 0.0);
+  }
+}
+
+TEST(CorotationalSolve, ContinuesThroughInvertedElementsWithoutNaN) {
+  const TetMesh m = small_tube(8, 4, 1, 0.04);
+  // An inner node in the middle is prescribed far through the wall (past the outer wall), inverting its tets.
+  std::vector<int> fixed = both_ends(m);
+  const int probe = m.inner(m.inner.rows() / 2, 0);
+  fixed.push_back(probe);
+  const CorotationalModel model(m, kMaterial, fixed);
+  const int n = model.n_dofs();
+  Eigen::VectorXd u_fixed = Eigen::VectorXd::Zero(n);
+  const Eigen::Vector3d X = m.rest.row(probe).transpose();
+  const Eigen::Vector3d radial(X.x(), X.y(), 0.0);
+  u_fixed.segment<3>(3 * probe) = 0.008 * radial.normalized();  // wall thickness 3 mm
+  CorotationalState state;
+  CorotationalOptions opt;
+  opt.max_iterations = 30;
+  const CorotationalResult r = solve_corotational(model, Eigen::VectorXd::Zero(n), state, opt, u_fixed);
+  std::printf("through-wall probe: %d inverted, residual %.2g, converged %d\n", r.n_inverted, r.residual, r.converged);
+  EXPECT_GT(r.n_inverted, 0);
+  EXPECT_TRUE(state.u.allFinite());
+  EXPECT_TRUE(std::isfinite(r.residual));
+  std::vector<Eigen::Matrix3d> R;
+  EXPECT_EQ(model.elements().rotations(state.u, R), r.n_inverted);
+}
+
+TEST(CorotationalSolve, WarmStartAtEquilibriumCostsNoIteration) {
+  const TetMesh m = small_tube();
+  const CorotationalModel model(m, kMaterial, m.end_nodes_start);
+  const Eigen::VectorXd f = tip_load(m, 0.005);
+  CorotationalState state;
+  const CorotationalResult first = solve_corotational(model, f, state);
+  ASSERT_TRUE(first.converged);
+  EXPECT_GE(first.iterations, 1);
+  const Eigen::VectorXd u = state.u;
+  const CorotationalResult again = solve_corotational(model, f, state);
+  EXPECT_TRUE(again.converged);
+  EXPECT_EQ(again.iterations, 0);
+  EXPECT_EQ(state.u, u);
+  EXPECT_NEAR(again.residual, first.residual, 1e-15);
+  // Rotated preconditioner reaches the same equilibrium.
+  CorotationalState rotated;
+  CorotationalOptions opt;
+  opt.rotate_preconditioner = true;
+  opt.tolerance = 1e-10;
+  ASSERT_TRUE(solve_corotational(model, f, rotated, opt).converged);
+  opt.rotate_preconditioner = false;
+  ASSERT_TRUE(solve_corotational(model, f, state, opt).converged);
+  EXPECT_LE((rotated.u - state.u).norm(), 1e-8 * state.u.norm());
+  // No load: back to the rest state exactly.
+  const CorotationalResult rest = solve_corotational(model, Eigen::VectorXd::Zero(model.n_dofs()), state);
+  EXPECT_TRUE(rest.converged);
+  EXPECT_EQ(state.u.norm(), 0.0);
+}
+
+TEST(CorotationalSolve, RejectsInvalidInput) {
+  const TetMesh m = small_tube(6, 2, 1);
+  const CorotationalModel model(m, kMaterial, both_ends(m));
+  const Eigen::VectorXd f = Eigen::VectorXd::Zero(model.n_dofs());
+  CorotationalState state;
+  auto message = [&](const CorotationalOptions& o, const Eigen::VectorXd& load, const Eigen::VectorXd& u_fixed) {
+    try {
+      solve_corotational(model, load, state, o, u_fixed);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no exception");
+  };
+  CorotationalOptions o;
+  o.tolerance = 0.0;
+  EXPECT_NE(message(o, f, {}).find("tolerance"), std::string::npos);
+  o = {};
+  o.max_iterations = 0;
+  EXPECT_NE(message(o, f, {}).find("max_iterations"), std::string::npos);
+  o = {};
+  o.cg_tolerance = 1.0;
+  EXPECT_NE(message(o, f, {}).find("cg_tolerance"), std::string::npos);
+  o = {};
+  o.max_cg_iterations = 0;
+  EXPECT_NE(message(o, f, {}).find("max_cg_iterations"), std::string::npos);
+  EXPECT_NE(message({}, Eigen::VectorXd::Zero(5), {}).find("f_ext.size()"), std::string::npos);
+  Eigen::VectorXd bad = f;
+  bad[7] = NAN;
+  EXPECT_NE(message({}, bad, {}).find("f_ext[7]"), std::string::npos);
+  EXPECT_NE(message({}, f, bad).find("u_fixed[7]"), std::string::npos);
+  EXPECT_THROW(CorotationalModel(m, LinearMaterial{-1.0, 0.3}, both_ends(m)), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace lumen::physics
