@@ -440,14 +440,15 @@ bool closest_uv(const Problem& pb, double t, double& u, double& v) {
 }
 
 // Tries to certify a contact near the cubic root t: a small box around (t, u, v) proven by Miranda to
-// hold a zero of F. The box may reach outside the domain by `out` (chosen so that F changes by at most
-// tolerance / 2 there): a zero found there is a contact within tolerance. On success sets the box (its
-// t0 then bounds the time of contact from below once [0, t0] is searched) and the contact (u, v).
+// hold a zero of F. The box may reach outside the domain by `out` per parameter (so that each coordinate
+// of F changes by at most 3/8 tolerance to the nearest domain point): a zero there is a contact within
+// tolerance. On success sets the box (its t0 then bounds the time of contact from below once [0, t0] is
+// searched) and the contact (u, v).
 //
 // Box size: F = F(x) + J (y - x) + (t' - t)(u' - u) e' + (t' - t)(v' - v) f' exactly (F is multilinear),
 // so with A = J^-1, G_t = A F varies on a t face by about rt (ru |(A e')_t| + rv |(A f')_t|) against its
 // offset rt: ru, rv are kept below 1 / (4 |(A e')_t|), 1 / (4 |(A f')_t|); likewise rt for the u and v
-// components. rt also keeps the motion of F over the box within a quarter of the tolerance.
+// components. rt also keeps the motion of each coordinate of F over the box within tolerance / 4.
 bool certify_near(const Problem& pb, double t, Box& cert, double& uc, double& vc) {
   double u, v;
   if (!closest_uv(pb, t, u, v)) return false;
@@ -460,7 +461,7 @@ bool certify_near(const Problem& pb, double t, Box& cert, double& uc, double& vc
   // Allowed reach outside the domain, in parameter units.
   double emax = 0.0;
   for (int j = 0; j < 3; ++j) emax = std::max({emax, std::abs(J[j][1]), std::abs(J[j][2])});
-  const double out = std::min(1.0 / 64.0, 0.25 * pb.tolerance / std::max(emax, 1e-300));
+  const double out = std::min(1.0 / 64.0, 0.125 * pb.tolerance / std::max(emax, 1e-300));
   // Room around (u, v) inside the extended domain.
   double ru, rv;
   if (pb.simplex) {
@@ -488,7 +489,7 @@ bool certify_near(const Problem& pb, double t, Box& cert, double& uc, double& vc
   // Time half-width: F moves by at most tolerance / 4 over the box, and the cross terms stay small.
   double speed = 0.0;
   for (int j = 0; j < 3; ++j) speed = std::max(speed, std::abs(J[j][0]));
-  double rt = std::min(0.0625, 0.25 * pb.tolerance / std::max(speed, 1e-300));
+  double rt = std::min(0.0625, 0.125 * pb.tolerance / std::max(speed, 1e-300));
   rt = std::min(rt, 0.25 * ru / std::max(ru * std::abs(w[1]) + rv * std::abs(z[1]), 1e-300));
   rt = std::min(rt, 0.25 * rv / std::max(ru * std::abs(w[2]) + rv * std::abs(z[2]), 1e-300));
   rt = std::max(rt, kMinWidth);
@@ -575,9 +576,9 @@ void closest_in_domain(const Problem& pb, double t, double& u, double& v) {
   }
 }
 
-// True when F(t, u, v) ((u, v) in the domain, t on the grid) provably has |F| <= gap + tolerance / 2:
-// the primitives are in contact within the tolerance at time t.
-bool witness(const Problem& pb, double t, double u, double v) {
+// True when F(t, u, v) ((u, v) in the domain, t on the grid) provably has |F| <= gap + allowance: the
+// primitives are in contact (within the allowance) at time t.
+bool witness(const Problem& pb, double t, double u, double v, double allowance) {
   double D[3], E[3], F[3];
   at_time(pb, t, D, E, F);
   double r2 = 0.0;
@@ -585,7 +586,7 @@ bool witness(const Problem& pb, double t, double u, double v) {
     const double x = std::abs(D[j] + u * E[j] + v * F[j]) + pb.eps[j];
     r2 += x * x;
   }
-  const double limit = pb.gap + 0.5 * pb.tolerance;
+  const double limit = pb.gap + allowance;
   return r2 * (1.0 + 1e-12) <= limit * limit;
 }
 
@@ -604,37 +605,48 @@ void report(const Problem& pb, double toi, double u, double v, bool bounded, int
   hit->bounded = bounded;
 }
 
-// A fixed direction n for narrowing a box in t: |n.F| > band(x) at a computed value x of F proves
-// |F| > gap there (|n| <= 1 + 4u; n.x is off by <= sum_j |n_j| (eps_j + 4u |x_j|)).
+// A fixed direction n for narrowing a box in t: |n.F| > band at a computed value x of F proves |F| > gap
+// there, for all x with |x_j| <= fmax_j (|n| <= 1 + 4u; n.x is off by <= sum_j |n_j| (eps_j + 4u |x_j|)).
 struct Direction {
   double n[3];
-  int axis;  // 0, 1, 2 for a coordinate axis (then n.x = x_axis exactly), -1 otherwise
+  int axis;     // 0, 1, 2 for a coordinate axis (then n.x = x_axis exactly), -1 otherwise
+  double band;  // for the values of the box the direction was made for
 };
 
 double project(const Direction& d, const double* x) {
   return d.axis >= 0 ? x[d.axis] : d.n[0] * x[0] + d.n[1] * x[1] + d.n[2] * x[2];
 }
 
-double band(const Problem& pb, const Direction& d, const double* x) {
+double band_for(const Problem& pb, const Direction& d, const double* fmax) {
   if (d.axis >= 0) return pb.gap + pb.eps[d.axis];
   double err = 0.0;
-  for (int j = 0; j < 3; ++j) err += std::abs(d.n[j]) * (pb.eps[j] + 4.0 * kUnitRoundoff * std::abs(x[j]));
+  for (int j = 0; j < 3; ++j) err += std::abs(d.n[j]) * (pb.eps[j] + 4.0 * kUnitRoundoff * fmax[j]);
   return (pb.gap + err) * (1.0 + 1e-12) + kTiny;
 }
 
+// Largest |computed F_j| over the points of cs, raised to at least fmax_j.
+void largest(const Corners& cs, double* fmax) {
+  for (int c = 0; c < cs.n; ++c)
+    for (int j = 0; j < 3; ++j) fmax[j] = std::max(fmax[j], std::abs(cs.x[c][j]));
+}
+
 // Directions to narrow along: the axes, F at the box centre and its parts orthogonal to e and to f
-// (normalised). Returns their number.
+// (normalised), with their bands for the values of cs. Returns their number.
 int narrowing_directions(const Problem& pb, const Corners& cs, Direction* dirs) {
   int nd = 0;
-  for (int j = 0; j < 3; ++j) dirs[nd++] = Direction{{j == 0 ? 1.0 : 0.0, j == 1 ? 1.0 : 0.0, j == 2 ? 1.0 : 0.0}, j};
-  double D[3], E[3], F[3], fc[3];
+  for (int j = 0; j < 3; ++j)
+    dirs[nd++] = Direction{{j == 0 ? 1.0 : 0.0, j == 1 ? 1.0 : 0.0, j == 2 ? 1.0 : 0.0}, j, pb.gap + pb.eps[j]};
+  double D[3], E[3], F[3], fc[3], fmax[3] = {0.0, 0.0, 0.0};
+  largest(cs, fmax);
   at_time(pb, cs.tc, D, E, F);
   for (int j = 0; j < 3; ++j) fc[j] = D[j] + cs.uc * E[j] + cs.vc * F[j];
   auto add = [&](const double* w) {
     const double len2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
     if (!(len2 > 0.0) || !std::isfinite(len2)) return;
     const double inv = 1.0 / std::sqrt(len2);
-    dirs[nd++] = Direction{{w[0] * inv, w[1] * inv, w[2] * inv}, -1};
+    Direction& d = dirs[nd++];
+    d = Direction{{w[0] * inv, w[1] * inv, w[2] * inv}, -1, 0.0};
+    d.band = band_for(pb, d, fmax);
   };
   add(fc);
   for (const double* w : {E, F}) {
@@ -647,17 +659,20 @@ int narrowing_directions(const Problem& pb, const Corners& cs, Direction* dirs) 
   return nd;
 }
 
-// True when n.F keeps one strict sign beyond the band at the given points of a and of b (the values at
+// True when n.F keeps one strict sign beyond `band` at the given points of a and of b (the values at
 // t0 when parity is 0, at t1 when it is 1).
-bool one_sign(const Problem& pb, const Direction& d, const Corners& a, int parity_a, const Corners& b,
+bool one_sign(const Direction& d, double band, const Corners& a, int parity_a, const Corners& b,
               int parity_b) {
   bool pos = true, neg = true;
-  for (const Corners* cs : {&a, &b}) {
-    for (int c = cs == &a ? parity_a : parity_b; c < cs->n; c += 2) {
-      const double x = project(d, cs->x[c]), e = band(pb, d, cs->x[c]);
-      pos &= x > e;
-      neg &= x < -e;
-    }
+  for (int c = parity_a; c < a.n; c += 2) {
+    const double x = project(d, a.x[c]);
+    pos &= x > band;
+    neg &= x < -band;
+  }
+  for (int c = parity_b; c < b.n; c += 2) {
+    const double x = project(d, b.x[c]);
+    pos &= x > band;
+    neg &= x < -band;
   }
   return pos || neg;
 }
@@ -666,17 +681,16 @@ bool one_sign(const Problem& pb, const Direction& d, const Corners& a, int parit
 // times where it provably stays beyond gap with one sign at all vertices can be cut off at both ends.
 // The cut [t0, t0'] is verified from the values at t0 and t0' (the range over it is their hull),
 // likewise [t1', t1]. Replaces b and cs by the narrowed box when that removes at least 1/16 of it.
-void narrow_t(const Problem& pb, Box& b, Corners& cs, bool cubic, int& boxes) {
-  Direction dirs[6];
-  const int nd = narrowing_directions(pb, cs, dirs);
+void narrow_t(const Problem& pb, Box& b, Corners& cs, const Direction* dirs, int nd, bool cubic,
+              int& boxes) {
   // Predicted cut times (floating point), as fractions of the t width.
   double lo_cut = 0.0, hi_cut = 1.0;
   for (int k = 0; k < nd; ++k) {
     double first = 1.0, last = 0.0;  // first time a vertex enters the band, last time one leaves it
     bool pos0 = true, neg0 = true, pos1 = true, neg1 = true;
+    const double e = dirs[k].band;
     for (int c = 0; c < cs.n; c += 2) {
       const double x0 = project(dirs[k], cs.x[c]), x1 = project(dirs[k], cs.x[c + 1]);
-      const double e = std::max(band(pb, dirs[k], cs.x[c]), band(pb, dirs[k], cs.x[c + 1]));
       pos0 &= x0 > e; neg0 &= x0 < -e; pos1 &= x1 > e; neg1 &= x1 < -e;
       // Fraction s in [0, 1] where x0 + s (x1 - x0) reaches the band [-e, e].
       if (x0 > e && x1 <= e) first = std::min(first, (x0 - e) / (x0 - x1));
@@ -699,14 +713,18 @@ void narrow_t(const Problem& pb, Box& b, Corners& cs, bool cubic, int& boxes) {
   Corners ncs;
   ++boxes;
   if (!evaluate(pb, nb, cubic, ncs)) return;
+  // Bands for the values of both boxes.
+  double fmax[3] = {0.0, 0.0, 0.0};
+  largest(cs, fmax);
+  largest(ncs, fmax);
   if (ta > b.t0) {
     bool ok = false;
-    for (int k = 0; k < nd && !ok; ++k) ok = one_sign(pb, dirs[k], cs, 0, ncs, 0);
+    for (int k = 0; k < nd && !ok; ++k) ok = one_sign(dirs[k], band_for(pb, dirs[k], fmax), cs, 0, ncs, 0);
     if (!ok) return;
   }
   if (tb < b.t1) {
     bool ok = false;
-    for (int k = 0; k < nd && !ok; ++k) ok = one_sign(pb, dirs[k], ncs, 1, cs, 1);
+    for (int k = 0; k < nd && !ok; ++k) ok = one_sign(dirs[k], band_for(pb, dirs[k], fmax), ncs, 1, cs, 1);
     if (!ok) return;
   }
   b = nb;
@@ -717,13 +735,12 @@ void narrow_t(const Problem& pb, Box& b, Corners& cs, bool cubic, int& boxes) {
 // one sign over the box: then |F| >= |n.F| / |n| > gap (a separating direction). n along F at the box
 // centre is tight near the closest point, where the axis-aligned range is not; its parts orthogonal to
 // e and f are tight for parallel edges and for motion along an edge (F then varies along e or f only).
-bool direction_excludes(const Problem& pb, const Corners& cs) {
-  Direction dirs[6];
-  const int nd = narrowing_directions(pb, cs, dirs);
+bool direction_excludes(const Corners& cs, const Direction* dirs, int nd) {
   for (int k = 3; k < nd; ++k) {
     bool pos = true, neg = true;
+    const double e = dirs[k].band;
     for (int c = 0; c < cs.n && (pos || neg); ++c) {
-      const double x = project(dirs[k], cs.x[c]), e = band(pb, dirs[k], cs.x[c]);
+      const double x = project(dirs[k], cs.x[c]);
       pos &= x > e;
       neg &= x < -e;
     }
@@ -732,10 +749,13 @@ bool direction_excludes(const Problem& pb, const Corners& cs) {
   return false;
 }
 
-// True when the box is provably free of contact (its range, preconditioned range or a separating
-// direction).
-bool box_excluded(const Problem& pb, const Box& b, const Corners& cs) {
-  return axis_excludes(pb, b) || precond_excludes(pb, cs) || direction_excludes(pb, cs);
+// True when the box is provably free of contact: its range, its preconditioned range or a separating
+// direction; the directions tried are left in dirs (for narrow_t).
+bool box_excluded(const Problem& pb, const Box& b, const Corners& cs, Direction* dirs, int& nd) {
+  nd = 0;
+  if (axis_excludes(pb, b) || precond_excludes(pb, cs)) return true;
+  nd = narrowing_directions(pb, cs, dirs);
+  return direction_excludes(cs, dirs, nd);
 }
 
 bool solve(const Problem& pb, int max_boxes, CcdHit* hit) {
@@ -758,59 +778,101 @@ bool solve(const Problem& pb, int max_boxes, CcdHit* hit) {
   if (cubic_excludes(pb, D, E, F) || precond_excludes(pb, cs)) return no_contact();
   // Fast path: an upper bound t_hi of the time of contact (a contact within tolerance at or before it)
   // from a transversal crossing certified by Miranda at a root of the cubic, or (gap > 0) from a
-  // witness point within gap found by sampling; then only [0, t_stop] is left to search, with
-  // t_stop = t_hi - (time in which F moves by the precision), and t_stop is the toi if it is clean.
+  // witness point within gap + tolerance / 2 found by sampling and regula falsi; then only [0, t_stop]
+  // is left to search, t_stop = t_hi - rt (each coordinate of F moves by at most tolerance / 2 in rt),
+  // and t_stop is the toi if that is clean. Roots where the contact lies on the boundary of the domain
+  // or is tangential cannot be certified by Miranda: there a witness point within gap (up to rounding:
+  // 8 max eps) at the root time bounds the toi instead.
   double t_hi = 2.0, hit_u = 0.0, hit_v = 0.0, t_stop = 1.0;
+  const double exact_allowance = 8.0 * std::max({pb.eps[0], pb.eps[1], pb.eps[2]});
+  const double rt = std::max(kMinWidth, std::min(1.0, 0.5 * pb.tolerance / std::max(root.ct, 1e-300)));
   {
     double bern[4], roots[3];
     cubic_bernstein(D, E, F, bern);
     const int nr = cubic_roots(bern, roots);
     Box cert{};
     for (int i = 0; i < nr && t_hi > 1.0; ++i) {
-      ++boxes;
+      boxes += 2;
       if (certify_near(pb, roots[i], cert, hit_u, hit_v)) {
         t_hi = cert.t1;
         t_stop = cert.t0;
+        break;
+      }
+      const double t = std::min(1.0, grid_up(roots[i]));
+      double u, v;
+      closest_in_domain(pb, t, u, v);
+      if (witness(pb, t, u, v, exact_allowance)) {
+        t_hi = t;
+        t_stop = std::max(0.0, grid_down(t - rt));
+        hit_u = u;
+        hit_v = v;
       }
     }
   }
   if (pb.gap > 0.0) {
-    // Earliest sample time with a witness, then bisection towards the first one.
-    const double precision = 0.5 * pb.tolerance;
-    const double rt = std::max(kMinWidth, std::min(1.0, precision / std::max(root.ct, 1e-300)));
+    // Earliest sample time with a witness, then regula falsi (Illinois) on the distance towards the
+    // first one: t_lo never has a witness, t_hi always bounds a contact.
+    const double allowance = 0.5 * pb.tolerance;
+    auto excess = [&](double t, double& u, double& v) {  // distance estimate - gap - allowance
+      closest_in_domain(pb, t, u, v);
+      double D3[3], E3[3], F3[3], r2 = 0.0;
+      at_time(pb, t, D3, E3, F3);
+      for (int j = 0; j < 3; ++j) {
+        const double x = D3[j] + u * E3[j] + v * F3[j];
+        r2 += x * x;
+      }
+      return std::sqrt(r2) - pb.gap - allowance;
+    };
     constexpr int kSamples = 8;
-    double t_lo = -1.0;
+    double t_lo = -1.0, f_lo = 0.0, f_hi = 0.0;
     for (int k = 0; k <= kSamples; ++k) {
       const double t = static_cast<double>(k) / kSamples;
       if (t >= t_hi) break;
       double u, v;
       ++boxes;
-      closest_in_domain(pb, t, u, v);
-      if (witness(pb, t, u, v)) {
+      const double f = excess(t, u, v);
+      if (witness(pb, t, u, v, allowance)) {
         t_hi = t;
+        f_hi = f;
         hit_u = u;
         hit_v = v;
         break;
       }
       t_lo = t;
+      f_lo = f;
     }
     if (t_hi == 0.0) {
       report(pb, 0.0, hit_u, hit_v, false, boxes, hit);
       return true;
     }
     if (t_hi <= 1.0) {
-      while (t_hi - t_lo > rt) {
-        const double m = grid_mid(std::max(t_lo, 0.0), t_hi);
-        if (!(t_lo < m && m < t_hi)) break;
+      if (t_lo >= 0.0 && f_hi == 0.0) {
+        double u, v;
+        f_hi = std::min(0.0, excess(t_hi, u, v));
+      }
+      int kept = 0;  // +1 / -1: how many times in a row t_lo / t_hi was kept
+      for (int it = 0; it < 64 && t_hi - t_lo > rt; ++it) {
+        const double w = t_hi - std::max(t_lo, 0.0);
+        double m = t_lo >= 0.0 && f_lo > f_hi ? t_lo + w * f_lo / (f_lo - f_hi) : t_hi - 0.5 * w;
+        m = std::min(t_hi - 0.0625 * rt, std::max(std::max(t_lo, 0.0) + 0.0625 * rt, m));
+        m = grid_down(m);
+        if (!(std::max(t_lo, 0.0) < m && m < t_hi)) m = grid_mid(std::max(t_lo, 0.0), t_hi);
+        if (!(std::max(t_lo, 0.0) < m && m < t_hi)) break;
         double u, v;
         ++boxes;
-        closest_in_domain(pb, m, u, v);
-        if (witness(pb, m, u, v)) {
+        const double f = excess(m, u, v);
+        if (witness(pb, m, u, v, allowance)) {
           t_hi = m;
+          f_hi = std::min(f, 0.0);
           hit_u = u;
           hit_v = v;
+          kept = kept > 0 ? kept + 1 : 1;
+          if (kept >= 2) f_lo *= 0.5;
         } else {
           t_lo = m;
+          f_lo = std::max(f, 0.0);
+          kept = kept < 0 ? kept - 1 : -1;
+          if (kept <= -2) f_hi *= 0.5;
         }
       }
       t_stop = std::max(0.0, grid_down(t_hi - rt));
@@ -824,7 +886,9 @@ bool solve(const Problem& pb, int max_boxes, CcdHit* hit) {
     }
     root.t1 = t_stop;
     ++boxes;
-    if (!evaluate(pb, root, true, cs) || box_excluded(pb, root, cs)) {
+    Direction dirs[6];
+    int nd = 0;
+    if (!evaluate(pb, root, true, cs) || box_excluded(pb, root, cs, dirs, nd)) {
       report(pb, t_stop, hit_u, hit_v, false, boxes, hit);
       return true;
     }
@@ -845,15 +909,15 @@ bool solve(const Problem& pb, int max_boxes, CcdHit* hit) {
       report(pb, b.t0, 0.5 * (b.u0 + b.u1), 0.5 * (b.v0 + b.v1), false, boxes, hit);
       return true;
     }
-    // gap > 0: when F moves by less than max(tolerance, gap / 4) over the box's times, a domain point
-    // within gap + tolerance at its end time (found by a closest-point estimate, checked rigorously)
-    // makes it a contact; tried once per end time.
-    if (pb.gap > 0.0 && b.ct <= pb.tolerance && b.t1 != witness_t) {
+    // gap > 0: when each coordinate of F moves by at most tolerance / 2 over the box's times, a domain
+    // point within gap + tolerance / 2 at its end time (found by a closest-point estimate, checked
+    // rigorously) makes it a contact; tried once per end time.
+    if (pb.gap > 0.0 && b.ct <= 0.5 * pb.tolerance && b.t1 != witness_t) {
       witness_t = b.t1;
       double u, v;
       ++boxes;
       closest_in_domain(pb, b.t1, u, v);
-      if (witness(pb, b.t1, u, v)) {
+      if (witness(pb, b.t1, u, v, 0.5 * pb.tolerance)) {
         report(pb, b.t0, u, v, false, boxes, hit);
         return true;
       }
@@ -882,8 +946,10 @@ bool solve(const Problem& pb, int max_boxes, CcdHit* hit) {
     }
     for (Box& child : c) {
       ++boxes;
-      if (!evaluate(pb, child, split_t, cs) || box_excluded(pb, child, cs)) continue;
-      narrow_t(pb, child, cs, true, boxes);
+      Direction dirs[6];
+      int nd = 0;
+      if (!evaluate(pb, child, split_t, cs) || box_excluded(pb, child, cs, dirs, nd)) continue;
+      narrow_t(pb, child, cs, dirs, nd, true, boxes);
       heap.push_back(child);
       std::push_heap(heap.begin(), heap.end(), Later{});
     }

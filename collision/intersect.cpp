@@ -416,6 +416,7 @@ struct TriPlane {
   double e1[3] = {0, 0, 0}, e2[3] = {0, 0, 0};  // p1 - p0, p2 - p0, rounded
   double n[3] = {0, 0, 0};                      // e1 x e2, rounded
   double m[3] = {0, 0, 0};                      // |P_k| + |Q_k| per component
+  mutable int drop_ = -2;                       // projection axis, -2 until known
 
   void set(const double* a, const double* b, const double* c) {
     p0 = a;
@@ -431,6 +432,18 @@ struct TriPlane {
       n[k] = pk - qk;
       m[k] = std::abs(pk) + std::abs(qk);
     }
+    // Projection axis: the largest normal component when it is certainly nonzero (its rounding error is
+    // below gamma_4 m_k), else found exactly on demand.
+    int k = 0;
+    if (std::abs(n[1]) > std::abs(n[k])) k = 1;
+    if (std::abs(n[2]) > std::abs(n[k])) k = 2;
+    drop_ = std::abs(n[k]) > 8.0 * kEps * m[k] + kUnderflowPad ? k : -2;
+  }
+  // A coordinate to drop so that the plane projects one-to-one (the triangle stays non-degenerate), or -1
+  // when the triangle is degenerate.
+  int drop() const {
+    if (drop_ == -2) drop_ = faithful_drop(p0, p1, p2);
+    return drop_;
   }
   // orient3d(p0, p1, p2, q) = -(q - p0) . n.
   int orient(const double* q) const {
@@ -477,18 +490,26 @@ bool triangles_intersect_coplanar(const double* a0, const double* a1, const doub
   return true;
 }
 
-// Segment pq against triangle abc given op = orient3d(a, b, c, p) and oq = orient3d(a, b, c, q).
+// Segment pq against triangle abc given op = orient3d(a, b, c, p) and oq = orient3d(a, b, c, q); `plane`
+// (optional) is the triangle's plane, for its projection axis.
 bool segment_triangle_signed(const double* p, const double* q, const double* a, const double* b, const double* c,
-                             int op, int oq) {
+                             int op, int oq, const TriPlane* plane) {
   if (op * oq > 0) return false;
   if (op == 0 && oq == 0) {
     // In the plane of a non-degenerate triangle, or a degenerate triangle (a segment or a point).
-    const int drop = faithful_drop(a, b, c);
+    const int drop = plane ? plane->drop() : faithful_drop(a, b, c);
     if (drop >= 0) return segment_triangle_coplanar(p, q, a, b, c, drop);
     return segments_intersect(p, q, a, b) || segments_intersect(p, q, b, c) || segments_intersect(p, q, c, a);
   }
-  // The segment meets the plane at one point; it is in the triangle iff line pq passes no edge strictly
-  // on opposite sides.
+  if (op == 0 || oq == 0) {
+    // Only one endpoint is on the plane (so the triangle is not degenerate): that point in the triangle,
+    // in 2D.
+    const double* s = op == 0 ? p : q;
+    const int drop = plane ? plane->drop() : faithful_drop(a, b, c);
+    return !mixed_signs(orient2d(a, b, s, drop), orient2d(b, c, s, drop), orient2d(c, a, s, drop));
+  }
+  // The segment crosses the plane at one interior point; it is in the triangle iff line pq passes no edge
+  // strictly on opposite sides.
   return !mixed_signs(orient3d(p, q, a, b), orient3d(p, q, b, c), orient3d(p, q, c, a));
 }
 
@@ -602,7 +623,7 @@ bool segments_intersect(const double* p, const double* q, const double* a, const
 
 bool segment_triangle_intersect(const double* p, const double* q, const double* a, const double* b,
                                 const double* c) {
-  return segment_triangle_signed(p, q, a, b, c, orient3d(a, b, c, p), orient3d(a, b, c, q));
+  return segment_triangle_signed(p, q, a, b, c, orient3d(a, b, c, p), orient3d(a, b, c, q), nullptr);
 }
 
 namespace {
@@ -615,15 +636,18 @@ bool triangles_intersect_planes(const double* a0, const double* a1, const double
   if ((oa0 > 0 && oa1 > 0 && oa2 > 0) || (oa0 < 0 && oa1 < 0 && oa2 < 0)) return false;
   if (oa0 == 0 && oa1 == 0 && oa2 == 0) {
     // In the plane of a non-degenerate b: a 2D test in a faithful projection.
-    const int drop = faithful_drop(b0, b1, b2);
+    const int drop = pb.drop();
     if (drop >= 0) return triangles_intersect_coplanar(a0, a1, a2, b0, b1, b2, drop);
   }
   const int ob0 = pa.orient(b0), ob1 = pa.orient(b1), ob2 = pa.orient(b2);
   if ((ob0 > 0 && ob1 > 0 && ob2 > 0) || (ob0 < 0 && ob1 < 0 && ob2 < 0)) return false;
   // Closed triangles meet iff an edge of one meets the other (the intersection's extreme points lie on edges).
-  return segment_triangle_signed(a0, a1, b0, b1, b2, oa0, oa1) || segment_triangle_signed(a1, a2, b0, b1, b2, oa1, oa2) ||
-         segment_triangle_signed(a2, a0, b0, b1, b2, oa2, oa0) || segment_triangle_signed(b0, b1, a0, a1, a2, ob0, ob1) ||
-         segment_triangle_signed(b1, b2, a0, a1, a2, ob1, ob2) || segment_triangle_signed(b2, b0, a0, a1, a2, ob2, ob0);
+  return segment_triangle_signed(a0, a1, b0, b1, b2, oa0, oa1, &pb) ||
+         segment_triangle_signed(a1, a2, b0, b1, b2, oa1, oa2, &pb) ||
+         segment_triangle_signed(a2, a0, b0, b1, b2, oa2, oa0, &pb) ||
+         segment_triangle_signed(b0, b1, a0, a1, a2, ob0, ob1, &pa) ||
+         segment_triangle_signed(b1, b2, a0, a1, a2, ob1, ob2, &pa) ||
+         segment_triangle_signed(b2, b0, a0, a1, a2, ob2, ob0, &pa);
 }
 
 // Mesh triangles ta, tb (ids into x) with their planes: see mesh_triangles_intersect.
@@ -652,7 +676,7 @@ bool mesh_pair_intersects(const PointsRef& x, const int* ta, const int* tb, cons
     const int o1 = pb.orient(a1), o2 = pb.orient(a2);
     if (o1 == 0 && o2 == 0) {
       // Both triangles in one plane (tb non-degenerate): 2D tests, ta as its edges if degenerate.
-      const int drop = faithful_drop(B0, B1, B2);
+      const int drop = pb.drop();
       if (drop >= 0) {
         if (segment_triangle_coplanar(a1, a2, B0, B1, B2, drop)) return true;
         if (orient2d(A0, A1, A2, drop) != 0) return segment_triangle_coplanar(b1, b2, A0, A1, A2, drop);
@@ -660,8 +684,8 @@ bool mesh_pair_intersects(const PointsRef& x, const int* ta, const int* tb, cons
                segments_intersect_2d(b1, b2, A2, A0, drop);
       }
     }
-    return segment_triangle_signed(a1, a2, B0, B1, B2, o1, o2) ||
-           segment_triangle_signed(b1, b2, A0, A1, A2, pa.orient(b1), pa.orient(b2));
+    return segment_triangle_signed(a1, a2, B0, B1, B2, o1, o2, &pb) ||
+           segment_triangle_signed(b1, b2, A0, A1, A2, pa.orient(b1), pa.orient(b2), &pa);
   }
   // Shared edge (u, w) with opposite vertices c (in ta) and d (in tb): beyond the edge only when coplanar
   // with c and d strictly on the same side.
@@ -673,7 +697,7 @@ bool mesh_pair_intersects(const PointsRef& x, const int* ta, const int* tb, cons
     if (tb[j] != u && tb[j] != w) d = tb[j];
   }
   if (pa.orient(pt(d)) != 0) return false;
-  const int drop = faithful_drop(pt(u), pt(w), pt(c));
+  const int drop = pa.drop();
   if (drop < 0) return false;  // ta degenerate: it lies on the shared edge's line
   return orient2d(pt(u), pt(w), pt(c), drop) * orient2d(pt(u), pt(w), pt(d), drop) > 0;
 }

@@ -140,6 +140,7 @@ class KdopBvh {
     }
     boxes_.resize(nodes_.size());
     for (auto& b : boxes_) b.clear();
+    extent_.assign(nodes_.size(), 0.0);
   }
   int num_prims() const { return static_cast<int>(leaf_of_prim_.size()); }
   int num_nodes() const { return static_cast<int>(nodes_.size()); }
@@ -151,49 +152,48 @@ class KdopBvh {
   // k-DOP of node i (0 is the root).
   const Kdop<K>& node_box(int i) const { return boxes_[static_cast<std::size_t>(i)]; }
 
-  // Recompute internal nodes from the leaves; children always follow their parent in the node array.
+  // Recompute internal nodes from the leaves (children always follow their parent in the node array),
+  // and each node's size for the traversal order.
   void refit() {
+    extent_.resize(nodes_.size());
     for (int i = num_nodes() - 1; i >= 0; --i) {
       const Node& nd = nodes_[static_cast<std::size_t>(i)];
-      if (nd.prim >= 0) continue;
       Kdop<K>& b = boxes_[static_cast<std::size_t>(i)];
-      b = boxes_[static_cast<std::size_t>(nd.left)];
-      b.merge(boxes_[static_cast<std::size_t>(nd.right)]);
+      if (nd.prim < 0) {
+        b = boxes_[static_cast<std::size_t>(nd.left)];
+        b.merge(boxes_[static_cast<std::size_t>(nd.right)]);
+      }
+      extent_[static_cast<std::size_t>(i)] = b.extent();
     }
   }
 
-  // Self-traversal: calls f(i, j) (i != j) once for every unordered pair of primitives whose leaf k-DOPs
-  // overlap. A node against itself recurses into (left, left), (right, right) and (left, right).
+  // Self-traversal (after refit): calls f(i, j) (i != j) once for every unordered pair of primitives whose
+  // leaf k-DOPs overlap. Each internal node against itself means its two children against each other
+  // (each pair of leaves meets at one lowest common ancestor); a pair of overlapping nodes descends the
+  // larger one, pushing only child pairs that overlap.
   template <class F>
   void self_pairs(F&& f) const {
-    if (nodes_.empty()) return;
-    stack_.clear();
-    stack_.push_back({0, 0});
-    while (!stack_.empty()) {
-      const Pair pr = stack_.back();
-      stack_.pop_back();
-      const Node& na = nodes_[static_cast<std::size_t>(pr.a)];
-      if (pr.a == pr.b) {
-        // Node against itself: both children against themselves and against each other.
-        if (na.prim >= 0) continue;
-        stack_.push_back({na.left, na.right});
-        stack_.push_back({na.right, na.right});
-        stack_.push_back({na.left, na.left});
-        continue;
-      }
-      const Node& nb = nodes_[static_cast<std::size_t>(pr.b)];
-      const Kdop<K>& ba = boxes_[static_cast<std::size_t>(pr.a)];
-      const Kdop<K>& bb = boxes_[static_cast<std::size_t>(pr.b)];
-      if (!ba.overlaps(bb)) continue;
-      // Two overlapping nodes: report leaves, otherwise descend the larger one.
-      if (na.prim >= 0 && nb.prim >= 0) {
-        f(na.prim, nb.prim);
-      } else if (nb.prim >= 0 || (na.prim < 0 && ba.extent() >= bb.extent())) {
-        stack_.push_back({na.right, pr.b});
-        stack_.push_back({na.left, pr.b});
-      } else {
-        stack_.push_back({pr.a, nb.right});
-        stack_.push_back({pr.a, nb.left});
+    for (int i = 0; i < num_nodes(); ++i) {
+      const Node& nd = nodes_[static_cast<std::size_t>(i)];
+      if (nd.prim >= 0) continue;
+      stack_.clear();
+      if (box(nd.left).overlaps(box(nd.right))) stack_.push_back({nd.left, nd.right});
+      while (!stack_.empty()) {
+        const Pair pr = stack_.back();
+        stack_.pop_back();
+        const Node& na = nodes_[static_cast<std::size_t>(pr.a)];
+        const Node& nb = nodes_[static_cast<std::size_t>(pr.b)];
+        if (na.prim >= 0 && nb.prim >= 0) {
+          f(na.prim, nb.prim);
+        } else if (nb.prim >= 0 || (na.prim < 0 && extent_[static_cast<std::size_t>(pr.a)] >= extent_[static_cast<std::size_t>(pr.b)])) {
+          const Kdop<K>& bb = box(pr.b);
+          if (box(na.right).overlaps(bb)) stack_.push_back({na.right, pr.b});
+          if (box(na.left).overlaps(bb)) stack_.push_back({na.left, pr.b});
+        } else {
+          const Kdop<K>& ba = box(pr.a);
+          if (ba.overlaps(box(nb.right))) stack_.push_back({pr.a, nb.right});
+          if (ba.overlaps(box(nb.left))) stack_.push_back({pr.a, nb.left});
+        }
       }
     }
   }
@@ -240,8 +240,11 @@ class KdopBvh {
     return id;
   }
 
+  const Kdop<K>& box(int i) const { return boxes_[static_cast<std::size_t>(i)]; }
+
   std::vector<Node> nodes_;        // tree, root at 0, children after parents
   std::vector<Kdop<K>> boxes_;     // one k-DOP per node
+  std::vector<double> extent_;     // node sizes (Kdop::extent) from the last refit, metres
   std::vector<int> leaf_of_prim_;  // node index of each primitive's leaf
   mutable std::vector<Pair> stack_;  // traversal scratch
 };

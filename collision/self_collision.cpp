@@ -25,6 +25,34 @@ std::uint64_t pack(int hi, int lo) {
 int key_hi(std::uint64_t k) { return static_cast<int>(k >> 32); }
 int key_lo(std::uint64_t k) { return static_cast<int>(k & 0xffffffffu); }
 
+// Number of bits needed for ids in [0, n).
+int id_bits(int n) {
+  int b = 0;
+  while (b < 31 && (1 << b) < n) ++b;
+  return b;
+}
+
+// Sort keys (each < 2^bits) ascending: LSD radix sort, 11-bit digits; tmp is scratch.
+void radix_sort(std::vector<std::uint64_t>& keys, std::vector<std::uint64_t>& tmp, int bits) {
+  constexpr int kDigit = 11;
+  constexpr std::size_t kBuckets = std::size_t{1} << kDigit;
+  std::size_t offset[kBuckets];
+  tmp.resize(keys.size());
+  for (int shift = 0; shift < bits; shift += kDigit) {
+    // Histogram of this digit, exclusive prefix sums, stable scatter.
+    std::fill(offset, offset + kBuckets, std::size_t{0});
+    for (const std::uint64_t k : keys) ++offset[(k >> shift) & (kBuckets - 1)];
+    std::size_t sum = 0;
+    for (std::size_t b = 0; b < kBuckets; ++b) {
+      const std::size_t c = offset[b];
+      offset[b] = sum;
+      sum += c;
+    }
+    for (const std::uint64_t k : keys) tmp[offset[(k >> shift) & (kBuckets - 1)]++] = k;
+    keys.swap(tmp);
+  }
+}
+
 // True when v is one of the three ids in t.
 bool has_vertex(const int* t, int v) { return t[0] == v || t[1] == v || t[2] == v; }
 
@@ -64,10 +92,19 @@ struct SelfCollision::Impl {
 
   // Per-call scratch, reused across calls.
   std::vector<double> centres;          // triangle centroids, n_tris x 3, metres
-  std::vector<std::uint64_t> vf_keys;   // (vertex id, triangle id)
-  std::vector<std::uint64_t> ee_keys;   // (edge id, edge id), first < second
+  std::vector<std::uint64_t> vf_keys;   // vertex id << tri_bits | triangle id
+  std::vector<std::uint64_t> ee_keys;   // edge id << edge_bits | edge id, first < second
+  std::vector<std::uint64_t> sort_tmp;  // radix sort scratch
+  std::vector<double> proj;             // vertex projections on the k-DOP axes at x0 then x1, n_points x k
+  std::vector<int> used_vertices;       // vertices referenced by the triangles, ascending
+  int tri_bits = 0, edge_bits = 0, point_bits = 0;  // bit widths of the ids in the keys
   std::vector<FeaturePair> tested;      // the feature pairs run by the last call
   long bv_overlaps = 0;
+  // k-DOP study (off by default): overlapping leaf pairs of the call and running totals.
+  bool classify = false;
+  std::vector<std::pair<int, int>> overlap_pairs;  // n_overlaps, triangle ids
+  std::vector<std::uint64_t> hit_vf, hit_ee;       // keys of the feature pairs in contact, sorted
+  SelfCollision::OverlapTotals totals;
 
   // Validate and store the topology; derive the unique edge list.
   Impl(const TrisRef& t, int n, int kdop) : n_points(n), k(validate_kdop(kdop)) {
@@ -107,6 +144,12 @@ struct SelfCollision::Impl {
       }
       tri_edges[static_cast<std::size_t>(slots[s].second)] = static_cast<int>(edges.size() / 2) - 1;
     }
+    for (int v : tris) used_vertices.push_back(v);
+    std::sort(used_vertices.begin(), used_vertices.end());
+    used_vertices.erase(std::unique(used_vertices.begin(), used_vertices.end()), used_vertices.end());
+    tri_bits = id_bits(n_tris);
+    edge_bits = id_bits(static_cast<int>(edges.size() / 2));
+    point_bits = id_bits(n_points);
     // The BVH type for this k (the only switch on k; the hot loops are templates).
     switch (k) {
       case 6: bvh.emplace<KdopBvh<6>>(); break;
@@ -115,6 +158,10 @@ struct SelfCollision::Impl {
       default: bvh.emplace<KdopBvh<26>>(); break;
     }
   }
+
+  // Compact feature pair keys, ordered as (first id, second id).
+  std::uint64_t vf_key(int v, int t) const { return (static_cast<std::uint64_t>(v) << tri_bits) | static_cast<std::uint64_t>(t); }
+  std::uint64_t ee_key(int e, int g) const { return (static_cast<std::uint64_t>(e) << edge_bits) | static_cast<std::uint64_t>(g); }
 
   const int* tri(int t) const { return &tris[static_cast<std::size_t>(3 * t)]; }
   const int* edge(int e) const { return &edges[static_cast<std::size_t>(2 * e)]; }
@@ -132,26 +179,42 @@ struct SelfCollision::Impl {
     built = true;
   }
 
-  // Swept k-DOP of triangle t over x0 -> x1 (its 6 vertex positions), inflated by gap.
-  template <int K>
-  void swept_box(const PointsRef& x0, const PointsRef& x1, double gap, int t, Kdop<K>& box) const {
-    box.clear();
-    for (int j = 0; j < 3; ++j) {
-      box.add_point(x0.data() + tri(t)[j] * x0.outerStride());
-      box.add_point(x1.data() + tri(t)[j] * x1.outerStride());
+  // Swept k-DOPs of all triangles over x0 -> x1 (each the k-DOP of its 6 vertex positions), inflated by
+  // gap, written to out(t). The vertex projections are computed once per vertex.
+  template <int K, class Out>
+  void swept_boxes(const PointsRef& x0, const PointsRef& x1, double gap, Out&& out) {
+    constexpr int A = Kdop<K>::kAxes;
+    proj.resize(static_cast<std::size_t>(2 * A) * static_cast<std::size_t>(n_points));
+    for (const int v : used_vertices) {
+      double all[13];
+      double* p = &proj[static_cast<std::size_t>(2 * A) * static_cast<std::size_t>(v)];
+      kdop_project_all(x0.data() + v * x0.outerStride(), all);
+      for (int a = 0; a < A; ++a) p[a] = all[KdopAxisIds<K>::ids[a]];
+      kdop_project_all(x1.data() + v * x1.outerStride(), all);
+      for (int a = 0; a < A; ++a) p[A + a] = all[KdopAxisIds<K>::ids[a]];
     }
-    box.inflate(gap);
+    for (int t = 0; t < n_tris; ++t) {
+      Kdop<K>& box = out(t);
+      const double* p[3];
+      for (int j = 0; j < 3; ++j) p[j] = &proj[static_cast<std::size_t>(2 * A) * static_cast<std::size_t>(tri(t)[j])];
+      for (int a = 0; a < A; ++a) {
+        box.lo[a] = std::min({p[0][a], p[0][A + a], p[1][a], p[1][A + a], p[2][a], p[2][A + a]});
+        box.hi[a] = std::max({p[0][a], p[0][A + a], p[1][a], p[1][A + a], p[2][a], p[2][A + a]});
+      }
+      box.inflate(gap);
+    }
   }
 
   // Candidate features of an overlapping triangle pair: vertices against the other face and edge pairs,
   // skipping those that share a vertex (so neighbours still test their remaining features).
   void add_candidates(int ta, int tb) {
     ++bv_overlaps;
+    if (classify) overlap_pairs.emplace_back(ta, tb);
     const int* A = tri(ta);
     const int* B = tri(tb);
     for (int i = 0; i < 3; ++i) {
-      if (!has_vertex(B, A[i])) vf_keys.push_back(pack(A[i], tb));
-      if (!has_vertex(A, B[i])) vf_keys.push_back(pack(B[i], ta));
+      if (!has_vertex(B, A[i])) vf_keys.push_back(vf_key(A[i], tb));
+      if (!has_vertex(A, B[i])) vf_keys.push_back(vf_key(B[i], ta));
     }
     for (int i = 0; i < 3; ++i) {
       const int ea = tri_edges[static_cast<std::size_t>(3 * ta + i)];
@@ -160,30 +223,63 @@ struct SelfCollision::Impl {
         const int eb = tri_edges[static_cast<std::size_t>(3 * tb + j)];
         const int* vb = edge(eb);
         if (va[0] == vb[0] || va[0] == vb[1] || va[1] == vb[0] || va[1] == vb[1]) continue;
-        ee_keys.push_back(pack(std::min(ea, eb), std::max(ea, eb)));
+        ee_keys.push_back(ee_key(std::min(ea, eb), std::max(ea, eb)));
       }
     }
   }
 
+  // Reset the per-call candidates and statistics.
   void begin_call() {
     vf_keys.clear();
     ee_keys.clear();
     tested.clear();
     bv_overlaps = 0;
+    overlap_pairs.clear();
+    hit_vf.clear();
+    hit_ee.clear();
+  }
+
+  // Whether an overlapping pair has a feature pair in contact (the keys add_candidates would make).
+  bool pair_has_contact(int ta, int tb) const {
+    const int* A = tri(ta);
+    const int* B = tri(tb);
+    auto has = [](const std::vector<std::uint64_t>& v, std::uint64_t key) {
+      return std::binary_search(v.begin(), v.end(), key);
+    };
+    for (int i = 0; i < 3; ++i) {
+      if (!has_vertex(B, A[i]) && has(hit_vf, vf_key(A[i], tb))) return true;
+      if (!has_vertex(A, B[i]) && has(hit_vf, vf_key(B[i], ta))) return true;
+    }
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        const int ea = tri_edges[static_cast<std::size_t>(3 * ta + i)];
+        const int eb = tri_edges[static_cast<std::size_t>(3 * tb + j)];
+        if (has(hit_ee, ee_key(std::min(ea, eb), std::max(ea, eb)))) return true;
+      }
+    return false;
+  }
+
+  // Add this call's overlaps, split by whether they hold a contact, to the running totals.
+  void classify_overlaps() {
+    std::sort(hit_vf.begin(), hit_vf.end());
+    std::sort(hit_ee.begin(), hit_ee.end());
+    ++totals.calls;
+    totals.overlaps += static_cast<long>(overlap_pairs.size());
+    for (const auto& [ta, tb] : overlap_pairs) totals.overlaps_with_contact += pair_has_contact(ta, tb);
   }
 
   // Deduplicate the candidates and run each feature pair's elementary test once, in sorted order.
   void run_features(const PointsRef& x0, const PointsRef& x1, double gap, std::vector<Contact>& out,
                     CollisionStats* stats) {
-    std::sort(vf_keys.begin(), vf_keys.end());
+    radix_sort(vf_keys, sort_tmp, point_bits + tri_bits);
     vf_keys.erase(std::unique(vf_keys.begin(), vf_keys.end()), vf_keys.end());
-    std::sort(ee_keys.begin(), ee_keys.end());
+    radix_sort(ee_keys, sort_tmp, 2 * edge_bits);
     ee_keys.erase(std::unique(ee_keys.begin(), ee_keys.end()), ee_keys.end());
     tested.reserve(vf_keys.size() + ee_keys.size());
     // Vertex-face tests.
     for (const std::uint64_t key : vf_keys) {
-      const int p = key_hi(key);
-      const int* f = tri(key_lo(key));
+      const int p = static_cast<int>(key >> tri_bits);
+      const int* f = tri(static_cast<int>(key & ((std::uint64_t{1} << tri_bits) - 1)));
       tested.push_back(FeaturePair{FeatureKind::VertexFace, {p, f[0], f[1], f[2]}});
       CcdHit hit;
       if (vertex_face_ccd(row(x0, p), row(x0, f[0]), row(x0, f[1]), row(x0, f[2]), row(x1, p), row(x1, f[0]),
@@ -198,12 +294,13 @@ struct SelfCollision::Impl {
         c.s = hit.s;
         c.t = hit.t;
         out.push_back(c);
+        if (classify) hit_vf.push_back(key);
       }
     }
     // Edge-edge tests.
     for (const std::uint64_t key : ee_keys) {
-      const int* e = edge(key_hi(key));
-      const int* g = edge(key_lo(key));
+      const int* e = edge(static_cast<int>(key >> edge_bits));
+      const int* g = edge(static_cast<int>(key & ((std::uint64_t{1} << edge_bits) - 1)));
       tested.push_back(FeaturePair{FeatureKind::EdgeEdge, {e[0], e[1], g[0], g[1]}});
       CcdHit hit;
       if (edge_edge_ccd(row(x0, e[0]), row(x0, e[1]), row(x0, g[0]), row(x0, g[1]), row(x1, e[0]), row(x1, e[1]),
@@ -218,8 +315,10 @@ struct SelfCollision::Impl {
         c.s = hit.s;
         c.t = hit.t;
         out.push_back(c);
+        if (classify) hit_ee.push_back(key);
       }
     }
+    if (classify) classify_overlaps();
     if (stats) {
       stats->bv_overlaps = bv_overlaps;
       stats->feature_tests = static_cast<long>(tested.size());
@@ -227,6 +326,7 @@ struct SelfCollision::Impl {
     }
   }
 
+  // Throw unless x0, x1 are n_points x 3 and finite and gap is finite and >= 0.
   void check_call(const PointsRef& x0, const PointsRef& x1, double gap) const {
     check_points(x0, n_points, "x0");
     check_points(x1, n_points, "x1");
@@ -266,7 +366,8 @@ void SelfCollision::detect(const PointsRef& x0, const PointsRef& x1, double gap,
   // Refit the swept leaves and internal nodes, then collect overlapping leaf pairs by self-traversal.
   std::visit(
       [&](auto& b) {
-        for (int t = 0; t < im.n_tris; ++t) im.swept_box(x0, x1, gap, t, b.leaf_box(t));
+        constexpr int K = std::decay_t<decltype(b.leaf_box(0))>::kAxes * 2;
+        im.swept_boxes<K>(x0, x1, gap, [&b](int t) -> Kdop<K>& { return b.leaf_box(t); });
         b.refit();
         b.self_pairs([&](int ta, int tb) { im.add_candidates(ta, tb); });
       },
@@ -284,7 +385,7 @@ void SelfCollision::detect_brute_force(const PointsRef& x0, const PointsRef& x1,
   auto all_pairs = [&](auto k_tag) {
     constexpr int K = decltype(k_tag)::value;
     std::vector<Kdop<K>> boxes(static_cast<std::size_t>(im.n_tris));
-    for (int t = 0; t < im.n_tris; ++t) im.swept_box(x0, x1, gap, t, boxes[static_cast<std::size_t>(t)]);
+    im.swept_boxes<K>(x0, x1, gap, [&boxes](int t) -> Kdop<K>& { return boxes[static_cast<std::size_t>(t)]; });
     for (int a = 0; a < im.n_tris; ++a) {
       for (int b = a + 1; b < im.n_tris; ++b) {
         if (boxes[static_cast<std::size_t>(a)].overlaps(boxes[static_cast<std::size_t>(b)])) im.add_candidates(a, b);
@@ -302,6 +403,8 @@ void SelfCollision::detect_brute_force(const PointsRef& x0, const PointsRef& x1,
 
 const std::vector<FeaturePair>& SelfCollision::tested_features() const { return impl_->tested; }
 int SelfCollision::kdop() const { return impl_->k; }
+void SelfCollision::set_classify_overlaps(bool on) { impl_->classify = on; }
+SelfCollision::OverlapTotals SelfCollision::overlap_totals() const { return impl_->totals; }
 int SelfCollision::num_points() const { return impl_->n_points; }
 int SelfCollision::num_triangles() const { return impl_->n_tris; }
 int SelfCollision::num_edges() const { return static_cast<int>(impl_->edges.size() / 2); }

@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 
 #include "collision/ccd_queries.hpp"
+#include "collision/self_collision.hpp"
 #include "engine/scene.hpp"
 #include "engine/session.hpp"
 #include "engine/simulation.hpp"
@@ -67,11 +68,13 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
   return 0;
 }
 
-int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_render) {
+int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_render, int kdop, bool classify) {
   engine::Scene scene = engine::load_scene(scene_path);
+  if (kdop > 0) scene.collision.kdop = collision::validate_kdop(kdop);
   auto model = engine::compile_model(scene);
   engine::SessionOptions opt;
   opt.frames = frames;
+  opt.classify_overlaps = classify;
   opt.render = !no_render;
   opt.write_frames = false;
   engine::SessionResult result = engine::run_session(*model, opt);
@@ -106,7 +109,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
 
   std::string scene_path, out_dir, video, ccd_file;
-  int frames = -1;
+  int frames = -1, kdop = 0;
+  bool classify = false;
   bool no_render = false, export_surface = false, json = false, check = false;
 
   CLI::App* run = app.add_subcommand("run", "run a scene: PNG frames, optional MP4, report.json");
@@ -123,6 +127,8 @@ int main(int argc, char** argv) {
   bench->add_option("--frames", frames, "number of frames (overrides the scene)")->check(CLI::PositiveNumber);
   bench->add_flag("--json", json, "print one JSON object");
   bench->add_flag("--no-render", no_render, "leave rendering out");
+  bench->add_option("--kdop", kdop, "override the scene's k-DOP (6, 14, 18, 26)");
+  bench->add_flag("--classify-overlaps", classify, "count bounding-volume overlaps with and without contact");
 
   CLI::App* ccd = app.add_subcommand("ccd", "run every CCD query of a file; print positives, misses, timings");
   ccd->add_option("file", ccd_file, "query file (CSV, see shared/data/ccd/README.md)")->required();
@@ -137,7 +143,7 @@ int main(int argc, char** argv) {
 
   try {
     if (*run) return cmd_run(scene_path, out_dir, frames, no_render, video, export_surface, check);
-    if (*bench) return cmd_bench(scene_path, frames, json, no_render);
+    if (*bench) return cmd_bench(scene_path, frames, json, no_render, kdop, classify);
     if (*ccd) return cmd_ccd(ccd_file, json);
   } catch (const engine::InputError& e) {
     std::fprintf(stderr, "lumen: error: %s\n", e.what());

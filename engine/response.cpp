@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <map>
+#include <set>
 
 #include "engine/simulation.hpp"
 
@@ -90,6 +91,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   const Eigen::VectorXd u_free = u;
   auto positions = [&](const Eigen::VectorXd& uu) { return Points(model.mesh.rest + Eigen::Map<const Points>(uu.data(), n, 3)); };
   Points x1 = positions(u);
+  const Points x_free = x1;
 
   // First detection on the free motion.
   auto clock = Clock::now();
@@ -100,15 +102,21 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   rec.contacts = stats.contacts;
   rec.ms[kCollision] += ms_since(clock);
 
-  // Active constraints: last frame's held contacts (warm start, constraint response) plus every new one.
+  // Active constraints: last frame's held contacts (warm start, constraint response) plus every new one. The
+  // contacts that pushed last time are the active-set solver's first guess.
   clock = Clock::now();
   std::map<FeatureKey, collision::Contact> active;
+  std::set<FeatureKey> pushing;
   if (cs.response == "constraint")
-    for (const auto& c : state.active) active.emplace(key_of(c), c);
+    for (const auto& c : state.active) {
+      active.emplace(key_of(c), c);
+      pushing.insert(key_of(c));
+    }
   std::vector<collision::Contact> found = state.contacts;
   bool resolved = found.empty() && active.empty();
   int iterations = 0;
   std::vector<physics::ContactRow> rows;
+  std::vector<int> warm;
   physics::ContactResult solved;
   while (!resolved && iterations < cs.max_iterations) {
     ++iterations;
@@ -117,7 +125,6 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     rows.clear();
     if (cs.response == "paper") {
       // The paper (Sec. 3.4): hold every colliding vertex, and the probe points, at their time-of-contact positions.
-      const Points x_free = positions(u_free);
       double toi_min = 1.0;
       std::map<int, Eigen::Vector3d> held;
       for (const auto& [key, c] : active) {
@@ -139,25 +146,28 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
         }
       solved = physics::solve_equality(*state.compliance, rows, u_free);
     } else {
-      // Non-penetration with the gap, as an LCP on the inner wall's compliance.
-      for (const auto& [key, c] : active) rows.push_back(contact_row(c, model.mesh.rest, x0, x1, cs.gap));
-      solved = physics::solve_lcp(*state.compliance, rows, u_free);
+      // Non-penetration with the gap, as an LCP on the inner wall's compliance: active-set method on columns of
+      // the coupling matrix computed on demand, warm-started from the rows that pushed last time.
+      warm.clear();
+      for (const auto& [key, c] : active) {
+        if (pushing.count(key)) warm.push_back(static_cast<int>(rows.size()));
+        rows.push_back(contact_row(c, model.mesh.rest, x0, x1, cs.gap));
+      }
+      solved = physics::solve_contacts(*state.compliance, rows, u_free, warm);
+      pushing.clear();
+      int r = 0;
+      for (const auto& entry : active)
+        if (solved.lambda[r++] > 0.0) pushing.insert(entry.first);
     }
     u = u_free + solved.correction;
     x1 = positions(u);
     rec.ms[kResponse] += ms_since(clock);
 
-    // Re-check the corrected motion; contacts already held at the gap are done when a half-gap check is clear.
+    // Re-check the corrected motion with one CCD pass at half the gap (the rows ask for the full gap, so a held
+    // contact is done when this is clear); what it finds joins the active set for the next round.
     clock = Clock::now();
-    state.detector->detect(x0, x1, cs.gap, found, nullptr);
-    found.erase(std::remove_if(found.begin(), found.end(), [&](const collision::Contact& c) { return active.count(key_of(c)) > 0; }),
-                found.end());
-    if (found.empty()) {
-      std::vector<collision::Contact> close;
-      state.detector->detect(x0, x1, 0.5 * cs.gap, close, nullptr);
-      resolved = close.empty();
-      if (!resolved) found = close;
-    }
+    state.detector->detect(x0, x1, 0.5 * cs.gap, found, nullptr);
+    resolved = found.empty();
     rec.ms[kCollision] += ms_since(clock);
     clock = Clock::now();
   }

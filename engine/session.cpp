@@ -120,6 +120,7 @@ SessionResult run_session(const Model& model, const SessionOptions& opt) {
   }
 
   State state = make_state(model);
+  if (opt.classify_overlaps && state.detector) state.detector->set_classify_overlaps(true);
   result.frames.reserve(frames);
   const bool tty = opt.progress && isatty(fileno(stderr));
   long over_budget = 0;
@@ -205,11 +206,24 @@ SessionResult run_session(const Model& model, const SessionOptions& opt) {
                  {"frames_per_second", result.writer.frames_per_second()},
                  {"keeps_up", result.writer.frames == 0 || result.writer.frames_per_second() >= model.scene.fps}};
   long fallbacks = 0, inverted_frames = 0, failures = 0, intersecting_frames = 0;
+  long bv_overlaps = 0, feature_tests = 0, contacts = 0, iterations = 0;
   for (const auto& f : result.frames) {
+    bv_overlaps += f.bv_overlaps;
+    feature_tests += f.feature_tests;
+    contacts += f.contacts;
+    iterations += f.response_iterations;
     fallbacks += f.fallback;
     inverted_frames += f.inverted_elements > 0;
     failures += f.numerical_failure;
     intersecting_frames += f.intersecting_pairs > 0;
+  }
+  r["collision_totals"] = {{"bv_overlaps", bv_overlaps}, {"feature_tests", feature_tests}, {"contacts", contacts},
+                           {"response_iterations", iterations}};
+  if (opt.classify_overlaps && state.detector) {
+    const auto t = state.detector->overlap_totals();
+    r["overlap_classification"] = {{"detect_calls", t.calls}, {"bv_overlaps", t.overlaps},
+                                   {"with_contact", t.overlaps_with_contact},
+                                   {"false_positives", t.overlaps - t.overlaps_with_contact}};
   }
   r["fallback_frames"] = fallbacks;
   r["frames_with_inverted_elements"] = inverted_frames;

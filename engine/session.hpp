@@ -20,6 +20,7 @@ struct SessionOptions {
   bool export_surface = false;  // DIR/surface/inner_000001.obj ...
   bool check = false;           // exact intersection count of the inner wall on every frame
   bool progress = false;        // progress line on stderr
+  bool classify_overlaps = false;  // k-DOP study: split bounding-volume overlaps into with / without contact
 };
 
 struct SessionResult {

@@ -32,17 +32,24 @@ void check_slot(int node, int n_nodes, const std::string& name) {
 
 void check_rows(const std::vector<ContactRow>& rows, int n_nodes) {
   for (size_t r = 0; r < rows.size(); ++r) {
-    const std::string at = "ContactRow[" + std::to_string(r) + "]";
+    // Cheap test first; the message is built only for a bad row.
+    const ContactRow& row = rows[r];
     int used = 0;
+    bool ok = row.n.allFinite() && std::isfinite(row.g);
     for (int k = 0; k < 4; ++k) {
-      check_slot(rows[r].node[k], n_nodes, at + ".node[" + std::to_string(k) + "]");
-      if (!std::isfinite(rows[r].weight[k]))
-        fail(at + ".weight[" + std::to_string(k) + "] must be finite, got " + num(rows[r].weight[k]));
-      used += rows[r].node[k] >= 0;
+      ok = ok && row.node[k] >= -1 && row.node[k] < n_nodes && std::isfinite(row.weight[k]);
+      used += row.node[k] >= 0;
+    }
+    if (ok && used > 0) continue;
+    const std::string at = "ContactRow[" + std::to_string(r) + "]";
+    for (int k = 0; k < 4; ++k) {
+      check_slot(row.node[k], n_nodes, at + ".node[" + std::to_string(k) + "]");
+      if (!std::isfinite(row.weight[k]))
+        fail(at + ".weight[" + std::to_string(k) + "] must be finite, got " + num(row.weight[k]));
     }
     if (used == 0) fail(at + ".node must name at least one node, got none");
-    if (!rows[r].n.allFinite()) fail(at + ".n must be finite");
-    if (!std::isfinite(rows[r].g)) fail(at + ".g must be finite, got " + num(rows[r].g));
+    if (!row.n.allFinite()) fail(at + ".n must be finite");
+    fail(at + ".g must be finite, got " + num(row.g));
   }
 }
 
@@ -95,10 +102,13 @@ Eigen::VectorXd LoadResponse::displacement(const Points& forces) const {
 // ---------------------------------------------------------------------------------------------------------------
 // SurfaceCompliance
 
-SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns)
+SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns,
+                                     long max_mesh_column_bytes)
     : solver_(&solver), nodes_(nodes) {
   const int n = solver.n_dofs(), n_mesh = n / 3, s = static_cast<int>(nodes_.size());
   if (block_columns < 1) fail("SurfaceCompliance: block_columns must be >= 1, got " + std::to_string(block_columns));
+  if (max_mesh_column_bytes < 0)
+    fail("SurfaceCompliance: max_mesh_column_bytes must be >= 0, got " + std::to_string(max_mesh_column_bytes));
   // Node ids: in range and distinct.
   index_.assign(n_mesh, -1);
   extra_index_.assign(n_mesh, -1);
@@ -110,14 +120,46 @@ SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vect
     if (index_[v] >= 0) fail("SurfaceCompliance: nodes[" + std::to_string(a) + "] repeats node " + std::to_string(v));
     index_[v] = a;
   }
-  // C by blocks of unit columns: solve, keep the rows of the set.
+  // C by blocks of unit columns: solve, keep the rows of the set (and all rows when they fit the budget).
+  const bool keep = static_cast<double>(n) * 3.0 * s * sizeof(double) <= static_cast<double>(max_mesh_column_bytes);
   C_.resize(3 * s, 3 * s);
+  if (keep && s > 0) Kc_.resize(n, 3 * s);
   for (int c0 = 0; c0 < 3 * s; c0 += block_columns) {
     const int nc = std::min(block_columns, 3 * s - c0);
     Eigen::MatrixXd F = Eigen::MatrixXd::Zero(n, nc);
     for (int c = 0; c < nc; ++c) F(3 * nodes_[(c0 + c) / 3] + (c0 + c) % 3, c) = 1.0;
     const Eigen::MatrixXd X = solver.solve_many(F);
     for (int a = 0; a < s; ++a) C_.block(3 * a, c0, 3, nc) = X.middleRows(3 * nodes_[a], 3);
+    if (Kc_.size() > 0) Kc_.middleCols(c0, nc) = X;
+  }
+}
+
+void SurfaceCompliance::displacement(const Eigen::VectorXd& f, Eigen::VectorXd& du) {
+  const int n = solver_->n_dofs();
+  if (f.size() != n) fail("SurfaceCompliance::displacement: f must have " + std::to_string(n) + " entries, got " +
+                          std::to_string(f.size()));
+  // Loaded nodes, and whether each has whole-mesh columns at hand.
+  std::vector<int> loaded;
+  bool all_at_hand = true;
+  for (int v = 0; v < n / 3; ++v) {
+    if (f[3 * v] == 0.0 && f[3 * v + 1] == 0.0 && f[3 * v + 2] == 0.0) continue;
+    loaded.push_back(v);
+    all_at_hand = all_at_hand && ((index_[v] >= 0 && Kc_.size() > 0) || extra_index_[v] >= 0);
+  }
+  // Summing 3 columns of 3n per loaded node against two sweeps over the factor (forward and back).
+  const double sum_cost = 3.0 * n * static_cast<double>(loaded.size());
+  const double solve_cost = 2.0 * static_cast<double>(solver_->factor_nonzeros());
+  if (!all_at_hand || sum_cost > solve_cost) {
+    solver_->solve(f, du);
+    return;
+  }
+  du.setZero(n);
+  for (int v : loaded) {
+    const Eigen::Vector3d fv = f.segment<3>(3 * v);
+    if (index_[v] >= 0)
+      du.noalias() += Kc_.middleCols<3>(3 * index_[v]) * fv;
+    else
+      du.noalias() += extra_cols_[extra_index_[v]] * fv;
   }
 }
 
@@ -198,64 +240,107 @@ Eigen::VectorXd contact_force(const std::vector<ContactRow>& rows, const Eigen::
   return f;
 }
 
-Eigen::MatrixXd coupling_matrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows) {
+// ---------------------------------------------------------------------------------------------------------------
+// Coupling matrix A = H C H^T, column by column
+
+CouplingMatrix::CouplingMatrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows)
+    : compliance_(&compliance), rows_(&rows) {
   check_rows(rows, compliance.n_nodes_mesh());
   const int m = static_cast<int>(rows.size());
-  // Columns of every touched node outside the set, in one solve.
-  std::vector<int> touched;
-  std::vector<char> outside(m, 0);  // row touches a node outside the set
-  for (int r = 0; r < m; ++r)
-    for (int k = 0; k < 4; ++k)
-      if (rows[r].node[k] >= 0) {
-        touched.push_back(rows[r].node[k]);
-        outside[r] = outside[r] || compliance.index_of(rows[r].node[k]) < 0;
-      }
-  compliance.ensure_columns(touched);
-  // Set-set part: Y = C h_s over the whole set (columns of C are contiguous, C is symmetric), then
-  // A_rs = h_r . Y_s on the set nodes of row r.
-  const Eigen::MatrixXd& C = compliance.matrix();
-  Eigen::MatrixXd Y = Eigen::MatrixXd::Zero(C.rows(), m);
-  for (int s = 0; s < m; ++s)
-    for (int l = 0; l < 4; ++l) {
-      const int ib = rows[s].node[l] >= 0 ? compliance.index_of(rows[s].node[l]) : -1;
-      if (ib >= 0) Y.col(s).noalias() += rows[s].weight[l] * (C.middleCols<3>(3 * ib) * rows[s].n);
-    }
-  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
+  // Distinct touched nodes and each row entry's slot among them.
+  std::vector<int> slot_of(compliance.n_nodes_mesh(), -1);
+  slot_.assign(4 * static_cast<size_t>(m), -1);
   for (int r = 0; r < m; ++r)
     for (int k = 0; k < 4; ++k) {
-      const int ia = rows[r].node[k] >= 0 ? compliance.index_of(rows[r].node[k]) : -1;
-      if (ia < 0) continue;
-      const Eigen::RowVector3d hn = rows[r].weight[k] * rows[r].n.transpose();
-      A.row(r).noalias() += hn * Y.middleRows<3>(3 * ia);
+      const int v = rows[r].node[k];
+      if (v < 0) continue;
+      if (slot_of[v] < 0) {
+        slot_of[v] = static_cast<int>(touched_.size());
+        touched_.push_back(v);
+        touched_set_index_.push_back(compliance.index_[v]);
+      }
+      slot_[4 * r + k] = slot_of[v];
     }
-  // Terms with a node outside the set: from the cached columns, pair by pair.
-  for (int r = 0; r < m; ++r)
-    for (int s = 0; s < m; ++s) {
-      if (!outside[r] && !outside[s]) continue;
-      for (int k = 0; k < 4; ++k) {
-        const int a = rows[r].node[k];
-        if (a < 0) continue;
-        for (int l = 0; l < 4; ++l) {
-          const int b = rows[s].node[l];
-          if (b < 0 || (compliance.index_of(a) >= 0 && compliance.index_of(b) >= 0)) continue;
-          A(r, s) += rows[r].weight[k] * rows[s].weight[l] * rows[r].n.dot(compliance.block(a, b) * rows[s].n);
+  // Columns of every touched node outside the set, in one solve.
+  compliance.ensure_columns(touched_);
+  columns_.resize(m);
+  y_.resize(static_cast<Eigen::Index>(touched_.size()), 3);
+}
+
+const Eigen::VectorXd& CouplingMatrix::column(int s) {
+  const int m = size();
+  if (s < 0 || s >= m) fail("CouplingMatrix::column: s must be in [0, " + std::to_string(m) + "), got " + std::to_string(s));
+  Eigen::VectorXd& col = columns_[s];
+  if (col.size() == m) return col;
+  const ContactRow& rs = (*rows_)[s];
+  const SurfaceCompliance& sc = *compliance_;
+  const Eigen::MatrixXd& C = sc.C_;
+  // y_a = C_{a, .} h_s for every touched node a: sum over the row's nodes b of w_b C_ab n_s.
+  y_.setZero();
+  const int nt = static_cast<int>(touched_.size());
+  for (int l = 0; l < 4; ++l) {
+    const int b = rs.node[l];
+    if (b < 0) continue;
+    const Eigen::Vector3d wn = rs.weight[l] * rs.n;
+    const int ib = sc.index_[b];
+    if (ib >= 0) {
+      // Column block of b in the set; touched nodes in the set read its rows, others the cached columns of a
+      // (C symmetric: C_ab = (C_ba)^T).
+      const double* c0 = C.col(3 * ib).data();
+      const double* c1 = C.col(3 * ib + 1).data();
+      const double* c2 = C.col(3 * ib + 2).data();
+      for (int t = 0; t < nt; ++t) {
+        const int ia = touched_set_index_[t];
+        if (ia >= 0) {
+          for (int i = 0; i < 3; ++i) y_(t, i) += c0[3 * ia + i] * wn[0] + c1[3 * ia + i] * wn[1] + c2[3 * ia + i] * wn[2];
+        } else {
+          const Eigen::MatrixXd& X = sc.extra_cols_[sc.extra_index_[touched_[t]]];  // 3n x 3, columns of a
+          y_.row(t) += (X.middleRows<3>(3 * b).transpose() * wn).transpose();
         }
       }
+    } else {
+      // b outside the set: its cached whole-mesh columns hold C_ab for every a.
+      const Eigen::MatrixXd& X = sc.extra_cols_[sc.extra_index_[b]];  // 3n x 3
+      for (int t = 0; t < nt; ++t) y_.row(t) += (X.middleRows<3>(3 * touched_[t]) * wn).transpose();
     }
+  }
+  // A_rs = h_r . y over the row's nodes.
+  col.resize(m);
+  for (int r = 0; r < m; ++r) {
+    const ContactRow& rr = (*rows_)[r];
+    Eigen::Vector3d acc = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 4; ++k) {
+      const int t = slot_[4 * r + k];
+      if (t >= 0) acc += rr.weight[k] * y_.row(t).transpose();
+    }
+    col[r] = rr.n.dot(acc);
+  }
+  ++n_computed_;
+  return col;
+}
+
+Eigen::MatrixXd CouplingMatrix::dense() {
+  const int m = size();
+  Eigen::MatrixXd A(m, m);
+  for (int s = 0; s < m; ++s) A.col(s) = column(s);
   // Symmetrise (C is symmetric up to round-off).
   const Eigen::MatrixXd At = A.transpose();
   A = 0.5 * (A + At);
   return A;
 }
 
+Eigen::MatrixXd coupling_matrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows) {
+  return CouplingMatrix(compliance, rows).dense();
+}
+
 namespace {
 
-// Force, correction (one back-substitution) and the row values after correction.
+// Force, correction (a sum of precomputed columns or one back-substitution) and the row values after correction.
 Eigen::VectorXd finish(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
                        const Eigen::VectorXd& u_free, ContactResult& out) {
   const int n = compliance.solver().n_dofs();
   out.force = contact_force(rows, out.lambda, n);
-  compliance.solver().solve(out.force, out.correction);
+  compliance.displacement(out.force, out.correction);
   return row_values(rows, u_free + out.correction);
 }
 
@@ -315,6 +400,272 @@ ContactResult solve_lcp(SurfaceCompliance& compliance, const std::vector<Contact
   return out;
 }
 
+ContactResult solve_contacts(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
+                             const Eigen::VectorXd& u_free, const std::vector<int>& warm, const LcpOptions& options) {
+  check_u_free(compliance, u_free, "solve_contacts");
+  const int m = static_cast<int>(rows.size());
+  for (size_t i = 0; i < warm.size(); ++i)
+    if (warm[i] < 0 || warm[i] >= m)
+      fail("solve_contacts: warm[" + std::to_string(i) + "] must be a row index in [0, " + std::to_string(m) +
+           "), got " + std::to_string(warm[i]));
+  Eigen::VectorXd g(m);
+  for (int r = 0; r < m; ++r) g[r] = rows[r].g;
+  // w = A lambda + (H u_free - g): active set on columns of A computed on demand, Lemke on all of A if that fails.
+  CouplingMatrix A(compliance, rows);
+  const Eigen::VectorXd q = row_values(rows, u_free) - g;
+  LcpResult lcp = solve_lcp_active_set([&A](int j) -> const Eigen::VectorXd& { return A.column(j); }, q, warm, options);
+  ContactResult out;
+  if (!lcp.converged) {
+    const int rounds = lcp.iterations;
+    lcp = solve_lcp_dense(A.dense(), q, options);
+    lcp.iterations += rounds;
+    out.used_lemke = true;
+  }
+  out.lambda = lcp.z;
+  out.iterations = lcp.iterations;
+  const Eigen::VectorXd h = finish(compliance, rows, u_free, out);
+  // Violation of H u >= g, and of equality where the row pushes.
+  double res = 0.0;
+  for (int r = 0; r < m; ++r) {
+    res = std::max(res, g[r] - h[r]);
+    if (out.lambda[r] > 0.0) res = std::max(res, std::abs(h[r] - g[r]));
+  }
+  out.residual = res;
+  out.converged = lcp.converged && res <= options.tolerance;
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Active set (Lawson-Hanson type) on the convex QP min 1/2 z^T A z + q^T z, z >= 0
+
+namespace {
+
+void check_lcp_options(const LcpOptions& options) {
+  if (!(options.tolerance >= 0.0)) fail("LcpOptions.tolerance must be >= 0, got " + num(options.tolerance));
+  if (options.max_iterations < 0)
+    fail("LcpOptions.max_iterations must be >= 0, got " + std::to_string(options.max_iterations));
+}
+
+// Cholesky factor L L^T = A_PP of the passive set P, grown one index at a time, rebuilt after removals.
+class PassiveFactor {
+ public:
+  explicit PassiveFactor(const std::function<const Eigen::VectorXd&(int)>& column) : column_(column) {}
+  const std::vector<int>& set() const { return P_; }
+  int size() const { return static_cast<int>(P_.size()); }
+
+  // Symmetric entry A_ij from the two columns (both are needed anyway).
+  double entry(int i, int j) const { return 0.5 * (column_(j)[i] + column_(i)[j]); }
+
+  // Appends j when A_{P+j} stays positive definite; otherwise leaves P as it is and returns false with
+  // coefficients c (A e_j = A_{., P} c up to the dependence tolerance).
+  bool append(int j, Eigen::VectorXd& c) {
+    const int p = size();
+    reserve(p + 1);
+    Eigen::VectorXd l(p);
+    for (int a = 0; a < p; ++a) l[a] = entry(P_[a], j);
+    if (p > 0) L_.topLeftCorner(p, p).triangularView<Eigen::Lower>().solveInPlace(l);
+    const double ajj = column_(j)[j];
+    const double d2 = ajj - l.squaredNorm();
+    if (!(ajj > 0.0) || !(d2 > kDependence * ajj)) {
+      c = l;
+      if (p > 0) L_.topLeftCorner(p, p).triangularView<Eigen::Lower>().transpose().solveInPlace(c);
+      return false;
+    }
+    L_.row(p).head(p) = l.transpose();
+    L_(p, p) = std::sqrt(d2);
+    P_.push_back(j);
+    return true;
+  }
+
+  // Keeps the members of P for which keep(index) is true and refactors; false when A_PP is not positive definite.
+  template <class Keep>
+  bool retain(Keep keep) {
+    std::vector<int> kept;
+    for (int i : P_)
+      if (keep(i)) kept.push_back(i);
+    P_ = kept;
+    const int p = size();
+    if (p == 0) return true;
+    Eigen::MatrixXd M(p, p);
+    for (int a = 0; a < p; ++a)
+      for (int b = 0; b <= a; ++b) M(a, b) = M(b, a) = entry(P_[a], P_[b]);
+    const Eigen::LLT<Eigen::MatrixXd> llt(M);
+    if (llt.info() != Eigen::Success) return false;
+    const Eigen::MatrixXd Lp = llt.matrixL();
+    for (int a = 0; a < p; ++a)
+      if (!(Lp(a, a) * Lp(a, a) > kDependence * M(a, a))) return false;
+    L_.topLeftCorner(p, p) = Lp;
+    return true;
+  }
+
+  // zeta_P = -A_PP^-1 q_P.
+  Eigen::VectorXd solve(const Eigen::VectorXd& q) const {
+    const int p = size();
+    Eigen::VectorXd x(p);
+    for (int a = 0; a < p; ++a) x[a] = -q[P_[a]];
+    const auto L = L_.topLeftCorner(p, p).triangularView<Eigen::Lower>();
+    L.solveInPlace(x);
+    L.transpose().solveInPlace(x);
+    return x;
+  }
+
+ private:
+  static constexpr double kDependence = 1e-10;  // relative pivot below which a row counts as dependent
+  void reserve(int p) {
+    if (L_.rows() >= p) return;
+    const int cap = std::max(16, 2 * p);
+    Eigen::MatrixXd grown = Eigen::MatrixXd::Zero(cap, cap);
+    const int old = size();
+    grown.topLeftCorner(old, old) = L_.topLeftCorner(old, old);
+    L_.swap(grown);
+  }
+  const std::function<const Eigen::VectorXd&(int)>& column_;
+  std::vector<int> P_;
+  Eigen::MatrixXd L_;
+};
+
+}  // namespace
+
+LcpResult solve_lcp_active_set(const std::function<const Eigen::VectorXd&(int)>& column, const Eigen::VectorXd& q,
+                               const std::vector<int>& warm, const LcpOptions& options) {
+  const int m = static_cast<int>(q.size());
+  if (!q.allFinite()) fail("solve_lcp_active_set: q must be finite");
+  check_lcp_options(options);
+  for (size_t i = 0; i < warm.size(); ++i)
+    if (warm[i] < 0 || warm[i] >= m)
+      fail("solve_lcp_active_set: warm[" + std::to_string(i) + "] must be in [0, " + std::to_string(m) + "), got " +
+           std::to_string(warm[i]));
+  const int max_rounds = options.max_iterations > 0 ? options.max_iterations : 10 * m + 100;
+  const double tol = options.tolerance;
+
+  LcpResult out;
+  Eigen::VectorXd z = Eigen::VectorXd::Zero(m), w = q;
+  std::vector<char> in_P(m, 0);
+  PassiveFactor F(column);
+  Eigen::VectorXd c;
+  int rounds = 0;
+  bool failed = false;
+  // w = A z + q from the columns of P.
+  auto update_w = [&]() {
+    w = q;
+    for (int j : F.set()) w.noalias() += z[j] * column(j);
+  };
+  auto drop = [&](auto keep) {
+    failed = failed || !F.retain(keep);
+    std::fill(in_P.begin(), in_P.end(), 0);
+    for (int j : F.set()) in_P[j] = 1;
+  };
+
+  // Warm start: the guessed set (independent members), pruned of negative multipliers until the subproblem's
+  // solution is positive; it is then a feasible starting point.
+  for (int j : warm)
+    if (!in_P[j] && F.append(j, c)) in_P[j] = 1;
+  while (F.size() > 0 && !failed) {
+    const Eigen::VectorXd zeta = F.solve(q);
+    bool positive = true;
+    for (int a = 0; a < F.size(); ++a) positive = positive && zeta[a] > 0.0;
+    if (positive) {
+      for (int a = 0; a < F.size(); ++a) z[F.set()[a]] = zeta[a];
+      break;
+    }
+    std::vector<char> keep(m, 0);
+    for (int a = 0; a < F.size(); ++a) keep[F.set()[a]] = zeta[a] > 0.0;
+    drop([&](int i) { return keep[i] != 0; });
+    ++rounds;
+  }
+  update_w();
+
+  bool done = false;
+  while (!failed && rounds < max_rounds) {
+    // The most violated row off P enters; none below -tolerance: solved.
+    int j = -1;
+    for (int i = 0; i < m; ++i)
+      if (!in_P[i] && w[i] < -tol && (j < 0 || w[i] < w[j])) j = i;
+    if (j < 0) {
+      done = true;
+      break;
+    }
+    ++rounds;
+    if (!F.append(j, c)) {
+      // Row j depends on P: along d = e_j - sum c_a e_{P_a} (A d = 0, q . d = w_j < 0) the objective falls
+      // linearly; go until a member of P reaches zero and exchange it for j. No such member: unbounded
+      // (the constraints are inconsistent).
+      int block = -1;
+      double t = 0.0;
+      for (int a = 0; a < F.size(); ++a)
+        if (c[a] > 0.0 && (block < 0 || z[F.set()[a]] / c[a] < t)) block = a, t = z[F.set()[a]] / c[a];
+      if (block < 0) {
+        failed = true;
+        break;
+      }
+      for (int a = 0; a < F.size(); ++a) z[F.set()[a]] -= t * c[a];
+      const int leaving = F.set()[block];
+      z[leaving] = 0.0;
+      z[j] = t;
+      drop([&](int i) { return i != leaving && z[i] > 0.0; });
+      if (failed || !F.append(j, c)) {
+        failed = true;
+        break;
+      }
+    }
+    in_P[j] = 1;
+    // Subproblem on P from the feasible z: step towards its solution, dropping members that reach zero first.
+    while (!failed) {
+      const Eigen::VectorXd zeta = F.solve(q);
+      double alpha = 1.0;
+      for (int a = 0; a < F.size(); ++a) {
+        const int i = F.set()[a];
+        const double den = z[i] - zeta[a];
+        if (zeta[a] <= 0.0) alpha = std::min(alpha, den > 0.0 ? z[i] / den : 0.0);
+      }
+      if (alpha >= 1.0) {
+        for (int a = 0; a < F.size(); ++a) z[F.set()[a]] = zeta[a];
+        break;
+      }
+      std::vector<char> keep(m, 0);
+      for (int a = 0; a < F.size(); ++a) {
+        const int i = F.set()[a];
+        const double zi = z[i] + alpha * (zeta[a] - z[i]);
+        const bool blocking = zeta[a] <= 0.0 && z[i] <= alpha * (z[i] - zeta[a]) * (1.0 + 1e-12);
+        z[i] = blocking || zi <= 0.0 ? 0.0 : zi;
+        keep[i] = z[i] > 0.0;
+      }
+      drop([&](int i) { return keep[i] != 0; });
+      if (++rounds >= max_rounds) failed = true;
+    }
+    update_w();
+  }
+  out.iterations = rounds;
+  out.z = z.cwiseMax(0.0);
+  update_w();
+  out.w = w;
+  // Residual: max_i |min(w_i, A_ii z_i)| over z_i > 0, and the violations of w >= 0.
+  double res = 0.0;
+  for (int i = 0; i < m; ++i) {
+    res = std::max(res, -w[i]);
+    if (out.z[i] > 0.0) res = std::max(res, std::abs(std::min(w[i], std::max(column(i)[i], 0.0) * out.z[i])));
+  }
+  out.residual = res;
+  out.converged = done && !failed && res <= tol;
+  return out;
+}
+
+LcpResult solve_lcp_active_set(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, const std::vector<int>& warm,
+                               const LcpOptions& options) {
+  const int m = static_cast<int>(q.size());
+  if (A.rows() != m || A.cols() != m)
+    fail("solve_lcp_active_set: A must be " + std::to_string(m) + " x " + std::to_string(m) + ", got " +
+         std::to_string(A.rows()) + " x " + std::to_string(A.cols()));
+  if (!A.allFinite()) fail("solve_lcp_active_set: A must be finite");
+  std::vector<Eigen::VectorXd> columns(m);
+  return solve_lcp_active_set(
+      [&](int j) -> const Eigen::VectorXd& {
+        if (columns[j].size() != m) columns[j] = A.col(j);
+        return columns[j];
+      },
+      q, warm, options);
+}
+
 // ---------------------------------------------------------------------------------------------------------------
 // Lemke
 
@@ -338,9 +689,7 @@ LcpResult solve_lcp_dense(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, co
     fail("solve_lcp_dense: A must be " + std::to_string(m) + " x " + std::to_string(m) + ", got " +
          std::to_string(A.rows()) + " x " + std::to_string(A.cols()));
   if (!A.allFinite() || !q.allFinite()) fail("solve_lcp_dense: A and q must be finite");
-  if (!(options.tolerance >= 0.0)) fail("LcpOptions.tolerance must be >= 0, got " + num(options.tolerance));
-  if (options.max_iterations < 0)
-    fail("LcpOptions.max_iterations must be >= 0, got " + std::to_string(options.max_iterations));
+  check_lcp_options(options);
   const int max_it = options.max_iterations > 0 ? options.max_iterations : 10 * m + 100;
 
   LcpResult out;

@@ -10,6 +10,7 @@
 // a dense solve (equality, the paper's "hold the colliding vertices") or a dense LCP (non-penetration), and
 // the whole-mesh correction is one back-substitution du = K^-1 H^T lambda.
 #include <Eigen/Core>
+#include <functional>
 #include <vector>
 
 #include "physics/fem.hpp"
@@ -51,10 +52,15 @@ class LoadResponse {
 
 // Dense compliance C = K^-1 restricted to a set of nodes (e.g. the inner wall), plus on-demand columns for
 // nodes outside the set. Keeps a reference to the solver, which must outlive it.
+//
+// The whole-mesh columns K^-1 e of the set's DOFs (3n x 3s) come out of the same solves; they are kept when
+// they take at most max_mesh_column_bytes, so that the whole-mesh response to forces on a few set nodes is a
+// short sum of columns instead of a back-substitution (see displacement()).
 class SurfaceCompliance {
  public:
   // nodes: distinct mesh node ids. Columns are computed block_columns at a time (solve_many).
-  SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns = 64);
+  SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns = 64,
+                    long max_mesh_column_bytes = 256L << 20);
 
   const StaticSolver& solver() const { return *solver_; }
   int n_nodes_mesh() const { return solver_->n_dofs() / 3; }
@@ -71,13 +77,22 @@ class SurfaceCompliance {
   void ensure_columns(const std::vector<int>& nodes);
   // Number of nodes outside the set whose columns are cached.
   int n_cached_nodes() const { return static_cast<int>(extra_nodes_.size()); }
+  // Whether the whole-mesh columns of the set nodes are kept (3n x 3s, m/N).
+  bool keeps_mesh_columns() const { return Kc_.size() > 0; }
+
+  // du = K^-1 f (3n, metres) for nodal forces f (3n, newtons). When f acts on few nodes whose whole-mesh
+  // columns are at hand (kept set columns, cached outside columns) and summing them is cheaper than a
+  // back-substitution, du is that sum; otherwise one StaticSolver::solve. Both give K^-1 f to round-off.
+  void displacement(const Eigen::VectorXd& f, Eigen::VectorXd& du);
 
  private:
   void check_node(int node, const char* what) const;
+  friend class CouplingMatrix;
   const StaticSolver* solver_;
   std::vector<int> nodes_;
   std::vector<int> index_;                   // mesh node -> position in nodes_, or -1
   Eigen::MatrixXd C_;                        // 3s x 3s, m/N
+  Eigen::MatrixXd Kc_;                       // 3n x 3s whole-mesh columns of the set DOFs, m/N (or empty)
   std::vector<int> extra_index_;             // mesh node -> position in extra_nodes_, or -1
   std::vector<int> extra_nodes_;             // nodes outside the set with cached columns
   std::vector<Eigen::MatrixXd> extra_cols_;  // per cached node: 3n x 3, K^-1 columns of its DOFs, m/N
@@ -114,14 +129,57 @@ struct LcpResult {
 // (infeasible problem) or at the pivot bound.
 LcpResult solve_lcp_dense(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, const LcpOptions& options = {});
 
+// Active-set solve of the same LCP for a symmetric positive semidefinite A given column by column
+// (column(j) = A e_j, called only for indices that enter the active set), in the manner of Lawson and Hanson's
+// NNLS on the equivalent convex QP min 1/2 z^T A z + q^T z, z >= 0: solve A_PP z_P = -q_P on the passive set P
+// (incrementally updated Cholesky), step back and drop indices whose z would turn negative, add the index of
+// the most negative w, until w >= -tolerance off P. A row that is linearly dependent on P is exchanged with a
+// member of P along the null direction; an unbounded such direction (infeasible problem) ends the solve.
+// warm: indices guessed to be active (e.g. the last solve's), tried first. iterations counts the rounds (adds,
+// drops, exchanges); max_iterations 0 = 10 * rows + 100. converged = false (never a throw) on an infeasible
+// problem or at the round bound: callers fall back to solve_lcp_dense.
+LcpResult solve_lcp_active_set(const std::function<const Eigen::VectorXd&(int)>& column, const Eigen::VectorXd& q,
+                               const std::vector<int>& warm = {}, const LcpOptions& options = {});
+// The same on a dense A (m x m).
+LcpResult solve_lcp_active_set(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, const std::vector<int>& warm = {},
+                               const LcpOptions& options = {});
+
 // Result of a contact solve.
 struct ContactResult {
   Eigen::VectorXd lambda;      // row multipliers, newtons, one per row (>= 0 for the LCP)
   Eigen::VectorXd force;       // f_c = H^T lambda, nodal contact forces, 3n, newtons
-  Eigen::VectorXd correction;  // du = K^-1 f_c (one StaticSolver::solve), 3n, metres
-  int iterations = 0;          // LCP pivots (1 for the equality solve)
+  Eigen::VectorXd correction;  // du = K^-1 f_c (SurfaceCompliance::displacement), 3n, metres
+  int iterations = 0;          // LCP pivots or active-set rounds (1 for the equality solve)
   double residual = 0.0;       // max row violation at u_free + du, metres (see solve_equality / solve_lcp)
   bool converged = false;      // residual <= tolerance
+  bool used_lemke = false;     // solve_contacts: the active-set method failed and Lemke's pivoting was used
+};
+
+// The coupling matrix A = H C H^T (rows x rows, metres per newton) of a fixed set of rows, evaluated a column
+// at a time on first use and cached: a column costs O(touched nodes + rows), so a solver that needs only the
+// columns of its active rows never pays for all of A. Keeps references to the compliance and the rows, which
+// must outlive it and stay unchanged.
+class CouplingMatrix {
+ public:
+  // Validates the rows and solves once for the columns of every touched node outside the compliance's set.
+  CouplingMatrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows);
+  int size() const { return static_cast<int>(rows_->size()); }
+  // A e_s: entry r is h_r . C h_s, metres per newton.
+  const Eigen::VectorXd& column(int s);
+  // All of A, symmetrised (computes the missing columns).
+  Eigen::MatrixXd dense();
+  // Number of columns computed so far.
+  int columns_computed() const { return n_computed_; }
+
+ private:
+  SurfaceCompliance* compliance_;
+  const std::vector<ContactRow>* rows_;
+  std::vector<int> touched_;                  // distinct nodes of the rows
+  std::vector<int> touched_set_index_;        // per touched node: position in the compliance set, or -1
+  std::vector<int> slot_;                     // rows x 4: position in touched_ of each row entry, or -1
+  std::vector<Eigen::VectorXd> columns_;      // cached columns (empty until computed)
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> y_;  // workspace: C h_s on the touched nodes
+  int n_computed_ = 0;
 };
 
 // H u for the rows, metres (u: 3n).
@@ -140,5 +198,12 @@ ContactResult solve_equality(SurfaceCompliance& compliance, const std::vector<Co
 // residual = max over rows of (g - H u)^+ and, where lambda > 0, |H u - g|.
 ContactResult solve_lcp(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
                         const Eigen::VectorXd& u_free, const LcpOptions& options = {});
+
+// The same non-penetration problem by solve_lcp_active_set on columns of A computed on demand (a few per
+// active row instead of all of A), warm-started from `warm` (row indices guessed to push, e.g. the rows of
+// last frame's pushing contacts); when that does not converge, solve_lcp_dense on the whole A (used_lemke).
+ContactResult solve_contacts(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
+                             const Eigen::VectorXd& u_free, const std::vector<int>& warm = {},
+                             const LcpOptions& options = {});
 
 }  // namespace lumen::physics

@@ -82,7 +82,7 @@ Eigen::Matrix3d proper_rotation(const Eigen::Matrix3d& F, bool* inverted) {
       const Eigen::Matrix3d next = 0.5 * (g * X + cofactor(X) / (g * detX));
       const double step = (next - X).lpNorm<Eigen::Infinity>();
       X = next;
-      if (step <= 1e-9) return X;  // the error of X is now about step^2
+      if (step <= 1e-6) return X;  // quadratic convergence: the error of X is now about step^2 / 2
       scale = step > 1e-2;
       detX = X.determinant();
     }

@@ -166,7 +166,9 @@ TEST(DynamicStep, UndampedBackwardEulerIsDissipativeAndStableForLargeSteps) {
       energy = e;
     }
     EXPECT_LT(energy, first);  // strictly dissipative without damping
-    if (h == 10.0) EXPECT_LE((s.u - u_static).norm(), 1e-6 * u_static.norm());  // huge steps: the static answer
+    if (h == 10.0) {  // huge steps: the static answer
+      EXPECT_LE((s.u - u_static).norm(), 1e-6 * u_static.norm());
+    }
   }
 }
 
@@ -209,7 +211,7 @@ TEST(DynamicStep, CorotationalMatchesLinearForTinyLoads) {
   p.elastic = ElasticModel::kCorotational;
   const DynamicModel corot(m, kMaterial, both_ends(m), p);
   CorotationalOptions opt;
-  opt.tolerance = 1e-12;
+  opt.tolerance = 1e-8;  // the strain of a 1e-5 N load is ~1e-6: round-off in R^T F - I limits the residual
   for (const double load : {1e-4, 1e-5}) {
     const Eigen::VectorXd f = side_load(m, load);
     DynamicState a, b;
