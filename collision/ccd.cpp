@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "collision/distance.hpp"
+
 namespace lumen::collision {
 namespace {
 
@@ -985,6 +987,38 @@ bool overflow_contact(CcdHit* hit) {
   return true;
 }
 
+// Separation filter, rigorous for any direction n: the features' projections on n are separated by sep0 at
+// t = 0 and can approach by at most `closing` over the frame, so their distance stays >= sep0 - closing.
+// first: the points of the first feature (n points away from the second), second: those of the second.
+// Directions come from the closest points at t = 0 (any direction is valid; a good one makes it tight).
+bool separated(const Vec3* first0, const Vec3* first1, int n_first, const Vec3* second0, const Vec3* second1,
+               int n_second, const Vec3& direction, double gap) {
+  const double len = direction.norm();
+  if (!(len > 0.0) || !std::isfinite(len)) return false;
+  const Vec3 n = direction / len;
+  double lo_first = std::numeric_limits<double>::infinity(), hi_second = -lo_first;
+  double closing_first = 0.0, closing_second = 0.0, scale = 0.0;
+  for (int i = 0; i < n_first; ++i) {
+    lo_first = std::min(lo_first, n.dot(first0[i]));
+    closing_first = std::max(closing_first, -n.dot(first1[i] - first0[i]));
+    scale = std::max({scale, first0[i].cwiseAbs().maxCoeff(), first1[i].cwiseAbs().maxCoeff()});
+  }
+  for (int i = 0; i < n_second; ++i) {
+    hi_second = std::max(hi_second, n.dot(second0[i]));
+    closing_second = std::max(closing_second, n.dot(second1[i] - second0[i]));
+    scale = std::max({scale, second0[i].cwiseAbs().maxCoeff(), second1[i].cwiseAbs().maxCoeff()});
+  }
+  // Rounding of the projections and of |n| (a few ulps of the coordinates' magnitude), generously bounded.
+  const double rounding = 64.0 * std::numeric_limits<double>::epsilon() * scale;
+  const double sep_end = (lo_first - hi_second) - closing_first - closing_second;
+  return sep_end * (1.0 - 1e-12) - rounding > gap;
+}
+
+bool no_contact_hit(CcdHit* hit) {
+  if (hit != nullptr) *hit = CcdHit{};
+  return false;
+}
+
 }  // namespace
 
 void validate_ccd_options(const CcdOptions& options) {
@@ -1005,6 +1039,13 @@ bool vertex_face_ccd(const Vec3& p0, const Vec3& a0, const Vec3& b0, const Vec3&
   check_point(p1, "p1"); check_point(a1, "a1"); check_point(b1, "b1"); check_point(c1, "c1");
   check_gap(gap);
   validate_ccd_options(options);
+  // Cheap exit: the vertex stays farther than gap from the face's plane-side along the closest direction.
+  {
+    const Eigen::Vector3d w = closest_on_triangle(p0, a0, b0, c0);
+    const Vec3 face0[3] = {a0, b0, c0}, face1[3] = {a1, b1, c1};
+    if (separated(&p0, &p1, 1, face0, face1, 3, p0 - (w[0] * a0 + w[1] * b0 + w[2] * c0), gap))
+      return no_contact_hit(hit);
+  }
   // F = (p - a) + u (a - b) + v (a - c) over t in [0,1], (u, v) in the triangle.
   Problem pb;
   pb.simplex = true;
@@ -1022,6 +1063,13 @@ bool edge_edge_ccd(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Vec3& d
   check_point(a1, "a1"); check_point(b1, "b1"); check_point(c1, "c1"); check_point(d1, "d1");
   check_gap(gap);
   validate_ccd_options(options);
+  // Cheap exit: the two edges stay farther than gap apart along the direction between their closest points.
+  {
+    double s = 0.0, t = 0.0;
+    segment_segment_closest(a0, b0, c0, d0, s, t);
+    const Vec3 e0[2] = {a0, b0}, e1[2] = {a1, b1}, f0[2] = {c0, d0}, f1[2] = {c1, d1};
+    if (separated(e0, e1, 2, f0, f1, 2, (a0 + s * (b0 - a0)) - (c0 + t * (d0 - c0)), gap)) return no_contact_hit(hit);
+  }
   // F = (a - c) + u (b - a) + v (c - d) over t, u, v in [0,1].
   Problem pb;
   pb.simplex = false;

@@ -1,5 +1,6 @@
 #include "engine/simulation.hpp"
 
+#include "collision/distance.hpp"
 #include "engine/response.hpp"
 
 #include <algorithm>
@@ -15,38 +16,6 @@ double ms_since(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-// Closest point on triangle abc to p (Ericson, Real-Time Collision Detection 5.1.5); returns barycentrics.
-Eigen::Vector3d closest_barycentric(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                                    const Eigen::Vector3d& c) {
-  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
-  const Eigen::Vector3d bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return {0, 1, 0};
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
-    const double v = d1 / (d1 - d3);
-    return {1 - v, v, 0};
-  }
-  const Eigen::Vector3d cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return {0, 0, 1};
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
-    const double w = d2 / (d2 - d6);
-    return {1 - w, 0, w};
-  }
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    return {0, 1 - w, w};
-  }
-  const double denom = 1.0 / (va + vb + vc);
-  const double v = vb * denom, w = vc * denom;
-  return {1 - v - w, v, w};
-}
-
 }  // namespace
 
 void add_point_load(const SurfacePoint& sp, const Eigen::Vector3d& force, Eigen::VectorXd& f) {
@@ -59,7 +28,7 @@ SurfacePoint snap_to_surface(const Points& x, const Tris& tris, const Eigen::Vec
   // Brute force over the surface triangles (done once per probe for fixed points).
   for (int t = 0; t < tris.rows(); ++t) {
     const Eigen::Vector3d a = x.row(tris(t, 0)), b = x.row(tris(t, 1)), c = x.row(tris(t, 2));
-    const Eigen::Vector3d w = closest_barycentric(p, a, b, c);
+    const Eigen::Vector3d w = collision::closest_on_triangle(p, a, b, c);
     const double d2 = (w[0] * a + w[1] * b + w[2] * c - p).squaredNorm();
     if (d2 < best_d2) {
       best_d2 = d2;
