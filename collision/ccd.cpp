@@ -1035,8 +1035,12 @@ bool vertex_face_ccd(const Vec3& p0, const Vec3& a0, const Vec3& b0, const Vec3&
                      const Vec3& p1, const Vec3& a1, const Vec3& b1, const Vec3& c1,
                      double gap, const CcdOptions& options, CcdHit* hit) {
   // Validate the inputs.
-  check_point(p0, "p0"); check_point(a0, "a0"); check_point(b0, "b0"); check_point(c0, "c0");
-  check_point(p1, "p1"); check_point(a1, "a1"); check_point(b1, "b1"); check_point(c1, "c1");
+  // (one branch in the common case; the named check only runs to build the message)
+  if (!(p0.allFinite() && a0.allFinite() && b0.allFinite() && c0.allFinite() && p1.allFinite() && a1.allFinite() &&
+        b1.allFinite() && c1.allFinite())) {
+    check_point(p0, "p0"); check_point(a0, "a0"); check_point(b0, "b0"); check_point(c0, "c0");
+    check_point(p1, "p1"); check_point(a1, "a1"); check_point(b1, "b1"); check_point(c1, "c1");
+  }
   check_gap(gap);
   validate_ccd_options(options);
   // Cheap exit: the vertex stays farther than gap from the face's plane-side along the closest direction.
@@ -1059,8 +1063,12 @@ bool edge_edge_ccd(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Vec3& d
                    const Vec3& a1, const Vec3& b1, const Vec3& c1, const Vec3& d1,
                    double gap, const CcdOptions& options, CcdHit* hit) {
   // Validate the inputs.
-  check_point(a0, "a0"); check_point(b0, "b0"); check_point(c0, "c0"); check_point(d0, "d0");
-  check_point(a1, "a1"); check_point(b1, "b1"); check_point(c1, "c1"); check_point(d1, "d1");
+  // (one branch in the common case; the named check only runs to build the message)
+  if (!(a0.allFinite() && b0.allFinite() && c0.allFinite() && d0.allFinite() && a1.allFinite() && b1.allFinite() &&
+        c1.allFinite() && d1.allFinite())) {
+    check_point(a0, "a0"); check_point(b0, "b0"); check_point(c0, "c0"); check_point(d0, "d0");
+    check_point(a1, "a1"); check_point(b1, "b1"); check_point(c1, "c1"); check_point(d1, "d1");
+  }
   check_gap(gap);
   validate_ccd_options(options);
   // Cheap exit: the two edges stay farther than gap apart along the direction between their closest points.

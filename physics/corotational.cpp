@@ -82,7 +82,7 @@ Eigen::Matrix3d proper_rotation(const Eigen::Matrix3d& F, bool* inverted) {
       const Eigen::Matrix3d next = 0.5 * (g * X + cofactor(X) / (g * detX));
       const double step = (next - X).lpNorm<Eigen::Infinity>();
       X = next;
-      if (step <= 1e-6) return X;  // quadratic convergence: the error of X is now about step^2 / 2
+      if (step <= 1e-8) return X;  // quadratic convergence: the error of X is now about step^2 / 2
       scale = step > 1e-2;
       detX = X.determinant();
     }
@@ -137,6 +137,13 @@ CorotationalElements::CorotationalElements(const TetMesh& mesh, const LinearMate
 }
 
 Eigen::Matrix3d CorotationalElements::deformation_gradient(const Eigen::VectorXd& u, int t) const {
+  const char* where = "CorotationalElements::deformation_gradient";
+  if (u.size() != n_dofs()) fail(where, "u.size()", ("be 3n = " + std::to_string(n_dofs())).c_str(), u.size());
+  if (t < 0 || t >= n_tets()) fail(where, "t", ("be in [0, " + std::to_string(n_tets()) + ")").c_str(), t);
+  return gradient(u, t);
+}
+
+Eigen::Matrix3d CorotationalElements::gradient(const Eigen::VectorXd& u, int t) const {
   // F = I + Du Dm^-1 with Du the displacement edges u_a - u_0 as columns.
   const Eigen::Vector3d u0 = u.segment<3>(3 * tets_(t, 0));
   Eigen::Matrix3d Du;
@@ -150,7 +157,7 @@ int CorotationalElements::rotations(const Eigen::VectorXd& u, std::vector<Eigen:
   int inverted_count = 0;
   for (int t = 0; t < n_tets(); ++t) {
     bool inverted = false;
-    R[t] = proper_rotation(deformation_gradient(u, t), &inverted);
+    R[t] = proper_rotation(gradient(u, t), &inverted);
     inverted_count += inverted ? 1 : 0;
   }
   return inverted_count;
@@ -162,10 +169,11 @@ void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::v
     fail("CorotationalElements::elastic_forces", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
          R.size());
   }
+  if (u.size() != n_dofs()) fail("CorotationalElements::elastic_forces", "u.size()", "be 3n", u.size());
   f.setZero(n_dofs());
   for (int t = 0; t < n_tets(); ++t) {
     // Strain of the unrotated element, eps = sym(R^T F) - I, its stress, and the nodal forces V R sigma grad N_a.
-    const Eigen::Matrix3d S = R[t].transpose() * deformation_gradient(u, t);
+    const Eigen::Matrix3d S = R[t].transpose() * gradient(u, t);
     Eigen::Matrix3d eps = 0.5 * (S + S.transpose());
     eps.diagonal().array() -= 1.0;
     const Eigen::Matrix3d P = volume_[t] * (R[t] * stress(eps, lambda_, mu_)) * grad_[t].transpose();
@@ -204,7 +212,7 @@ double CorotationalElements::elastic_energy(const Eigen::VectorXd& u, const std:
   double energy = 0.0;
   for (int t = 0; t < n_tets(); ++t) {
     // V (mu eps:eps + lambda/2 tr(eps)^2) with the unrotated strain.
-    const Eigen::Matrix3d S = R[t].transpose() * deformation_gradient(u, t);
+    const Eigen::Matrix3d S = R[t].transpose() * gradient(u, t);
     Eigen::Matrix3d eps = 0.5 * (S + S.transpose());
     eps.diagonal().array() -= 1.0;
     const double tr = eps.trace();
@@ -433,6 +441,9 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
   if (u_fixed.size() != 0) check_vector(where, "u_fixed", u_fixed, n);
   if (state.u.size() == 0) state.u.setZero(n);
   check_vector(where, "state.u", state.u, n);
+  const bool can_extrapolate = options.extrapolate && state.u_previous.size() == n;
+  const Eigen::VectorXd u_before = can_extrapolate ? state.u_previous : Eigen::VectorXd();
+  state.u_previous = state.u;
 
   // Fixed DOFs take the prescribed values; loads act on the free DOFs only.
   std::vector<char> fixed(n);
@@ -448,11 +459,12 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
   // No load and no prescribed displacement: the rest state.
   if (!any_prescribed && f.isZero(0.0)) state.u.setZero();
 
+  // Rotations, elastic forces (reused from the last evaluation when u has not changed) and the residual at
+  // state.u on the free DOFs; returns it relative to the loads or the support reactions (see the options).
   CorotationalResult result;
   Eigen::VectorXd r(n), du;
-  std::vector<Eigen::Matrix3d> node_R;
-  for (;;) {
-    // Rotations and elastic forces at u (reused from the last evaluation when u has not changed).
+  double scale = 0.0, rnorm = 0.0;
+  auto evaluate = [&]() {
     const bool cached = state.u_eval.size() == n && static_cast<int>(state.rotations.size()) == el.n_tets() &&
                         state.f_int.size() == n && state.u_eval == state.u;
     if (!cached) {
@@ -460,7 +472,6 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
       el.elastic_forces(state.u, state.rotations, state.f_int);
       state.u_eval = state.u;
     }
-    // Residual on the free DOFs, relative to the loads or the support reactions.
     double reaction2 = 0.0;
     for (int d = 0; d < n; ++d) {
       if (fixed[d]) {
@@ -470,9 +481,37 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
         r[d] = f[d] - state.f_int[d];
       }
     }
-    const double scale = std::max(f.norm(), std::sqrt(reaction2));
-    const double rnorm = r.norm();
-    result.residual = rnorm == 0.0 ? 0.0 : (scale > 0.0 ? rnorm / scale : INFINITY);
+    scale = std::max(f.norm(), std::sqrt(reaction2));
+    rnorm = r.norm();
+    return rnorm == 0.0 ? 0.0 : (scale > 0.0 ? rnorm / scale : INFINITY);
+  };
+  result.residual = evaluate();
+
+  // Secant predictor u + (u - u_previous) on the free DOFs, kept only when it lowers the residual.
+  if (can_extrapolate && result.residual > options.tolerance) {
+    CorotationalState saved;
+    std::swap(saved.rotations, state.rotations);
+    std::swap(saved.f_int, state.f_int);
+    std::swap(saved.u_eval, state.u_eval);
+    saved.n_inverted = state.n_inverted;
+    const Eigen::VectorXd u_start = state.u;
+    for (int d = 0; d < n; ++d)
+      if (!fixed[d]) state.u[d] += state.u[d] - u_before[d];
+    const double predicted = evaluate();
+    if (!(predicted < result.residual)) {
+      state.u = u_start;
+      std::swap(saved.rotations, state.rotations);
+      std::swap(saved.f_int, state.f_int);
+      std::swap(saved.u_eval, state.u_eval);
+      state.n_inverted = saved.n_inverted;
+      result.residual = evaluate();  // cached: no new evaluation
+    } else {
+      result.residual = predicted;
+    }
+  }
+
+  std::vector<Eigen::Matrix3d> node_R;
+  for (;;) {
     result.n_inverted = state.n_inverted;
     result.converged = result.residual <= options.tolerance;
     if (result.converged || result.iterations >= options.max_iterations) break;
@@ -488,6 +527,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     result.cg_iterations += pcg.iterations;
     if (!du.allFinite()) break;  // keep the last finite iterate (not converged)
     state.u += du;
+    result.residual = evaluate();
   }
   return result;
 }

@@ -55,6 +55,7 @@ class CorotationalElements {
   void node_rotations(const std::vector<Eigen::Matrix3d>& R, std::vector<Eigen::Matrix3d>& node_R) const;
 
  private:
+  Eigen::Matrix3d gradient(const Eigen::VectorXd& u, int t) const;  // deformation_gradient without checks
   int n_nodes_ = 0;
   Tets tets_;                              // n_tets x 4 node ids
   std::vector<Eigen::Matrix3d> grad_;      // per tet: rows a = 0..2 are grad N_{a+1} (= Dm^-1), 1/metres
@@ -118,13 +119,16 @@ struct CorotationalOptions {
   // Outer (fixed-point) convergence: |f_ext - f_int(u)| on the free DOFs <= tolerance * force scale, where the
   // force scale is max(|f_ext| on the free DOFs, |f_int(u)| on the fixed DOFs) (the reactions, which carry a
   // prescribed-displacement problem); > 0.
-  double tolerance = 1e-4;
+  double tolerance = 1e-3;
   int max_iterations = 20;      // outer iterations (re-linearisations), >= 1
   // Each linear solve stops at |r_cg| <= max(cg_tolerance |r|, tolerance * force scale / 2); in (0, 1).
   double cg_tolerance = 0.1;
   int max_cg_iterations = 100;  // per linear solve, >= 1
   // Precondition with Rn K^-1 Rn^T (per-node average rotations) instead of K^-1.
   bool rotate_preconditioner = false;
+  // Start from the secant prediction u + (u - u_previous) (the last two solutions of a frame sequence) instead
+  // of u, when that lowers the residual (one extra evaluation of the rotations and forces).
+  bool extrapolate = false;
 };
 
 // Throws std::invalid_argument naming the field and its value unless every option is in range.
@@ -138,6 +142,7 @@ struct CorotationalState {
   Eigen::VectorXd f_int;                      // elastic forces at u_eval, 3n, newtons
   Eigen::VectorXd u_eval;                     // displacement of the cached evaluation, 3n, metres
   int n_inverted = 0;                         // inverted tets at u_eval
+  Eigen::VectorXd u_previous;                 // u before the last solve (for extrapolate), 3n, metres
 };
 
 // Result of a quasi-static solve.

@@ -20,9 +20,10 @@ struct CliRun {
   std::string output;  // stdout + stderr
 };
 
-CliRun run_lumen(const std::string& args) {
+// Runs build/lumen; output is stdout and, when merge_stderr, stderr too.
+CliRun run_lumen(const std::string& args, bool merge_stderr = true) {
   CliRun r;
-  const std::string cmd = std::string(LUMEN_BINARY) + " " + args + " 2>&1";
+  const std::string cmd = std::string(LUMEN_BINARY) + " " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null");
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
   char buf[4096];
@@ -148,7 +149,7 @@ TEST(Cli, RunWritesFramesVideoReportAndSurface) {
 TEST(Cli, BenchPrintsStageTableAsJson) {
   const fs::path d = temp_dir("bench");
   std::ofstream(d / "s.json") << small_scene("small");
-  CliRun r = run_lumen("bench " + (d / "s.json").string() + " --frames 4 --json");
+  CliRun r = run_lumen("bench " + (d / "s.json").string() + " --frames 4 --json", false);
   ASSERT_EQ(r.code, 0) << r.output;
   auto j = nlohmann::json::parse(r.output);
   EXPECT_EQ(j["frames"], 4);

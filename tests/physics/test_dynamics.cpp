@@ -173,16 +173,16 @@ TEST(DynamicStep, UndampedBackwardEulerIsDissipativeAndStableForLargeSteps) {
 }
 
 TEST(DynamicStep, CorotationalSettlesToTheQuasiStaticCorotationalSolution) {
-  const TetMesh m = small_tube(8, 4, 1, 0.04);
+  const TetMesh m = small_tube(6, 3, 1, 0.03);
   DynamicParams p;
   p.elastic = ElasticModel::kCorotational;
-  p.alpha = 10.0, p.beta = 5e-3, p.time_step = 0.02;
+  p.alpha = 10.0, p.beta = 5e-3, p.time_step = 0.05;
   const DynamicModel model(m, kMaterial, m.end_nodes_start, p);
-  // Cantilever with a large tip load (about 20% of the length of deflection): strongly nonlinear.
+  // Cantilever with a large tip load: in the nonlinear range.
   Eigen::VectorXd f = Eigen::VectorXd::Zero(model.n_dofs());
-  for (int v : m.end_nodes_stop) f[3 * v + 1] = -0.02 / m.end_nodes_stop.size();
+  for (int v : m.end_nodes_stop) f[3 * v + 1] = -0.015 / m.end_nodes_stop.size();
   CorotationalOptions opt;
-  opt.tolerance = 1e-10;
+  opt.tolerance = 1e-9;
   opt.max_iterations = 100;
   const CorotationalModel statics(m, kMaterial, m.end_nodes_start);
   CorotationalState qs;
@@ -191,7 +191,7 @@ TEST(DynamicStep, CorotationalSettlesToTheQuasiStaticCorotationalSolution) {
   statics.solver().solve(f, u_lin);
   DynamicState s;
   int k = 0, outer = 0, cg = 0;
-  for (; k < 1500 && (s.u.size() == 0 || (s.u - qs.u).norm() > 1e-7 * qs.u.norm()); ++k) {
+  for (; k < 1500 && (s.u.size() == 0 || (s.u - qs.u).norm() > 1e-6 * qs.u.norm()); ++k) {
     const StepResult r = step(model, s, f, p.time_step, opt);
     ASSERT_TRUE(r.converged) << "step " << k << " residual " << r.residual;
     ASSERT_EQ(r.n_inverted, 0);
@@ -199,12 +199,12 @@ TEST(DynamicStep, CorotationalSettlesToTheQuasiStaticCorotationalSolution) {
   }
   std::printf("corotational dynamics settled in %d steps (%d outer, %d CG); linear differs by %.1f%%\n", k, outer, cg,
               100 * (u_lin - qs.u).norm() / qs.u.norm());
-  EXPECT_LE((s.u - qs.u).norm(), 1e-7 * qs.u.norm());
+  EXPECT_LE((s.u - qs.u).norm(), 1e-6 * qs.u.norm());
   EXPECT_GT((u_lin - qs.u).norm(), 0.02 * qs.u.norm());  // the load is in the nonlinear range
 }
 
 TEST(DynamicStep, CorotationalMatchesLinearForTinyLoads) {
-  const TetMesh m = small_tube(8, 3, 1, 0.03);
+  const TetMesh m = small_tube(6, 2, 1, 0.02);
   DynamicParams p;
   p.alpha = 1.0, p.time_step = 0.01;
   const DynamicModel linear(m, kMaterial, both_ends(m), p);
@@ -216,7 +216,7 @@ TEST(DynamicStep, CorotationalMatchesLinearForTinyLoads) {
     const Eigen::VectorXd f = side_load(m, load);
     DynamicState a, b;
     double worst = 0.0;
-    for (int k = 0; k < 20; ++k) {
+    for (int k = 0; k < 10; ++k) {
       step(linear, a, f, p.time_step);
       ASSERT_TRUE(step(corot, b, f, p.time_step, opt).converged);
       worst = std::max(worst, (a.u - b.u).norm() / a.u.norm());

@@ -1,0 +1,173 @@
+// Corotational quasi-static solve on the paper mesh (20 x 26 x 3: 2160 nodes, 9360 tets), E 5000 Pa, nu 0.45,
+// both ends fixed, under a probe-like load ramp: the fig5-squeeze probe point (0, 0.013, 0.05) m on the outer
+// wall pushes along -y, its force spread over the outer-wall nodes within 5 mm of the point, growing linearly
+// from 0 to the peak over 80 frames (2 s at 40 fps). Each frame is one solve_corotational warm-started from the
+// previous frame (PCG preconditioned with the rest-state CHOLMOD factorisation, no refactorisation).
+//
+// BM_CorotationalProbeRamp/<peak mN>/<rotated preconditioner>/<extrapolate>/<tolerance 10^-k>: default options
+// except those; the reported time is the MEDIAN
+// per-frame physics time over the ramp (manual time); counters: max_ms, outer and CG iterations per frame,
+// max_rel_error = max over frames of |u - u_tight| / |u_tight| against a tightly converged solve (tolerance
+// 1e-10), max_u_mm the largest displacement at the peak, inverted = inverted tets at the peak.
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <vector>
+
+#include "physics/corotational.hpp"
+#include "physics/fem.hpp"
+#include "physics/mesh.hpp"
+
+namespace {
+
+using namespace lumen;
+using namespace lumen::physics;
+
+constexpr int kFrames = 80;
+
+// The paper model and the probe patch, built once.
+struct CorotPaperModel {
+  TetMesh mesh = make_hollow_cylinder(HollowCylinderSpec{});
+  std::vector<int> fixed;
+  std::unique_ptr<CorotationalModel> model;
+  std::vector<int> patch;  // outer-wall nodes within 5 mm of the probe point
+  std::map<int, std::vector<Eigen::VectorXd>> tight;  // per peak (mN): tightly converged u per frame
+
+  CorotPaperModel() {
+    fixed = mesh.end_nodes_start;
+    fixed.insert(fixed.end(), mesh.end_nodes_stop.begin(), mesh.end_nodes_stop.end());
+    model = std::make_unique<CorotationalModel>(mesh, LinearMaterial{5000.0, 0.45}, fixed);
+    const Eigen::RowVector3d probe(0.0, 0.013, 0.05);
+    std::vector<char> on(mesh.n_nodes(), 0);
+    for (int i = 0; i < mesh.outer.size(); ++i) on[mesh.outer.data()[i]] = 1;
+    for (int v = 0; v < mesh.n_nodes(); ++v)
+      if (on[v] && (mesh.rest.row(v) - probe).norm() <= 0.005 + 1e-9) patch.push_back(v);
+  }
+  // Loads of frame k (1..kFrames) of a ramp to peak newtons.
+  Eigen::VectorXd load(double peak, int k) const {
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(model->n_dofs());
+    for (int v : patch) f[3 * v + 1] = -peak * k / kFrames / patch.size();
+    return f;
+  }
+  // Tightly converged solutions of the ramp (computed once per peak, untimed).
+  const std::vector<Eigen::VectorXd>& tight_solutions(int peak_mN) {
+    auto it = tight.find(peak_mN);
+    if (it != tight.end()) return it->second;
+    CorotationalOptions opt;
+    opt.tolerance = 1e-10;
+    opt.max_iterations = 500;
+    opt.max_cg_iterations = 1000;
+    opt.extrapolate = true;
+    CorotationalState s;
+    std::vector<Eigen::VectorXd> u;
+    for (int k = 1; k <= kFrames; ++k) {
+      solve_corotational(*model, load(1e-3 * peak_mN, k), s, opt);
+      u.push_back(s.u);
+    }
+    return tight[peak_mN] = u;
+  }
+};
+
+CorotPaperModel& corot_model() {
+  static CorotPaperModel m;
+  return m;
+}
+
+void BM_CorotationalProbeRamp(benchmark::State& state) {
+  CorotPaperModel& m = corot_model();
+  const int peak_mN = static_cast<int>(state.range(0));
+  const std::vector<Eigen::VectorXd>& tight = m.tight_solutions(peak_mN);
+  CorotationalOptions opt;
+  opt.rotate_preconditioner = state.range(1) != 0;
+  opt.extrapolate = state.range(2) != 0;
+  opt.tolerance = std::pow(10.0, -static_cast<double>(state.range(3)));
+  std::vector<double> frame_ms;
+  long outer = 0, cg = 0, frames = 0, not_converged = 0;
+  double max_error = 0.0, max_u = 0.0;
+  int inverted = 0;
+  for (auto _ : state) {
+    // One ramp from rest; every frame warm-started from the previous one.
+    CorotationalState s;
+    std::vector<double> ramp_ms;
+    for (int k = 1; k <= kFrames; ++k) {
+      const Eigen::VectorXd f = m.load(1e-3 * peak_mN, k);
+      const auto t0 = std::chrono::steady_clock::now();
+      const CorotationalResult r = solve_corotational(*m.model, f, s, opt);
+      ramp_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      outer += r.iterations, cg += r.cg_iterations, ++frames;
+      not_converged += r.converged ? 0 : 1;
+      max_error = std::max(max_error, (s.u - tight[k - 1]).norm() / tight[k - 1].norm());
+      if (k == kFrames) max_u = s.u.cwiseAbs().maxCoeff(), inverted = r.n_inverted;
+    }
+    frame_ms.insert(frame_ms.end(), ramp_ms.begin(), ramp_ms.end());
+    std::sort(ramp_ms.begin(), ramp_ms.end());
+    state.SetIterationTime(1e-3 * ramp_ms[ramp_ms.size() / 2]);
+  }
+  std::sort(frame_ms.begin(), frame_ms.end());
+  state.counters["median_ms"] = frame_ms[frame_ms.size() / 2];
+  state.counters["max_ms"] = frame_ms.back();
+  state.counters["outer_per_frame"] = static_cast<double>(outer) / frames;
+  state.counters["cg_per_frame"] = static_cast<double>(cg) / frames;
+  state.counters["not_converged"] = static_cast<double>(not_converged);
+  state.counters["max_rel_error"] = max_error;
+  state.counters["max_u_mm"] = 1e3 * max_u;
+  state.counters["inverted"] = inverted;
+}
+BENCHMARK(BM_CorotationalProbeRamp)
+    ->ArgNames({"peak_mN", "rotated", "extrapolate", "tol_exp"})
+    ->Args({10, 0, 1, 3})
+    ->Args({10, 0, 0, 3})
+    ->Args({10, 1, 1, 3})
+    ->Args({10, 0, 1, 4})
+    ->Args({30, 0, 1, 3})
+    ->Args({30, 1, 1, 3})
+    ->UseManualTime()
+    ->Iterations(3)
+    ->Unit(benchmark::kMillisecond);
+
+// The kernels of one outer iteration at a deformed state (frame 40 of the 30 mN ramp).
+const Eigen::VectorXd& deformed_state() {
+  static const Eigen::VectorXd u = corot_model().tight_solutions(30)[kFrames / 2 - 1];
+  return u;
+}
+
+void BM_CorotationalRotations(benchmark::State& state) {
+  const CorotationalElements& el = corot_model().model->elements();
+  const Eigen::VectorXd& u = deformed_state();
+  std::vector<Eigen::Matrix3d> R;
+  for (auto _ : state) benchmark::DoNotOptimize(el.rotations(u, R));
+  state.SetItemsProcessed(state.iterations() * el.n_tets());
+}
+BENCHMARK(BM_CorotationalRotations)->Unit(benchmark::kMicrosecond);
+
+void BM_CorotationalElasticForces(benchmark::State& state) {
+  const CorotationalElements& el = corot_model().model->elements();
+  const Eigen::VectorXd& u = deformed_state();
+  std::vector<Eigen::Matrix3d> R;
+  el.rotations(u, R);
+  Eigen::VectorXd f;
+  for (auto _ : state) {
+    el.elastic_forces(u, R, f);
+    benchmark::DoNotOptimize(f.data());
+  }
+}
+BENCHMARK(BM_CorotationalElasticForces)->Unit(benchmark::kMicrosecond);
+
+void BM_CorotationalWarpedProduct(benchmark::State& state) {
+  const CorotationalElements& el = corot_model().model->elements();
+  const Eigen::VectorXd& u = deformed_state();
+  std::vector<Eigen::Matrix3d> R;
+  el.rotations(u, R);
+  Eigen::VectorXd y;
+  for (auto _ : state) {
+    el.warped_product(R, u, y);
+    benchmark::DoNotOptimize(y.data());
+  }
+}
+BENCHMARK(BM_CorotationalWarpedProduct)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
