@@ -18,8 +18,8 @@ void bracket(const std::vector<double>& times, double t, size_t& i, double& w) {
 
 }  // namespace
 
-TrackSource::TrackSource(const Eigen::Vector3d& point, std::vector<TrackKey> keys)
-    : point_(point), keys_(std::move(keys)) {
+TrackSource::TrackSource(const Eigen::Vector3d& point, std::vector<TrackKey> keys, ProbeDrive drive)
+    : point_(point), keys_(std::move(keys)), drive_(drive) {
   if (keys_.empty()) throw InputError("track: must not be empty");
   for (const TrackKey& k : keys_) times_.push_back(k.t);
 }
@@ -31,7 +31,9 @@ ProbeSample TrackSource::sample(double t) {
   bracket(times_, t, i, w);
   ProbeSample s;
   s.point = point_;
-  s.force = (w == 0.0) ? keys_[i].force : ((1.0 - w) * keys_[i].force + w * keys_[i + 1].force);
+  const Eigen::Vector3d value = (w == 0.0) ? keys_[i].value : ((1.0 - w) * keys_[i].value + w * keys_[i + 1].value);
+  s.displacement_driven = drive_ == ProbeDrive::Displacement;
+  (s.displacement_driven ? s.displacement : s.force) = value;
   return s;
 }
 
@@ -95,7 +97,7 @@ void ReplaySource::feedback(double, const Eigen::Vector3d& reaction) { reactions
 
 std::unique_ptr<InputSource> make_source(const ProbeSpec& probe) {
   if (!probe.replay.empty()) return std::make_unique<ReplaySource>(probe.replay);
-  return std::make_unique<TrackSource>(probe.point, probe.track);
+  return std::make_unique<TrackSource>(probe.point, probe.track, probe.drive);
 }
 
 }  // namespace lumen::engine

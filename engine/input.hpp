@@ -19,7 +19,9 @@ namespace lumen::engine {
 // What a source gives at one instant.
 struct ProbeSample {
   Eigen::Vector3d point = Eigen::Vector3d::Zero();  // metres, on (or near) the organ's outer wall
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();  // newtons, applied at `point`
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  // newtons, applied at `point` (force-driven)
+  bool displacement_driven = false;                 // true: `displacement` is prescribed, the force is solved for
+  Eigen::Vector3d displacement = Eigen::Vector3d::Zero();  // metres, of the point from rest (displacement-driven)
 };
 
 class InputSource {
@@ -37,7 +39,7 @@ class InputSource {
 // Scripted key frames at a fixed point; linear interpolation between keys, held before the first / after the last.
 class TrackSource final : public InputSource {
  public:
-  TrackSource(const Eigen::Vector3d& point, std::vector<TrackKey> keys);
+  TrackSource(const Eigen::Vector3d& point, std::vector<TrackKey> keys, ProbeDrive drive = ProbeDrive::Force);
   std::string kind() const override { return "track"; }
   ProbeSample sample(double t) override;
 
@@ -45,6 +47,7 @@ class TrackSource final : public InputSource {
   Eigen::Vector3d point_;
   std::vector<TrackKey> keys_;
   std::vector<double> times_;  // n_keys, seconds (keys_[k].t)
+  ProbeDrive drive_;
 };
 
 // Replay of a recorded session: CSV lines `t, x, y, z, fx, fy, fz` (seconds, metres, newtons), t increasing.

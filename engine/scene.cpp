@@ -145,15 +145,21 @@ ProbeSpec read_probe(const Reader& r, const json& p, const std::string& path, si
   // Scripted key frames: times strictly increasing, forces finite.
   const std::string tpath = Reader::join(path, "track");
   const json& track = p.at("track");
-  if (!track.is_array()) r.fail(tpath, "must be an array of {\"t\", \"force\"} keys", &track);
+  if (!track.is_array()) r.fail(tpath, "must be an array of {\"t\", \"force\" | \"displacement\"} keys", &track);
   if (track.empty()) r.fail(tpath, "must not be empty", &track);
+  // The first key decides whether the probe is force- or displacement-driven; every key must agree.
+  const bool by_displacement = track[0].is_object() && track[0].contains("displacement");
+  probe.drive = by_displacement ? ProbeDrive::Displacement : ProbeDrive::Force;
+  const char* value_key = by_displacement ? "displacement" : "force";
   for (size_t k = 0; k < track.size(); ++k) {
     const std::string kpath = Reader::index(tpath, k);
-    r.only_keys(track[k], kpath, {"t", "force"});
+    r.only_keys(track[k], kpath, {"t", value_key});
     TrackKey key;
     key.t = r.number(r.require(track[k], kpath, "t"), kpath + ".t");
     if (key.t < 0) r.fail(kpath + ".t", "must be >= 0", &track[k].at("t"));
-    key.force = r.vec3(r.require(track[k], kpath, "force"), kpath + ".force");
+    key.value = r.vec3(r.require(track[k], kpath, value_key), kpath + "." + value_key);
+    if (by_displacement && key.value.norm() > 0.5)
+      r.fail(kpath + ".displacement", "must be at most 0.5 m long", &track[k].at("displacement"));
     if (!probe.track.empty() && !(key.t > probe.track.back().t))
       r.fail(kpath + ".t", "track times must be strictly increasing", &track[k].at("t"));
     probe.track.push_back(key);

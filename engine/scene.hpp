@@ -16,16 +16,23 @@ class InputError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// One key of a scripted probe track: the force reached at time t (linear in between).
+// What a probe prescribes: the force at its point (force-driven), or the displacement of its point from rest
+// (displacement-driven, as a position-controlled haptic device: the engine solves for the force and hands it
+// back as the reaction, contacts included).
+enum class ProbeDrive { Force, Displacement };
+
+// One key of a scripted probe track: the force (newtons) or displacement (metres) reached at time t, linear
+// in between.
 struct TrackKey {
   double t = 0.0;                                   // seconds
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();  // newtons
+  Eigen::Vector3d value = Eigen::Vector3d::Zero();  // newtons (force) or metres (displacement)
 };
 
 // A probe: a point on the organ's surface and where its force comes from.
 struct ProbeSpec {
   std::string name;                                 // for reports; defaults to "probe<i>"
   Eigen::Vector3d point = Eigen::Vector3d::Zero();  // metres, snapped to the nearest outer-wall point
+  ProbeDrive drive = ProbeDrive::Force;             // what the track keys give
   std::vector<TrackKey> track;                      // scripted key frames (source "track")
   std::string replay;                               // recorded CSV (source "replay"), absolute path
 };

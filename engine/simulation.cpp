@@ -90,6 +90,26 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   // Unit-load responses at the probe points: a frame's physics is then a small dense product.
   m->probe_response = std::make_unique<physics::LoadResponse>(*m->solver, load_points);
 
+  // Displacement-driven probes: the stiffness that maps their points' displacements to their forces.
+  for (size_t i = 0; i < scene.probes.size(); ++i)
+    if (scene.probes[i].drive == ProbeDrive::Displacement) m->held_probes.push_back(static_cast<int>(i));
+  for (size_t i = 0; i < scene.probes.size() && !m->held_probes.empty(); ++i)
+    if (!scene.probes[i].replay.empty())
+      throw InputError(scene.path + ": probes[" + std::to_string(i) +
+                       "].replay: replayed probes cannot be combined with displacement-driven probes (value \"" +
+                       scene.probes[i].replay + "\")");
+  if (!m->held_probes.empty()) {
+    const Eigen::MatrixXd& P = m->probe_response->point_compliance();
+    const int d = static_cast<int>(m->held_probes.size());
+    Eigen::MatrixXd Pdd(3 * d, 3 * d);
+    m->hold_coupling.resize(3 * d, P.cols());
+    for (int a = 0; a < d; ++a) {
+      m->hold_coupling.middleRows(3 * a, 3) = P.middleRows(3 * m->held_probes[a], 3);
+      for (int b = 0; b < d; ++b) Pdd.block(3 * a, 3 * b, 3, 3) = P.block(3 * m->held_probes[a], 3 * m->held_probes[b], 3, 3);
+    }
+    m->hold_stiffness = Pdd.ldlt().solve(Eigen::MatrixXd::Identity(3 * d, 3 * d));
+  }
+
   // Inner-wall nodes (for the collision surface's bookkeeping).
   for (int t = 0; t < m->mesh.inner.rows(); ++t)
     for (int k = 0; k < 3; ++k) m->inner_nodes.push_back(m->mesh.inner(t, k));
@@ -133,8 +153,23 @@ void step(const Model& model, State& state, FrameRecord& rec) {
   clock = Clock::now();
   Eigen::VectorXd u(3 * n);
   if (all_fixed) {
-    Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> forces(state.samples.size(), 3);
-    for (size_t i = 0; i < state.samples.size(); ++i) forces.row(i) = state.samples[i].force.transpose();
+    // Displacement-driven probes get the forces that move their points to the targets, given the others':
+    // P_dd f_d = d - P_df f_f (P: compliance between probe points).
+    Points forces(state.samples.size(), 3);
+    for (size_t i = 0; i < state.samples.size(); ++i)
+      forces.row(i) = state.samples[i].displacement_driven ? Eigen::RowVector3d(0, 0, 0)
+                                                           : Eigen::RowVector3d(state.samples[i].force.transpose());
+    if (!model.held_probes.empty()) {
+      const int d = static_cast<int>(model.held_probes.size());
+      Eigen::VectorXd target(3 * d);
+      for (int a = 0; a < d; ++a) target.segment<3>(3 * a) = state.samples[model.held_probes[a]].displacement;
+      const Eigen::VectorXd f_all = Eigen::Map<const Eigen::VectorXd>(forces.data(), forces.size());
+      const Eigen::VectorXd f_held = model.hold_stiffness * (target - model.hold_coupling * f_all);
+      for (int a = 0; a < d; ++a) {
+        forces.row(model.held_probes[a]) = f_held.segment<3>(3 * a).transpose();
+        state.samples[model.held_probes[a]].force = f_held.segment<3>(3 * a);
+      }
+    }
     model.probe_response->displacement(forces, u);
   } else {
     Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * n);

@@ -33,6 +33,14 @@ TEST(TrackSource, InterpolatesLinearlyAndHoldsOutside) {
   EXPECT_EQ(src.sample(1.0).point, Eigen::Vector3d(0, 0.013, 0.05));
 }
 
+TEST(TrackSource, DisplacementDrivenGivesTheDisplacement) {
+  TrackSource src({0, 0.013, 0.05}, {{0.0, {0, 0, 0}}, {1.0, {0, -0.004, 0}}}, ProbeDrive::Displacement);
+  const ProbeSample s = src.sample(0.5);
+  EXPECT_TRUE(s.displacement_driven);
+  EXPECT_TRUE(s.displacement.isApprox(Eigen::Vector3d(0, -0.002, 0)));
+  EXPECT_EQ(s.force, Eigen::Vector3d::Zero());
+}
+
 TEST(ReplaySource, ReadsAndInterpolates) {
   auto path = write_temp("replay_ok.csv", "t,x,y,z,fx,fy,fz\n0,0,0.013,0.05,0,0,0\n1.0, 0,0.013,0.05, 0,-0.2,0\n");
   ReplaySource src(path);

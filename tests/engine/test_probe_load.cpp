@@ -53,3 +53,34 @@ TEST(ProbeLoad, SnapsToNearestOuterPointAndSpreadsWithoutMoment) {
     EXPECT_LT(moment.norm(), 1e-14);
   }
 }
+
+TEST(ProbeLoad, DisplacementDrivenProbeReachesItsTargetAndReportsTheForce) {
+  // Two probes: one force-driven, one displacement-driven; the solved force, applied through a direct CHOLMOD
+  // solve together with the other probe's force, must move the held point exactly to its target.
+  engine::Scene scene = engine::parse_scene(R"({"name": "held",
+    "mesh": {"type": "hollow_cylinder", "inner_radius": 0.01, "outer_radius": 0.013, "length": 0.1,
+             "segments_around": 12, "segments_along": 10, "layers": 2},
+    "material": {"model": "linear", "young_modulus": 5000.0, "poisson_ratio": 0.45},
+    "fixed": ["ends"],
+    "probes": [{"point": [0.0, 0.013, 0.05], "track": [{"t": 0, "displacement": [0, 0, 0]}, {"t": 1, "displacement": [0.0005, -0.003, 0]}]},
+               {"point": [0.0, -0.013, 0.03], "track": [{"t": 0, "force": [0, 0, 0]}, {"t": 1, "force": [0, 0.02, 0.01]}]}],
+    "frames": 40, "fps": 40})", "held.json");
+  auto model = engine::compile_model(scene);
+  engine::State state = engine::make_state(*model);
+  engine::FrameRecord rec;
+  for (int i = 0; i < 30; ++i) engine::step(*model, state, rec);
+  const double t = 30.0 / 40.0;
+  const Eigen::Vector3d target = t * Eigen::Vector3d(0.0005, -0.003, 0);
+  // Direct solve with both forces.
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * model->mesh.n_nodes()), u;
+  engine::add_point_load(model->probe_points[0], -rec.reactions[0], f);
+  engine::add_point_load(model->probe_points[1], t * Eigen::Vector3d(0, 0.02, 0.01), f);
+  model->solver->solve(f, u);
+  Eigen::Vector3d moved = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) moved += model->probe_points[0].weight[k] * u.segment<3>(3 * model->probe_points[0].node[k]);
+  EXPECT_LT((moved - target).norm(), 1e-9 * target.norm() + 1e-15);
+  // The force-driven probe's reaction is its force, reversed.
+  EXPECT_LT((rec.reactions[1] + t * Eigen::Vector3d(0, 0.02, 0.01)).norm(), 1e-15);
+  // Pushing the point inwards takes an inward force.
+  EXPECT_LT(-rec.reactions[0].y(), 0.0);
+}

@@ -45,7 +45,8 @@ TEST(Scene, AcceptsTheIssueExampleWithItsValues) {
   EXPECT_DOUBLE_EQ(s.material.poisson_ratio, 0.45);
   ASSERT_EQ(s.probes.size(), 1u);
   ASSERT_EQ(s.probes[0].track.size(), 2u);
-  EXPECT_DOUBLE_EQ(s.probes[0].track[1].force.y(), -0.4);
+  EXPECT_DOUBLE_EQ(s.probes[0].track[1].value.y(), -0.4);
+  EXPECT_EQ(s.probes[0].drive, lumen::engine::ProbeDrive::Force);
   EXPECT_EQ(s.render.camera, "diagonal");
   EXPECT_TRUE(s.render.video);
   EXPECT_FALSE(s.collision.self);
@@ -150,6 +151,17 @@ TEST(Scene, TrackMustBeNonEmptyAndIncreasing) {
   s = good_scene();
   s["probes"][0]["track"][0]["force"][2] = "x";
   EXPECT_EQ(error_of(s), "dir/s.json: probes[0].track[0].force[2]: must be a number (value \"x\")");
+}
+
+TEST(Scene, DisplacementDrivenProbe) {
+  json s = good_scene();
+  s["probes"][0]["track"] = json::parse(R"([{"t": 0, "displacement": [0, 0, 0]}, {"t": 1, "displacement": [0, -0.004, 0]}])");
+  auto scene = parse_scene(s.dump(), "dir/s.json");
+  EXPECT_EQ(scene.probes[0].drive, lumen::engine::ProbeDrive::Displacement);
+  EXPECT_DOUBLE_EQ(scene.probes[0].track[1].value.y(), -0.004);
+  // Keys must not mix force and displacement.
+  s["probes"][0]["track"][1] = json::parse(R"({"t": 1, "force": [0, -0.1, 0]})");
+  EXPECT_EQ(error_of(s), "dir/s.json: probes[0].track[1].force: unknown key");
 }
 
 TEST(Scene, ReplayPathIsResolvedBesideTheScene) {
