@@ -31,8 +31,12 @@ physics::ContactRow contact_row(const collision::Contact& c, const Points& rest,
                                 double gap);
 
 // Resolve the inner wall's self-contacts for the motion state.x -> rest + u (u is updated in place).
-// Fills rec's collision statistics, response iterations and fallback flag; collision and response times are
-// accumulated into rec.ms.
+// Rounds (at most scene.collision.max_iterations): the contacts found so far become rows (constraint: an LCP
+// by physics::solve_contacts, warm-started from last frame's pushing contacts in state.active; paper: hold
+// their nodes and the probe points by physics::solve_equality); the corrected motion of the inner wall is
+// re-checked by one CCD pass at half the gap, whose contacts join the next round. Unresolved: the safe
+// fallback (stop at 0.9 of the earliest true contact). Fills rec's collision statistics, response iterations
+// and fallback flag; CCD time goes to rec.ms[kCollision], the rest to rec.ms[kResponse].
 void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, FrameRecord& rec);
 
 }  // namespace lumen::engine

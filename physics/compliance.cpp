@@ -211,6 +211,50 @@ Eigen::Matrix3d SurfaceCompliance::block(int node_a, int node_b) {
   return extra_cols_[extra_index_[node_a]].middleRows<3>(3 * node_b).transpose();
 }
 
+void SurfaceCompliance::displacement_on_set(const Eigen::VectorXd& f, Eigen::VectorXd& du, const std::vector<int>& also) {
+  const int n = solver_->n_dofs(), s = static_cast<int>(nodes_.size());
+  if (f.size() != n) fail("SurfaceCompliance::displacement_on_set: f must have " + std::to_string(n) +
+                          " entries, got " + std::to_string(f.size()));
+  // Loaded nodes; columns of the ones outside the set, and of the listed outside nodes, at hand.
+  std::vector<int> loaded, outside;
+  for (int v = 0; v < n / 3; ++v) {
+    if (f[3 * v] == 0.0 && f[3 * v + 1] == 0.0 && f[3 * v + 2] == 0.0) continue;
+    loaded.push_back(v);
+    if (index_[v] < 0) outside.push_back(v);
+  }
+  for (int v : also) {
+    check_node(v, "also");
+    if (index_[v] < 0) outside.push_back(v);
+  }
+  ensure_columns(outside);
+  // Set nodes: C times the set loads plus the cached columns of outside loads, gathered on the set rows.
+  Eigen::VectorXd v_set = Eigen::VectorXd::Zero(3 * s);
+  for (int b : loaded) {
+    const Eigen::Vector3d fb = f.segment<3>(3 * b);
+    if (index_[b] >= 0) {
+      v_set.noalias() += C_.middleCols<3>(3 * index_[b]) * fb;
+    } else {
+      const Eigen::MatrixXd& X = extra_cols_[extra_index_[b]];
+      for (int a = 0; a < s; ++a) v_set.segment<3>(3 * a).noalias() += X.middleRows<3>(3 * nodes_[a]) * fb;
+    }
+  }
+  du.setZero(n);
+  for (int a = 0; a < s; ++a) du.segment<3>(3 * nodes_[a]) = v_set.segment<3>(3 * a);
+  // Listed nodes outside the set: K^-1_ab f_b from the cached columns of a (C symmetric) or of b.
+  for (int a : also) {
+    if (index_[a] >= 0) continue;
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    for (int b : loaded) {
+      const Eigen::Vector3d fb = f.segment<3>(3 * b);
+      if (index_[b] >= 0)
+        d.noalias() += extra_cols_[extra_index_[a]].middleRows<3>(3 * b).transpose() * fb;
+      else
+        d.noalias() += extra_cols_[extra_index_[b]].middleRows<3>(3 * a) * fb;
+    }
+    du.segment<3>(3 * a) = d;
+  }
+}
+
 // ---------------------------------------------------------------------------------------------------------------
 // Rows of H
 
@@ -247,10 +291,10 @@ CouplingMatrix::CouplingMatrix(SurfaceCompliance& compliance, const std::vector<
     : compliance_(&compliance), rows_(&rows) {
   check_rows(rows, compliance.n_nodes_mesh());
   const int m = static_cast<int>(rows.size());
-  // Distinct touched nodes and each row entry's slot among them.
+  // Distinct touched nodes; each row's used entries as (slot among them, weight * n).
   std::vector<int> slot_of(compliance.n_nodes_mesh(), -1);
-  slot_.assign(4 * static_cast<size_t>(m), -1);
-  for (int r = 0; r < m; ++r)
+  entry_begin_.assign(m + 1, 0);
+  for (int r = 0; r < m; ++r) {
     for (int k = 0; k < 4; ++k) {
       const int v = rows[r].node[k];
       if (v < 0) continue;
@@ -259,10 +303,16 @@ CouplingMatrix::CouplingMatrix(SurfaceCompliance& compliance, const std::vector<
         touched_.push_back(v);
         touched_set_index_.push_back(compliance.index_[v]);
       }
-      slot_[4 * r + k] = slot_of[v];
+      entry_slot_.push_back(slot_of[v]);
+      entry_wn_.push_back(rows[r].weight[k] * rows[r].n);
     }
+    entry_begin_[r + 1] = static_cast<int>(entry_slot_.size());
+  }
   // Columns of every touched node outside the set, in one solve.
-  compliance.ensure_columns(touched_);
+  std::vector<int> outside;
+  for (size_t t = 0; t < touched_.size(); ++t)
+    if (touched_set_index_[t] < 0) outside.push_back(touched_[t]);
+  compliance.ensure_columns(outside);
   columns_.resize(m);
   y_.resize(static_cast<Eigen::Index>(touched_.size()), 3);
 }
@@ -272,27 +322,27 @@ const Eigen::VectorXd& CouplingMatrix::column(int s) {
   if (s < 0 || s >= m) fail("CouplingMatrix::column: s must be in [0, " + std::to_string(m) + "), got " + std::to_string(s));
   Eigen::VectorXd& col = columns_[s];
   if (col.size() == m) return col;
-  const ContactRow& rs = (*rows_)[s];
   const SurfaceCompliance& sc = *compliance_;
   const Eigen::MatrixXd& C = sc.C_;
-  // y_a = C_{a, .} h_s for every touched node a: sum over the row's nodes b of w_b C_ab n_s.
+  // y_a = C_{a, .} h_s for every touched node a: sum over the row's entries (node b, w_b n_s) of C_ab w_b n_s.
   y_.setZero();
   const int nt = static_cast<int>(touched_.size());
-  for (int l = 0; l < 4; ++l) {
-    const int b = rs.node[l];
-    if (b < 0) continue;
-    const Eigen::Vector3d wn = rs.weight[l] * rs.n;
-    const int ib = sc.index_[b];
+  for (int e = entry_begin_[s]; e < entry_begin_[s + 1]; ++e) {
+    const int b = touched_[entry_slot_[e]], ib = touched_set_index_[entry_slot_[e]];
+    const Eigen::Vector3d& wn = entry_wn_[e];
     if (ib >= 0) {
-      // Column block of b in the set; touched nodes in the set read its rows, others the cached columns of a
-      // (C symmetric: C_ab = (C_ba)^T).
+      // b in the set: rows of its column block for touched nodes in the set; for the others, the cached
+      // columns of a (C symmetric: C_ab = (C_ba)^T).
       const double* c0 = C.col(3 * ib).data();
       const double* c1 = C.col(3 * ib + 1).data();
       const double* c2 = C.col(3 * ib + 2).data();
       for (int t = 0; t < nt; ++t) {
         const int ia = touched_set_index_[t];
         if (ia >= 0) {
-          for (int i = 0; i < 3; ++i) y_(t, i) += c0[3 * ia + i] * wn[0] + c1[3 * ia + i] * wn[1] + c2[3 * ia + i] * wn[2];
+          const int i0 = 3 * ia;
+          y_(t, 0) += c0[i0] * wn[0] + c1[i0] * wn[1] + c2[i0] * wn[2];
+          y_(t, 1) += c0[i0 + 1] * wn[0] + c1[i0 + 1] * wn[1] + c2[i0 + 1] * wn[2];
+          y_(t, 2) += c0[i0 + 2] * wn[0] + c1[i0 + 2] * wn[1] + c2[i0 + 2] * wn[2];
         } else {
           const Eigen::MatrixXd& X = sc.extra_cols_[sc.extra_index_[touched_[t]]];  // 3n x 3, columns of a
           y_.row(t) += (X.middleRows<3>(3 * b).transpose() * wn).transpose();
@@ -304,16 +354,15 @@ const Eigen::VectorXd& CouplingMatrix::column(int s) {
       for (int t = 0; t < nt; ++t) y_.row(t) += (X.middleRows<3>(3 * touched_[t]) * wn).transpose();
     }
   }
-  // A_rs = h_r . y over the row's nodes.
+  // A_rs = sum over row r's entries of (w n_r) . y_slot.
   col.resize(m);
   for (int r = 0; r < m; ++r) {
-    const ContactRow& rr = (*rows_)[r];
-    Eigen::Vector3d acc = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 4; ++k) {
-      const int t = slot_[4 * r + k];
-      if (t >= 0) acc += rr.weight[k] * y_.row(t).transpose();
+    double acc = 0.0;
+    for (int e = entry_begin_[r]; e < entry_begin_[r + 1]; ++e) {
+      const int t = entry_slot_[e];
+      acc += entry_wn_[e][0] * y_(t, 0) + entry_wn_[e][1] * y_(t, 1) + entry_wn_[e][2] * y_(t, 2);
     }
-    col[r] = rr.n.dot(acc);
+    col[r] = acc;
   }
   ++n_computed_;
   return col;
@@ -335,12 +384,23 @@ Eigen::MatrixXd coupling_matrix(SurfaceCompliance& compliance, const std::vector
 
 namespace {
 
-// Force, correction (a sum of precomputed columns or one back-substitution) and the row values after correction.
+// Force, correction (whole mesh: a sum of precomputed columns or one back-substitution; else on the set and the
+// rows' nodes) and the row values after correction.
 Eigen::VectorXd finish(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
-                       const Eigen::VectorXd& u_free, ContactResult& out) {
+                       const Eigen::VectorXd& u_free, ContactResult& out, bool whole_mesh = true) {
   const int n = compliance.solver().n_dofs();
   out.force = contact_force(rows, out.lambda, n);
-  compliance.displacement(out.force, out.correction);
+  if (whole_mesh) {
+    compliance.displacement(out.force, out.correction);
+  } else {
+    std::vector<int> also;
+    for (const ContactRow& r : rows)
+      for (int k = 0; k < 4; ++k)
+        if (r.node[k] >= 0 && compliance.index_of(r.node[k]) < 0) also.push_back(r.node[k]);
+    std::sort(also.begin(), also.end());
+    also.erase(std::unique(also.begin(), also.end()), also.end());
+    compliance.displacement_on_set(out.force, out.correction, also);
+  }
   return row_values(rows, u_free + out.correction);
 }
 
@@ -354,23 +414,37 @@ void check_u_free(const SurfaceCompliance& compliance, const Eigen::VectorXd& u_
 }  // namespace
 
 ContactResult solve_equality(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
-                             const Eigen::VectorXd& u_free, double tolerance) {
+                             const Eigen::VectorXd& u_free, double tolerance, bool whole_mesh) {
   check_u_free(compliance, u_free, "solve_equality");
   const int m = static_cast<int>(rows.size());
   ContactResult out;
   out.iterations = 1;
   Eigen::VectorXd g(m);
   for (int r = 0; r < m; ++r) g[r] = rows[r].g;
-  // A lambda = g - H u_free: Cholesky when A is positive definite, else minimum-norm least squares.
+  // A lambda = g - H u_free: Cholesky on the rows with a non-zero diagonal (the others touch only fixed DOFs:
+  // no force moves them, lambda = 0 is their minimum-norm value), else minimum-norm least squares on all.
   const Eigen::MatrixXd A = coupling_matrix(compliance, rows);
   const Eigen::VectorXd b = g - row_values(rows, u_free);
-  Eigen::LLT<Eigen::MatrixXd> llt(A);
-  if (llt.info() == Eigen::Success && m > 0) {
-    out.lambda = llt.solve(b);
-  } else {
-    out.lambda = m > 0 ? Eigen::VectorXd(A.completeOrthogonalDecomposition().solve(b)) : Eigen::VectorXd(0);
+  std::vector<int> live;
+  const double dmax = m > 0 ? A.diagonal().cwiseAbs().maxCoeff() : 0.0;
+  for (int r = 0; r < m; ++r)
+    if (A(r, r) > 1e-14 * dmax) live.push_back(r);
+  const int ml = static_cast<int>(live.size());
+  Eigen::MatrixXd All(ml, ml);
+  Eigen::VectorXd bl(ml);
+  for (int i = 0; i < ml; ++i) {
+    bl[i] = b[live[i]];
+    for (int j = 0; j < ml; ++j) All(i, j) = A(live[i], live[j]);
   }
-  const Eigen::VectorXd h = finish(compliance, rows, u_free, out);
+  Eigen::LLT<Eigen::MatrixXd> llt(All);
+  out.lambda = Eigen::VectorXd::Zero(m);
+  if (ml > 0 && llt.info() == Eigen::Success) {
+    const Eigen::VectorXd zl = llt.solve(bl);
+    for (int i = 0; i < ml; ++i) out.lambda[live[i]] = zl[i];
+  } else if (m > 0) {
+    out.lambda = A.completeOrthogonalDecomposition().solve(b);
+  }
+  const Eigen::VectorXd h = finish(compliance, rows, u_free, out, whole_mesh);
   out.residual = m > 0 ? (h - g).cwiseAbs().maxCoeff() : 0.0;
   out.converged = out.residual <= tolerance;
   return out;
@@ -401,7 +475,8 @@ ContactResult solve_lcp(SurfaceCompliance& compliance, const std::vector<Contact
 }
 
 ContactResult solve_contacts(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
-                             const Eigen::VectorXd& u_free, const std::vector<int>& warm, const LcpOptions& options) {
+                             const Eigen::VectorXd& u_free, const std::vector<int>& warm, const LcpOptions& options,
+                             bool whole_mesh) {
   check_u_free(compliance, u_free, "solve_contacts");
   const int m = static_cast<int>(rows.size());
   for (size_t i = 0; i < warm.size(); ++i)
@@ -423,7 +498,7 @@ ContactResult solve_contacts(SurfaceCompliance& compliance, const std::vector<Co
   }
   out.lambda = lcp.z;
   out.iterations = lcp.iterations;
-  const Eigen::VectorXd h = finish(compliance, rows, u_free, out);
+  const Eigen::VectorXd h = finish(compliance, rows, u_free, out, whole_mesh);
   // Violation of H u >= g, and of equality where the row pushes.
   double res = 0.0;
   for (int r = 0; r < m; ++r) {
@@ -550,10 +625,14 @@ LcpResult solve_lcp_active_set(const std::function<const Eigen::VectorXd&(int)>&
     w = q;
     for (int j : F.set()) w.noalias() += z[j] * column(j);
   };
+  // Removes the members of P that keep() rejects (their z becomes exactly 0) and refactors.
   auto drop = [&](auto keep) {
     failed = failed || !F.retain(keep);
-    std::fill(in_P.begin(), in_P.end(), 0);
-    for (int j : F.set()) in_P[j] = 1;
+    std::vector<char> kept(m, 0);
+    for (int j : F.set()) kept[j] = 1;
+    for (int i = 0; i < m; ++i)
+      if (in_P[i] && !kept[i]) z[i] = 0.0;
+    in_P.swap(kept);
   };
 
   // Warm start: the guessed set (independent members), pruned of negative multipliers until the subproblem's

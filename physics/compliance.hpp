@@ -7,8 +7,10 @@
 //
 // Contact path: SurfaceCompliance holds C = K^-1 restricted to a node set (the inner wall). Contacts are rows
 // of a constraint matrix H; their coupling A = H C H^T is small and dense, so the multipliers lambda come from
-// a dense solve (equality, the paper's "hold the colliding vertices") or a dense LCP (non-penetration), and
-// the whole-mesh correction is one back-substitution du = K^-1 H^T lambda.
+// a dense solve (equality, the paper's "hold the colliding vertices") or an LCP (non-penetration: Lemke on all
+// of A, or an active-set method that needs only the columns of A of its active rows, CouplingMatrix), and the
+// whole-mesh correction du = K^-1 H^T lambda is a short sum of precomputed columns (few loaded nodes) or one
+// back-substitution.
 #include <Eigen/Core>
 #include <functional>
 #include <vector>
@@ -84,6 +86,9 @@ class SurfaceCompliance {
   // columns are at hand (kept set columns, cached outside columns) and summing them is cheaper than a
   // back-substitution, du is that sum; otherwise one StaticSolver::solve. Both give K^-1 f to round-off.
   void displacement(const Eigen::VectorXd& f, Eigen::VectorXd& du);
+  // du = K^-1 f on the set nodes and on the nodes listed in `also` only, every other entry 0 (3n, metres): what
+  // a check of the set (the inner wall) needs, for a fraction of the whole-mesh cost.
+  void displacement_on_set(const Eigen::VectorXd& f, Eigen::VectorXd& du, const std::vector<int>& also = {});
 
  private:
   void check_node(int node, const char* what) const;
@@ -148,7 +153,8 @@ LcpResult solve_lcp_active_set(const Eigen::MatrixXd& A, const Eigen::VectorXd& 
 struct ContactResult {
   Eigen::VectorXd lambda;      // row multipliers, newtons, one per row (>= 0 for the LCP)
   Eigen::VectorXd force;       // f_c = H^T lambda, nodal contact forces, 3n, newtons
-  Eigen::VectorXd correction;  // du = K^-1 f_c (SurfaceCompliance::displacement), 3n, metres
+  Eigen::VectorXd correction;  // du = K^-1 f_c, 3n, metres: whole mesh, or (whole_mesh = false) only on the
+                               // compliance's set and the rows' nodes (SurfaceCompliance::displacement_on_set)
   int iterations = 0;          // LCP pivots or active-set rounds (1 for the equality solve)
   double residual = 0.0;       // max row violation at u_free + du, metres (see solve_equality / solve_lcp)
   bool converged = false;      // residual <= tolerance
@@ -176,7 +182,9 @@ class CouplingMatrix {
   const std::vector<ContactRow>* rows_;
   std::vector<int> touched_;                  // distinct nodes of the rows
   std::vector<int> touched_set_index_;        // per touched node: position in the compliance set, or -1
-  std::vector<int> slot_;                     // rows x 4: position in touched_ of each row entry, or -1
+  std::vector<int> entry_begin_;              // rows + 1: row r's used entries are [begin[r], begin[r + 1])
+  std::vector<int> entry_slot_;               // per entry: position of its node in touched_
+  std::vector<Eigen::Vector3d> entry_wn_;     // per entry: weight * n
   std::vector<Eigen::VectorXd> columns_;      // cached columns (empty until computed)
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> y_;  // workspace: C h_s on the touched nodes
   int n_computed_ = 0;
@@ -190,9 +198,11 @@ Eigen::VectorXd contact_force(const std::vector<ContactRow>& rows, const Eigen::
 Eigen::MatrixXd coupling_matrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows);
 
 // Equality constraints H (u_free + du) = g: A lambda = g - H u_free (Cholesky, or the minimum-norm least-squares
-// solution when A is singular). residual = max |H u - g|; converged when <= tolerance (metres).
+// solution when A is singular; rows on fixed DOFs only, whose diagonal of A is 0, get lambda = 0 and do not
+// spoil the Cholesky). residual = max |H u - g|; converged when <= tolerance (metres). whole_mesh = false: the
+// correction only on the set and the rows' nodes (enough for the residual and for a check of the set).
 ContactResult solve_equality(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
-                             const Eigen::VectorXd& u_free, double tolerance = 1e-9);
+                             const Eigen::VectorXd& u_free, double tolerance = 1e-9, bool whole_mesh = true);
 
 // Non-penetration H u >= g with lambda >= 0 and lambda . (H u - g) = 0, by solve_lcp_dense on A.
 // residual = max over rows of (g - H u)^+ and, where lambda > 0, |H u - g|.
@@ -202,8 +212,9 @@ ContactResult solve_lcp(SurfaceCompliance& compliance, const std::vector<Contact
 // The same non-penetration problem by solve_lcp_active_set on columns of A computed on demand (a few per
 // active row instead of all of A), warm-started from `warm` (row indices guessed to push, e.g. the rows of
 // last frame's pushing contacts); when that does not converge, solve_lcp_dense on the whole A (used_lemke).
+// whole_mesh as for solve_equality.
 ContactResult solve_contacts(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
                              const Eigen::VectorXd& u_free, const std::vector<int>& warm = {},
-                             const LcpOptions& options = {});
+                             const LcpOptions& options = {}, bool whole_mesh = true);
 
 }  // namespace lumen::physics

@@ -374,6 +374,100 @@ TEST(Lcp, DenseRandomSemidefiniteMatchesBruteForce) {
   EXPECT_THROW(solve_lcp_dense(A, Eigen::VectorXd::Ones(2)), std::invalid_argument);
 }
 
+// The coupling matrix column by column equals the dense twin H K^-1 H^T, rows inside and outside the set.
+TEST(CouplingMatrix, ColumnsEqualDenseTwin) {
+  const Model& m = model();
+  SurfaceCompliance sc(*m.solver, m.inner);
+  std::mt19937 rng(16);
+  std::vector<ContactRow> rows;
+  for (int r = 0; r < 30; ++r) rows.push_back(random_vertex_face(rng, m, r % 4 == 0));
+  ContactRow held;  // a one-node unit row (the paper's hold) on a node outside the set
+  held.node[0] = m.outer_free[3], held.weight[0] = 1.0, held.n = Eigen::Vector3d::UnitY();
+  rows.push_back(held);
+  const Eigen::MatrixXd H = dense_H(rows, m.n());
+  const Eigen::MatrixXd twin = H * m.Kinv * H.transpose();
+  CouplingMatrix A(sc, rows);
+  ASSERT_EQ(A.size(), 31);
+  EXPECT_EQ(A.columns_computed(), 0);
+  for (int s : {30, 4, 0}) EXPECT_LE((A.column(s) - twin.col(s)).norm(), 1e-9 * twin.norm()) << "column " << s;
+  EXPECT_EQ(A.columns_computed(), 3);
+  const Eigen::MatrixXd dense = A.dense();
+  EXPECT_LE((dense - twin).norm(), 1e-9 * twin.norm());
+  EXPECT_EQ((dense - dense.transpose()).norm(), 0.0);
+  EXPECT_LE((coupling_matrix(sc, rows) - dense).norm(), 1e-15 * twin.norm());
+  EXPECT_THROW(A.column(31), std::invalid_argument);
+}
+
+// Whole-mesh and set-only displacements for sparse nodal forces equal the dense twin K^-1 f, with the
+// whole-mesh columns kept and without them (a back-substitution).
+TEST(SurfaceCompliance, DisplacementsEqualDenseTwin) {
+  const Model& m = model();
+  SurfaceCompliance kept(*m.solver, m.inner), lean(*m.solver, m.inner, 64, 0);
+  EXPECT_TRUE(kept.keeps_mesh_columns());
+  EXPECT_FALSE(lean.keeps_mesh_columns());
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> force(-0.02, 0.02);
+  for (int trial = 0; trial < 6; ++trial) {
+    // Forces on a few inner nodes, and in odd trials on an outer node too.
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * m.n());
+    for (int k = 0; k < 2 + trial; ++k)
+      for (int c = 0; c < 3; ++c) f[3 * m.inner[(7 * k + trial) % m.inner.size()] + c] = force(rng);
+    const int outer = m.outer_free[trial];
+    if (trial % 2) f.segment<3>(3 * outer) << force(rng), force(rng), force(rng);
+    const Eigen::VectorXd twin = m.Kinv * f;
+    for (SurfaceCompliance* sc : {&kept, &lean}) {
+      Eigen::VectorXd du;
+      sc->displacement(f, du);
+      EXPECT_LE((du - twin).norm(), 1e-9 * twin.norm()) << "trial " << trial;
+      // Set-only: exact on the set and the listed node, zero elsewhere.
+      const int listed = m.outer_free[trial + 1];
+      sc->displacement_on_set(f, du, {listed});
+      std::vector<char> defined(m.n(), 0);
+      for (int v : m.inner) defined[v] = 1;
+      defined[listed] = 1;
+      for (int v = 0; v < m.n(); ++v) {
+        const Eigen::Vector3d expected = defined[v] ? Eigen::Vector3d(twin.segment<3>(3 * v)) : Eigen::Vector3d::Zero();
+        EXPECT_LE((du.segment<3>(3 * v) - expected).norm(), 1e-9 * twin.norm()) << "trial " << trial << " node " << v;
+      }
+    }
+  }
+  Eigen::VectorXd du;
+  EXPECT_THROW(kept.displacement(Eigen::VectorXd::Zero(5), du), std::invalid_argument);
+  EXPECT_THROW(kept.displacement_on_set(Eigen::VectorXd::Zero(3 * m.n()), du, {m.n()}), std::invalid_argument);
+  EXPECT_THROW(SurfaceCompliance(*m.solver, m.inner, 64, -1), std::invalid_argument);
+}
+
+// Holding nodes that include fixed ones (zero rows of A): the fixed rows get lambda = 0 and the rest equals the
+// minimum-norm least-squares twin.
+TEST(Contact, EqualityWithRowsOnFixedNodes) {
+  const Model& m = model();
+  SurfaceCompliance sc(*m.solver, m.inner);
+  int fixed_inner = -1;
+  for (int v : m.inner)
+    if (m.solver->is_fixed_dof(3 * v)) fixed_inner = v;
+  ASSERT_GE(fixed_inner, 0);
+  std::mt19937 rng(18);
+  std::uniform_real_distribution<double> d(-1e-3, 1e-3);
+  std::vector<ContactRow> rows;
+  for (int v : {m.inner_free[2], fixed_inner, m.inner_free[9]})
+    for (int c = 0; c < 3; ++c) {
+      ContactRow r;
+      r.node[0] = v, r.weight[0] = 1.0, r.n = Eigen::Vector3d::Unit(c);
+      r.g = v == fixed_inner ? 0.0 : d(rng);
+      rows.push_back(r);
+    }
+  const Eigen::VectorXd u_free = Eigen::VectorXd::Zero(3 * m.n());
+  const ContactResult res = solve_equality(sc, rows, u_free);
+  EXPECT_TRUE(res.converged) << res.residual;
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(res.lambda[3 + c], 0.0);
+  const Eigen::MatrixXd H = dense_H(rows, m.n());
+  const Eigen::MatrixXd A = H * m.Kinv * H.transpose();
+  Eigen::VectorXd g(rows.size());
+  for (size_t r = 0; r < rows.size(); ++r) g[r] = rows[r].g;
+  const Eigen::VectorXd twin = A.completeOrthogonalDecomposition().solve(g);
+  EXPECT_LE((res.lambda - twin).norm(), 1e-7 * twin.norm());
+}
+
 TEST(Contact, RejectsBadRows) {
   const Model& m = model();
   SurfaceCompliance sc(*m.solver, m.inner);
