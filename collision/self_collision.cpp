@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -96,6 +97,8 @@ struct SelfCollision::Impl {
   std::vector<std::uint64_t> ee_keys;   // edge id << edge_bits | edge id, first < second
   std::vector<std::uint64_t> sort_tmp;  // radix sort scratch
   std::vector<double> proj;             // vertex projections on the k-DOP axes at x0 then x1, n_points x k
+  std::vector<double> vbox;             // swept axis-aligned box of each vertex: lo xyz, hi xyz, n_points x 6
+  double feature_pad = 0.0;             // feature-box overlap margin: 2 gap plus rounding, metres
   std::vector<int> used_vertices;       // vertices referenced by the triangles, ascending
   int tri_bits = 0, edge_bits = 0, point_bits = 0;  // bit widths of the ids in the keys
   std::vector<FeaturePair> tested;      // the feature pairs run by the last call
@@ -193,6 +196,20 @@ struct SelfCollision::Impl {
       kdop_project_all(x1.data() + v * x1.outerStride(), all);
       for (int a = 0; a < A; ++a) p[A + a] = all[KdopAxisIds<K>::ids[a]];
     }
+    // Swept axis-aligned box of each vertex (the first three axes of every k-DOP are x, y, z), for the
+    // per-feature pre-test; the margin covers both features' gap inflation and rounding.
+    vbox.resize(static_cast<std::size_t>(6) * static_cast<std::size_t>(n_points));
+    double scale = 0.0;
+    for (const int v : used_vertices) {
+      const double* p = &proj[static_cast<std::size_t>(2 * A) * static_cast<std::size_t>(v)];
+      double* b = &vbox[static_cast<std::size_t>(6) * static_cast<std::size_t>(v)];
+      for (int a = 0; a < 3; ++a) {
+        b[a] = std::min(p[a], p[A + a]);
+        b[3 + a] = std::max(p[a], p[A + a]);
+        scale = std::max({scale, std::abs(b[a]), std::abs(b[3 + a])});
+      }
+    }
+    feature_pad = 2.0 * gap * (1.0 + 1e-12) + 64.0 * std::numeric_limits<double>::epsilon() * scale;
     for (int t = 0; t < n_tris; ++t) {
       Kdop<K>& box = out(t);
       const double* p[3];
@@ -226,6 +243,24 @@ struct SelfCollision::Impl {
         ee_keys.push_back(ee_key(std::min(ea, eb), std::max(ea, eb)));
       }
     }
+  }
+
+  // Whether the swept boxes of two vertex sets overlap within feature_pad (false: no contact is possible).
+  bool feature_boxes_overlap(const int* va, int na, const int* vb, int nb) const {
+    for (int a = 0; a < 3; ++a) {
+      double lo_a = vbox[6 * static_cast<std::size_t>(va[0]) + a], hi_a = vbox[6 * static_cast<std::size_t>(va[0]) + 3 + a];
+      for (int i = 1; i < na; ++i) {
+        lo_a = std::min(lo_a, vbox[6 * static_cast<std::size_t>(va[i]) + a]);
+        hi_a = std::max(hi_a, vbox[6 * static_cast<std::size_t>(va[i]) + 3 + a]);
+      }
+      double lo_b = vbox[6 * static_cast<std::size_t>(vb[0]) + a], hi_b = vbox[6 * static_cast<std::size_t>(vb[0]) + 3 + a];
+      for (int i = 1; i < nb; ++i) {
+        lo_b = std::min(lo_b, vbox[6 * static_cast<std::size_t>(vb[i]) + a]);
+        hi_b = std::max(hi_b, vbox[6 * static_cast<std::size_t>(vb[i]) + 3 + a]);
+      }
+      if (lo_a > hi_b + feature_pad || lo_b > hi_a + feature_pad) return false;
+    }
+    return true;
   }
 
   // Reset the per-call candidates and statistics.
@@ -281,6 +316,7 @@ struct SelfCollision::Impl {
       const int p = static_cast<int>(key >> tri_bits);
       const int* f = tri(static_cast<int>(key & ((std::uint64_t{1} << tri_bits) - 1)));
       tested.push_back(FeaturePair{FeatureKind::VertexFace, {p, f[0], f[1], f[2]}});
+      if (!feature_boxes_overlap(&p, 1, f, 3)) continue;  // swept boxes apart: the elementary test would say no
       CcdHit hit;
       if (vertex_face_ccd(row(x0, p), row(x0, f[0]), row(x0, f[1]), row(x0, f[2]), row(x1, p), row(x1, f[0]),
                           row(x1, f[1]), row(x1, f[2]), gap, &hit)) {
@@ -302,6 +338,7 @@ struct SelfCollision::Impl {
       const int* e = edge(static_cast<int>(key >> edge_bits));
       const int* g = edge(static_cast<int>(key & ((std::uint64_t{1} << edge_bits) - 1)));
       tested.push_back(FeaturePair{FeatureKind::EdgeEdge, {e[0], e[1], g[0], g[1]}});
+      if (!feature_boxes_overlap(e, 2, g, 2)) continue;  // swept boxes apart: the elementary test would say no
       CcdHit hit;
       if (edge_edge_ccd(row(x0, e[0]), row(x0, e[1]), row(x0, g[0]), row(x0, g[1]), row(x1, e[0]), row(x1, e[1]),
                         row(x1, g[0]), row(x1, g[1]), gap, &hit)) {

@@ -90,10 +90,13 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   const Points& x0 = state.x;
   const Eigen::VectorXd u_free = u;
   auto positions = [&](const Eigen::VectorXd& uu) { return Points(model.mesh.rest + Eigen::Map<const Points>(uu.data(), n, 3)); };
-  Points x1 = positions(u);
-  const Points x_free = x1;
+  const Points x_free = positions(u);
+  // Predicted motion: the free solution plus last frame's contact correction (contacts persist from frame to
+  // frame), so where the walls already touch the sweep stays short instead of passing deep through each other.
+  const bool predict = state.last_correction.size() == u.size() && !state.last_correction.isZero(0.0);
+  Points x1 = predict ? positions(u_free + state.last_correction) : x_free;
 
-  // First detection on the free motion.
+  // First detection on the predicted motion.
   auto clock = Clock::now();
   collision::CollisionStats stats;
   state.detector->detect(x0, x1, cs.gap, state.contacts, &stats);
@@ -201,7 +204,8 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     rec.ms[kCollision] += ms_since(clock);
   }
 
-  // Keep the contacts that carry force for the next frame; flag their nodes for rendering.
+  // Keep the correction and the contacts that carry force for the next frame; flag their nodes for rendering.
+  state.last_correction = u - u_free;
   state.active.clear();
   int r = 0;
   for (const auto& [key, c] : active) {

@@ -63,6 +63,7 @@ struct State {
   std::vector<collision::Contact> contacts;           // this frame's contacts (first detection)
   std::unique_ptr<physics::SurfaceCompliance> compliance;  // K^-1 on the inner wall, for the contact solves
   std::vector<collision::Contact> active;             // contacts held at the end of the last frame (warm start)
+  Eigen::VectorXd last_correction;                    // last frame's contact correction u - u_free, 3n, metres
   int failures = 0;                                   // frames where the last good state was kept
 };
 
