@@ -156,7 +156,8 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
         if (pushing.count(key)) warm.push_back(static_cast<int>(rows.size()));
         rows.push_back(contact_row(c, model.mesh.rest, x0, x1, cs.gap));
       }
-      solved = physics::solve_contacts(*state.compliance, rows, u_free, warm, {}, false);
+      solved = physics::solve_contacts(*state.compliance, rows, u_free, warm, {}, false,
+                                       model.held.points.empty() ? nullptr : &model.held);
       pushing.clear();
       int r = 0;
       for (const auto& entry : active)
@@ -176,6 +177,21 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     clock = Clock::now();
   }
   rec.response_iterations = iterations;
+
+  // The probes' forces with the contacts' effect (what a device displays): displacement-driven probes change
+  // their force so that contacts do not move them; in the paper's response every probe is held, and the holding
+  // forces at its nodes add to its force.
+  if (iterations > 0 && cs.response == "constraint" && solved.held_force.size() > 0) {
+    for (size_t a = 0; a < model.held_probes.size(); ++a)
+      state.samples[model.held_probes[a]].force += solved.held_force.segment<3>(3 * a);
+  } else if (iterations > 0 && cs.response == "paper") {
+    for (size_t p = 0; p < model.probe_points.size(); ++p)
+      for (int k = 0; k < 3; ++k) {
+        const int node = model.probe_points[p].node[k];
+        for (size_t r = 0; r < rows.size(); ++r)
+          if (rows[r].node[0] == node) state.samples[p].force += solved.lambda[static_cast<long>(r)] * rows[r].n;
+      }
+  }
 
   // Whole-mesh correction for the last multipliers (a sum of precomputed columns or one back-substitution); the
   // inner wall keeps the values the check saw (equal to round-off).

@@ -108,6 +108,13 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
       for (int b = 0; b < d; ++b) Pdd.block(3 * a, 3 * b, 3, 3) = P.block(3 * m->held_probes[a], 3 * m->held_probes[b], 3, 3);
     }
     m->hold_stiffness = Pdd.ldlt().solve(Eigen::MatrixXd::Identity(3 * d, 3 * d));
+    // The same points for the contact solve: contacts must not move them (the device holds them).
+    m->held.U.resize(3 * m->mesh.n_nodes(), 3 * d);
+    for (int a = 0; a < d; ++a) {
+      m->held.points.push_back(load_points[m->held_probes[a]]);
+      m->held.U.middleCols(3 * a, 3) = m->probe_response->response().middleCols(3 * m->held_probes[a], 3);
+    }
+    m->held.S = m->hold_stiffness;
   }
 
   // Inner-wall nodes (for the collision surface's bookkeeping).
@@ -130,6 +137,12 @@ State make_state(const Model& model) {
   if (model.scene.collision.self) {
     s.detector = std::make_unique<collision::SelfCollision>(model.mesh.inner, model.mesh.n_nodes(), model.scene.collision.kdop);
     s.compliance = std::make_unique<physics::SurfaceCompliance>(*model.solver, model.inner_nodes);
+    // Whole-mesh columns of the probe nodes too, so a contact correction that changes probe forces stays cheap.
+    std::vector<int> probe_nodes;
+    for (const SurfacePoint& sp : model.probe_points) probe_nodes.insert(probe_nodes.end(), sp.node, sp.node + 3);
+    std::sort(probe_nodes.begin(), probe_nodes.end());
+    probe_nodes.erase(std::unique(probe_nodes.begin(), probe_nodes.end()), probe_nodes.end());
+    s.compliance->ensure_columns(probe_nodes);
   }
   return s;
 }

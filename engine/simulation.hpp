@@ -41,6 +41,7 @@ struct Model {
   std::vector<int> held_probes;                       // displacement-driven probes (indices into scene.probes)
   Eigen::MatrixXd hold_stiffness;                     // (P_dd)^-1, 3d x 3d, N/m: forces that move held points
   Eigen::MatrixXd hold_coupling;                      // P_df, 3d x 3m, m/N: held points' motion per probe force
+  physics::HeldPoints held;                           // the held probes for the contact solve (empty: none)
   std::vector<int> inner_nodes;                       // node ids on the inner wall (sorted)
   double budget_ms = 25.0;                            // 1000 / fps
   double compile_seconds = 0.0;                       // wall time to build the model

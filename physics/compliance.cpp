@@ -476,29 +476,65 @@ ContactResult solve_lcp(SurfaceCompliance& compliance, const std::vector<Contact
 
 ContactResult solve_contacts(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
                              const Eigen::VectorXd& u_free, const std::vector<int>& warm, const LcpOptions& options,
-                             bool whole_mesh) {
+                             bool whole_mesh, const HeldPoints* held) {
   check_u_free(compliance, u_free, "solve_contacts");
   const int m = static_cast<int>(rows.size());
   for (size_t i = 0; i < warm.size(); ++i)
     if (warm[i] < 0 || warm[i] >= m)
       fail("solve_contacts: warm[" + std::to_string(i) + "] must be a row index in [0, " + std::to_string(m) +
            "), got " + std::to_string(warm[i]));
+  const int n = compliance.solver().n_dofs();
+  const int d3 = held ? static_cast<int>(held->U.cols()) : 0;
+  if (held && (held->U.rows() != n || held->S.rows() != d3 || held->S.cols() != d3 ||
+               static_cast<int>(held->points.size()) * 3 != d3))
+    fail("solve_contacts: held points must have U 3n x 3d, S 3d x 3d and d points, got U " +
+         std::to_string(held->U.rows()) + " x " + std::to_string(d3) + ", S " + std::to_string(held->S.rows()) + " x " +
+         std::to_string(held->S.cols()) + ", " + std::to_string(held->points.size()) + " points");
   Eigen::VectorXd g(m);
   for (int r = 0; r < m; ++r) g[r] = rows[r].g;
-  // w = A lambda + (H u_free - g): active set on columns of A computed on demand, Lemke on all of A if that fails.
+  // G = H U: how each row's value moves per unit force at the held points (rows x 3d, m/N).
+  Eigen::MatrixXd G(m, d3), GS(m, d3);
+  if (held) {
+    for (int r = 0; r < m; ++r) {
+      G.row(r).setZero();
+      for (int k = 0; k < 4; ++k)
+        if (rows[r].node[k] >= 0)
+          G.row(r) += rows[r].weight[k] * rows[r].n.transpose() * held->U.middleRows(3 * rows[r].node[k], 3);
+    }
+    GS = G * held->S;
+  }
+  // w = A' lambda + (H u_free - g), A' = A - G S G^T: active set on columns computed on demand, Lemke if that fails.
   CouplingMatrix A(compliance, rows);
+  std::vector<Eigen::VectorXd> held_columns(held ? m : 0);
+  auto column = [&](int j) -> const Eigen::VectorXd& {
+    if (!held) return A.column(j);
+    if (held_columns[j].size() == 0) held_columns[j] = A.column(j) - G * GS.row(j).transpose();
+    return held_columns[j];
+  };
   const Eigen::VectorXd q = row_values(rows, u_free) - g;
-  LcpResult lcp = solve_lcp_active_set([&A](int j) -> const Eigen::VectorXd& { return A.column(j); }, q, warm, options);
+  LcpResult lcp = solve_lcp_active_set(column, q, warm, options);
   ContactResult out;
   if (!lcp.converged) {
     const int rounds = lcp.iterations;
-    lcp = solve_lcp_dense(A.dense(), q, options);
+    Eigen::MatrixXd dense = A.dense();
+    if (held) dense -= G * GS.transpose();
+    lcp = solve_lcp_dense(0.5 * (dense + dense.transpose()), q, options);
     lcp.iterations += rounds;
     out.used_lemke = true;
   }
   out.lambda = lcp.z;
   out.iterations = lcp.iterations;
-  const Eigen::VectorXd h = finish(compliance, rows, u_free, out, whole_mesh);
+  Eigen::VectorXd h = finish(compliance, rows, u_free, out, whole_mesh);
+  // Held points: their force change -S G^T lambda joins the force and its displacement U df the correction.
+  if (held) {
+    out.held_force = -(GS.transpose() * out.lambda);
+    out.correction += held->U * out.held_force;
+    for (int p = 0; p < static_cast<int>(held->points.size()); ++p)
+      for (int k = 0; k < 3; ++k)
+        if (held->points[p].node[k] >= 0)
+          out.force.segment<3>(3 * held->points[p].node[k]) += held->points[p].weight[k] * out.held_force.segment<3>(3 * p);
+    h = row_values(rows, u_free + out.correction);
+  }
   // Violation of H u >= g, and of equality where the row pushes.
   double res = 0.0;
   for (int r = 0; r < m; ++r) {

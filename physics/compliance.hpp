@@ -159,6 +159,16 @@ struct ContactResult {
   double residual = 0.0;       // max row violation at u_free + du, metres (see solve_equality / solve_lcp)
   bool converged = false;      // residual <= tolerance
   bool used_lemke = false;     // solve_contacts: the active-set method failed and Lemke's pivoting was used
+  Eigen::VectorXd held_force;  // solve_contacts with held points: change of their forces, 3d, newtons
+};
+
+// Load points held at prescribed displacements while contacts are solved (displacement-driven probes): their
+// forces change so that the contacts do not move them. U: K^-1 of unit loads at the points (3n x 3d, m/N, e.g.
+// columns of LoadResponse::response()); S: the inverse of their point compliance (3d x 3d, N/m).
+struct HeldPoints {
+  std::vector<LoadPoint> points;  // d points
+  Eigen::MatrixXd U;              // 3n x 3d, metres per newton
+  Eigen::MatrixXd S;              // 3d x 3d, newtons per metre
 };
 
 // The coupling matrix A = H C H^T (rows x rows, metres per newton) of a fixed set of rows, evaluated a column
@@ -213,8 +223,12 @@ ContactResult solve_lcp(SurfaceCompliance& compliance, const std::vector<Contact
 // active row instead of all of A), warm-started from `warm` (row indices guessed to push, e.g. the rows of
 // last frame's pushing contacts); when that does not converge, solve_lcp_dense on the whole A (used_lemke).
 // whole_mesh as for solve_equality.
+// With `held` (may be null), the held points keep their displacement: the LCP is on the Schur complement
+// A - G S G^T (G = H U, rows x 3d), their force change is -S G^T lambda (held_force), and force and correction
+// include it, so the points stay where they were in u_free (exactly, up to round-off).
 ContactResult solve_contacts(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
                              const Eigen::VectorXd& u_free, const std::vector<int>& warm = {},
-                             const LcpOptions& options = {}, bool whole_mesh = true);
+                             const LcpOptions& options = {}, bool whole_mesh = true,
+                             const HeldPoints* held = nullptr);
 
 }  // namespace lumen::physics

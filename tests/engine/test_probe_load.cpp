@@ -84,3 +84,48 @@ TEST(ProbeLoad, DisplacementDrivenProbeReachesItsTargetAndReportsTheForce) {
   // Pushing the point inwards takes an inward force.
   EXPECT_LT(-rec.reactions[0].y(), 0.0);
 }
+
+namespace {
+// Two opposite displacement-driven probes squeeze a small tube shut; returns the last frame and the model.
+struct Squeeze {
+  std::unique_ptr<engine::Model> model;
+  engine::FrameRecord last;
+  engine::State state;
+};
+Squeeze squeeze(bool self_collision) {
+  const std::string text = std::string(R"({"name": "squeeze",
+    "mesh": {"type": "hollow_cylinder", "inner_radius": 0.01, "outer_radius": 0.013, "length": 0.08,
+             "segments_around": 16, "segments_along": 10, "layers": 2},
+    "material": {"model": "linear", "young_modulus": 5000.0, "poisson_ratio": 0.45},
+    "fixed": ["ends"],
+    "probes": [{"point": [0.0, 0.013, 0.04], "track": [{"t": 0, "displacement": [0, 0, 0]}, {"t": 1, "displacement": [0, -0.013, 0]}]},
+               {"point": [0.0, -0.013, 0.04], "track": [{"t": 0, "displacement": [0, 0, 0]}, {"t": 1, "displacement": [0, 0.013, 0]}]}],
+    "frames": 40, "fps": 40, "collision": {"self": )") + (self_collision ? "true" : "false") + R"(, "gap": 1e-4}})";
+  Squeeze s;
+  s.model = engine::compile_model(engine::parse_scene(text, "squeeze.json"));
+  s.state = engine::make_state(*s.model);
+  for (int i = 0; i < 40; ++i) engine::step(*s.model, s.state, s.last);
+  return s;
+}
+}  // namespace
+
+TEST(ProbeLoad, HeldProbeReactionIncludesTheContact) {
+  Squeeze free = squeeze(false), held = squeeze(true);
+  ASSERT_GT(held.last.contacts, 0);  // the walls meet
+  // The held points stay exactly at their targets although contacts push on the wall.
+  for (int p = 0; p < 2; ++p) {
+    const engine::SurfacePoint& sp = held.model->probe_points[p];
+    Eigen::Vector3d moved = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) moved += sp.weight[k] * held.state.u.segment<3>(3 * sp.node[k]);
+    const Eigen::Vector3d target(0, p == 0 ? -0.013 : 0.013, 0);
+    EXPECT_LT((moved - target).norm(), 1e-6 * target.norm()) << "probe " << p;
+  }
+  // Closing the lumen on itself takes more force than pushing through an empty one (linear superposition:
+  // the same displacement with extra contact forces resisting it); the reaction points back outwards.
+  for (int p = 0; p < 2; ++p) {
+    const double without = std::abs(free.last.reactions[p].y()), with = std::abs(held.last.reactions[p].y());
+    EXPECT_GT(with, 1.05 * without) << "probe " << p << ": " << with << " vs " << without;
+  }
+  EXPECT_GT(held.last.reactions[0].y(), 0.0);
+  EXPECT_LT(held.last.reactions[1].y(), 0.0);
+}
