@@ -300,7 +300,15 @@ struct SelfCollision::Impl {
     std::sort(hit_ee.begin(), hit_ee.end());
     ++totals.calls;
     totals.overlaps += static_cast<long>(overlap_pairs.size());
-    for (const auto& [ta, tb] : overlap_pairs) totals.overlaps_with_contact += pair_has_contact(ta, tb);
+    for (const auto& [ta, tb] : overlap_pairs) {
+      const bool contact = pair_has_contact(ta, tb);
+      totals.overlaps_with_contact += contact;
+      const int* A = tri(ta);
+      const int* B = tri(tb);
+      if (has_vertex(B, A[0]) || has_vertex(B, A[1]) || has_vertex(B, A[2])) continue;
+      ++totals.separate_overlaps;
+      totals.separate_with_contact += contact;
+    }
   }
 
   // Deduplicate the candidates and run each feature pair's elementary test once, in sorted order.

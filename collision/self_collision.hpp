@@ -78,6 +78,8 @@ class SelfCollision {
     long calls = 0;
     long overlaps = 0;               // leaf-leaf k-DOP overlaps
     long overlaps_with_contact = 0;  // of which at least one feature pair reported a contact
+    long separate_overlaps = 0;      // overlaps of triangles that share no vertex (neighbours always overlap)
+    long separate_with_contact = 0;  // of which at least one feature pair reported a contact
   };
   OverlapTotals overlap_totals() const;
 

@@ -223,7 +223,9 @@ SessionResult run_session(const Model& model, const SessionOptions& opt) {
     const auto t = state.detector->overlap_totals();
     r["overlap_classification"] = {{"detect_calls", t.calls}, {"bv_overlaps", t.overlaps},
                                    {"with_contact", t.overlaps_with_contact},
-                                   {"false_positives", t.overlaps - t.overlaps_with_contact}};
+                                   {"false_positives", t.overlaps - t.overlaps_with_contact},
+                                   {"separate_bv_overlaps", t.separate_overlaps},
+                                   {"separate_false_positives", t.separate_overlaps - t.separate_with_contact}};
   }
   r["fallback_frames"] = fallbacks;
   r["frames_with_inverted_elements"] = inverted_frames;
