@@ -121,7 +121,7 @@ void read_mesh(const Reader& r, const json& m, physics::HollowCylinderSpec& spec
 
 void read_material(const Reader& r, const json& m, MaterialSpec& mat) {
   r.only_keys(m, "material", {"model", "young_modulus", "poisson_ratio", "density"});
-  mat.model = r.one_of(r.require(m, "material", "model"), "material.model", {"linear"});
+  mat.model = r.one_of(r.require(m, "material", "model"), "material.model", {"linear", "corotational"});
   mat.young_modulus = r.positive(r.require(m, "material", "young_modulus"), "material.young_modulus");
   mat.poisson_ratio = r.number_in(r.require(m, "material", "poisson_ratio"), "material.poisson_ratio", -1.0, 0.5,
                                   true, true);

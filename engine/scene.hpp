@@ -38,7 +38,7 @@ struct ProbeSpec {
 };
 
 struct MaterialSpec {
-  std::string model = "linear";  // "linear"
+  std::string model = "linear";  // "linear" (prefactorised, the paper's) | "corotational" (large rotations)
   double young_modulus = 5000.0;  // pascals
   double poisson_ratio = 0.45;    // (-1, 0.5)
   double density = 1050.0;        // kg / m^3

@@ -123,6 +123,14 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   std::sort(m->inner_nodes.begin(), m->inner_nodes.end());
   m->inner_nodes.erase(std::unique(m->inner_nodes.begin(), m->inner_nodes.end()), m->inner_nodes.end());
 
+  // Corotational material: stiffness warped per element each frame, PCG preconditioned by the rest factorisation.
+  if (scene.material.model == "corotational") {
+    if (!m->held_probes.empty())
+      throw InputError(scene.path + ": probes[" + std::to_string(m->held_probes[0]) +
+                       "].track: displacement-driven probes need material.model \"linear\" (value \"corotational\")");
+    m->corotational = std::make_unique<physics::CorotationalModel>(m->mesh, m->material, m->fixed_nodes);
+  }
+
   m->compile_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   return m;
 }
@@ -165,7 +173,22 @@ void step(const Model& model, State& state, FrameRecord& rec) {
   // Physics: quasi-static linear FEM, u = K^-1 f (precomputed unit responses when probe points are fixed).
   clock = Clock::now();
   Eigen::VectorXd u(3 * n);
-  if (all_fixed) {
+  if (model.corotational) {
+    // Corotational: nonlinear equilibrium from the nodal loads, warm-started from the last frame.
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * n);
+    for (size_t i = 0; i < state.samples.size(); ++i) {
+      const SurfacePoint sp = state.sources[i]->point_is_fixed()
+                                  ? model.probe_points[i]
+                                  : snap_to_surface(model.mesh.rest, model.mesh.outer, state.samples[i].point);
+      add_point_load(sp, state.samples[i].force, f);
+    }
+    physics::CorotationalOptions options;
+    options.extrapolate = true;
+    const physics::CorotationalResult r = physics::solve_corotational(*model.corotational, f, state.corotational, options);
+    rec.physics_iterations = r.iterations;
+    rec.physics_converged = r.converged;
+    u = state.corotational.u;
+  } else if (all_fixed) {
     // Displacement-driven probes get the forces that move their points to the targets, given the others':
     // P_dd f_d = d - P_df f_f (P: compliance between probe points).
     Points forces(state.samples.size(), 3);

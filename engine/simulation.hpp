@@ -12,6 +12,7 @@
 #include "engine/report.hpp"
 #include "engine/scene.hpp"
 #include "physics/compliance.hpp"
+#include "physics/corotational.hpp"
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
 
@@ -42,6 +43,7 @@ struct Model {
   Eigen::MatrixXd hold_stiffness;                     // (P_dd)^-1, 3d x 3d, N/m: forces that move held points
   Eigen::MatrixXd hold_coupling;                      // P_df, 3d x 3m, m/N: held points' motion per probe force
   physics::HeldPoints held;                           // the held probes for the contact solve (empty: none)
+  std::unique_ptr<physics::CorotationalModel> corotational;  // material.model "corotational" (else null)
   std::vector<int> inner_nodes;                       // node ids on the inner wall (sorted)
   double budget_ms = 25.0;                            // 1000 / fps
   double compile_seconds = 0.0;                       // wall time to build the model
@@ -65,6 +67,7 @@ struct State {
   std::unique_ptr<physics::SurfaceCompliance> compliance;  // K^-1 on the inner wall, for the contact solves
   std::vector<collision::Contact> active;             // contacts held at the end of the last frame (warm start)
   Eigen::VectorXd last_correction;                    // last frame's contact correction u - u_free, 3n, metres
+  physics::CorotationalState corotational;            // warm start of the corotational solve
   int failures = 0;                                   // frames where the last good state was kept
 };
 
