@@ -18,6 +18,18 @@ double ms_since(Clock::time_point t0) {
 
 }  // namespace
 
+// The probes' forces as a nodal force vector (3n); a moving point is attached where it is this frame.
+Eigen::VectorXd nodal_loads(const Model& model, const State& state) {
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * model.mesh.n_nodes());
+  for (size_t i = 0; i < state.samples.size(); ++i) {
+    const SurfacePoint sp = state.sources[i]->point_is_fixed()
+                                ? model.probe_points[i]
+                                : snap_to_surface(model.mesh.rest, model.mesh.outer, state.samples[i].point);
+    add_point_load(sp, state.samples[i].force, f);
+  }
+  return f;
+}
+
 void add_point_load(const SurfacePoint& sp, const Eigen::Vector3d& force, Eigen::VectorXd& f) {
   for (int k = 0; k < 3; ++k) f.segment<3>(3 * sp.node[k]) += sp.weight[k] * force;
 }
@@ -175,13 +187,7 @@ void step(const Model& model, State& state, FrameRecord& rec) {
   Eigen::VectorXd u(3 * n);
   if (model.corotational) {
     // Corotational: nonlinear equilibrium from the nodal loads, warm-started from the last frame.
-    Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * n);
-    for (size_t i = 0; i < state.samples.size(); ++i) {
-      const SurfacePoint sp = state.sources[i]->point_is_fixed()
-                                  ? model.probe_points[i]
-                                  : snap_to_surface(model.mesh.rest, model.mesh.outer, state.samples[i].point);
-      add_point_load(sp, state.samples[i].force, f);
-    }
+    const Eigen::VectorXd f = nodal_loads(model, state);
     physics::CorotationalOptions options;
     options.extrapolate = true;
     const physics::CorotationalResult r = physics::solve_corotational(*model.corotational, f, state.corotational, options);
@@ -208,13 +214,7 @@ void step(const Model& model, State& state, FrameRecord& rec) {
     }
     model.probe_response->displacement(forces, u);
   } else {
-    Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * n);
-    for (size_t i = 0; i < state.samples.size(); ++i) {
-      const SurfacePoint sp = state.sources[i]->point_is_fixed()
-                                  ? model.probe_points[i]
-                                  : snap_to_surface(model.mesh.rest, model.mesh.outer, state.samples[i].point);
-      add_point_load(sp, state.samples[i].force, f);
-    }
+    const Eigen::VectorXd f = nodal_loads(model, state);
     model.solver->solve(f, u);
   }
   Points x1 = model.mesh.rest + Eigen::Map<const Points>(u.data(), n, 3);

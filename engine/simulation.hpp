@@ -73,6 +73,9 @@ struct State {
 
 State make_state(const Model& model);
 
+// The probes' current forces (state.samples) as a nodal force vector, 3 n_nodes, newtons.
+Eigen::VectorXd nodal_loads(const Model& model, const State& state);
+
 // Advance one frame: sample inputs, solve, detect and resolve self-collision, commit (or keep the last good
 // frame on numerical failure). Fills everything in `rec` but the render and total times.
 void step(const Model& model, State& state, FrameRecord& rec);
