@@ -39,6 +39,29 @@ void clear_stale(const fs::path& dir, const std::string& prefix) {
     if (e.path().filename().string().rfind(prefix, 0) == 0) fs::remove(e.path(), ec);
 }
 
+// What the renderer draws of the current state: walls, contact flags, probes at their attachment points.
+render::FrameView frame_view(const Model& model, const State& state) {
+  render::FrameView view;
+  view.positions = state.x.data();
+  view.n_points = static_cast<int>(state.x.rows());
+  view.outer = model.mesh.outer.data();
+  view.n_outer = static_cast<int>(model.mesh.outer.rows());
+  view.inner = model.mesh.inner.data();
+  view.n_inner = static_cast<int>(model.mesh.inner.rows());
+  view.ends = model.mesh.ends.data();
+  view.n_ends = static_cast<int>(model.mesh.ends.rows());
+  view.contact = state.in_contact.data();
+  view.force_scale = model.scene.render.force_scale;
+  for (size_t p = 0; p < state.samples.size(); ++p) {
+    render::ProbeGlyph g;
+    const SurfacePoint& sp = model.probe_points[p];
+    for (int k = 0; k < 3; ++k) g.point += sp.weight[k] * state.x.row(sp.node[k]).transpose();
+    g.force = state.samples[p].force;
+    view.probes.push_back(g);
+  }
+  return view;
+}
+
 std::string numbered(const fs::path& dir, const char* prefix, int i, const char* ext) {
   char name[64];
   std::snprintf(name, sizeof name, "%s%06d%s", prefix, i, ext);
@@ -120,6 +143,12 @@ SessionResult run_session(const Model& model, const SessionOptions& opt) {
   }
 
   State state = make_state(model);
+  // Warm-up draw of the rest state: the GL driver's one-time set-up (shader compilation) happens at load time,
+  // not in the first frame's budget.
+  if (renderer) {
+    render::Image warm;
+    renderer->draw(frame_view(model, state), warm);
+  }
   if (opt.classify_overlaps && state.detector) state.detector->set_classify_overlaps(true);
   result.frames.reserve(frames);
   const bool tty = opt.progress && isatty(fileno(stderr));
@@ -141,28 +170,8 @@ SessionResult run_session(const Model& model, const SessionOptions& opt) {
     // Render the committed state and hand the image to the writer thread.
     if (renderer) {
       const auto r0 = Clock::now();
-      render::FrameView view;
-      view.positions = state.x.data();
-      view.n_points = static_cast<int>(state.x.rows());
-      view.outer = model.mesh.outer.data();
-      view.n_outer = static_cast<int>(model.mesh.outer.rows());
-      view.inner = model.mesh.inner.data();
-      view.n_inner = static_cast<int>(model.mesh.inner.rows());
-      view.ends = model.mesh.ends.data();
-      view.n_ends = static_cast<int>(model.mesh.ends.rows());
-      view.contact = state.in_contact.data();
-      view.force_scale = rs.force_scale;
-      for (size_t p = 0; p < state.samples.size(); ++p) {
-        render::ProbeGlyph g;
-        // Draw the probe at its attachment point as it moved with the surface.
-        const SurfacePoint& sp = model.probe_points[p];
-        g.point = Eigen::Vector3d::Zero();
-        for (int k = 0; k < 3; ++k) g.point += sp.weight[k] * state.x.row(sp.node[k]).transpose();
-        g.force = state.samples[p].force;
-        view.probes.push_back(g);
-      }
       render::Image image;
-      renderer->draw(view, image);
+      renderer->draw(frame_view(model, state), image);
       rec.ms[kRender] = std::chrono::duration<double, std::milli>(Clock::now() - r0).count();
       if (writer) writer->push(std::move(image));
     }
