@@ -97,6 +97,7 @@ nlohmann::json frame_json(const FrameRecord& r) {
   if (r.intersecting_pairs >= 0) j["intersecting_pairs"] = r.intersecting_pairs;
   j["inverted_elements"] = r.inverted_elements;
   j["numerical_failure"] = r.numerical_failure;
+  j["bad_input"] = r.bad_input;
   j["physics_iterations"] = r.physics_iterations;
   j["physics_converged"] = r.physics_converged;
   j["max_displacement_m"] = r.max_displacement;

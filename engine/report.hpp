@@ -26,6 +26,7 @@ struct FrameRecord {
   long intersecting_pairs = -1;       // exact check (--check), -1 when not run
   int inverted_elements = 0;          // tets with non-positive volume after the frame
   bool numerical_failure = false;     // NaN/Inf or solver failure: the last good frame was kept
+  bool bad_input = false;             // a source gave a non-finite sample; its last good sample was used
   int physics_iterations = 0;         // corotational: outer iterations of the nonlinear solve (0 for linear)
   bool physics_converged = true;      // corotational: the nonlinear solve reached its tolerance
   double max_displacement = 0.0;      // metres, max node displacement from rest

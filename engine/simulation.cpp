@@ -176,8 +176,14 @@ void step(const Model& model, State& state, FrameRecord& rec) {
   // Input: sample every probe source at the end-of-frame time.
   auto clock = Clock::now();
   bool all_fixed = true;
+  bool bad_input = false;
   for (size_t i = 0; i < state.sources.size(); ++i) {
-    state.samples[i] = state.sources[i]->sample(t1);
+    // A source that yields a non-finite value (a faulty device) is not believed: its last good sample stands.
+    const ProbeSample s = state.sources[i]->sample(t1);
+    if (s.point.allFinite() && s.force.allFinite() && s.displacement.allFinite())
+      state.samples[i] = s;
+    else
+      bad_input = true;
     all_fixed = all_fixed && state.sources[i]->point_is_fixed();
   }
   rec.ms[kInput] = ms_since(clock);
@@ -237,7 +243,9 @@ void step(const Model& model, State& state, FrameRecord& rec) {
     for (int e = 0; e < model.mesh.tets.rows(); ++e)
       if (physics::tet_volume(x1, model.mesh.tets, e) <= 0.0) ++inverted;
   rec.inverted_elements = inverted;
-  rec.numerical_failure = !finite;
+  rec.numerical_failure = !finite || bad_input;
+  rec.bad_input = bad_input;
+  if (bad_input) ++state.failures;
   if (finite) {
     state.x = std::move(x1);
     state.u = std::move(u);

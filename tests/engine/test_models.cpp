@@ -2,6 +2,8 @@
 // shrinking linearly with the load) and is reported per frame; unsupported combinations are refused.
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include "engine/simulation.hpp"
 
 using namespace lumen;
@@ -49,4 +51,46 @@ TEST(Models, CorotationalRefusesDisplacementDrivenProbes) {
   } catch (const engine::InputError& e) {
     EXPECT_STREQ(e.what(), "m.json: probes[0].track: displacement-driven probes need material.model \"linear\" (value \"corotational\")");
   }
+}
+
+namespace {
+// A faulty device: NaN on some frames, a real force otherwise.
+class FlakySource final : public engine::InputSource {
+ public:
+  std::string kind() const override { return "device"; }
+  engine::ProbeSample sample(double t) override {
+    engine::ProbeSample s;
+    s.point = Eigen::Vector3d(0.0, 0.013, 0.04);
+    s.force = Eigen::Vector3d(0, -0.004 * t, 0);
+    if (++calls_ % 3 == 0) s.force.y() = std::numeric_limits<double>::quiet_NaN();
+    return s;
+  }
+  void feedback(double, const Eigen::Vector3d& reaction) override { reactions.push_back(reaction); }
+  std::vector<Eigen::Vector3d> reactions;
+
+ private:
+  int calls_ = 0;
+};
+}  // namespace
+
+TEST(Models, FaultyDeviceIsDetectedReportedAndSurvived) {
+  auto m = engine::compile_model(engine::parse_scene(scene_text("linear", 0.004), "m.json"));
+  engine::State s = engine::make_state(*m);
+  auto device = std::make_unique<FlakySource>();
+  FlakySource* dev = device.get();
+  s.sources[0] = std::move(device);
+  engine::FrameRecord rec;
+  int failures = 0;
+  for (int i = 0; i < 12; ++i) {
+    engine::step(*m, s, rec);
+    failures += rec.bad_input;
+    EXPECT_EQ(rec.bad_input, (i + 1) % 3 == 0) << "frame " << rec.frame;
+    EXPECT_TRUE(s.u.allFinite());
+    EXPECT_TRUE(rec.reactions[0].allFinite());
+  }
+  EXPECT_EQ(failures, 4);
+  EXPECT_EQ(s.failures, 4);
+  EXPECT_EQ(dev->reactions.size(), 12u);
+  // Frame 12 was a bad one: it used frame 11's sample, the last good one.
+  EXPECT_NEAR(rec.reactions[0].y(), 0.004 * 11 / 40.0, 1e-15);
 }
