@@ -422,11 +422,11 @@ int cubic_roots(const double b[4], double roots[3]) {
   return n;
 }
 
-// (u, v) minimising |d + u e + v f| at time t (floating-point estimate).
-bool closest_uv(const Problem& pb, double t, double& u, double& v) {
+// Dot products of d, e, f at time t: the normal equations of min |d + u e + v f|.
+void normal_sums(const Problem& pb, double t, double& ee, double& ef, double& ff, double& ed, double& fd) {
   double D[3], E[3], F[3];
   at_time(pb, t, D, E, F);
-  double ee = 0, ef = 0, ff = 0, ed = 0, fd = 0;
+  ee = ef = ff = ed = fd = 0.0;
   for (int j = 0; j < 3; ++j) {
     ee += E[j] * E[j];
     ef += E[j] * F[j];
@@ -434,6 +434,12 @@ bool closest_uv(const Problem& pb, double t, double& u, double& v) {
     ed += E[j] * D[j];
     fd += F[j] * D[j];
   }
+}
+
+// (u, v) minimising |d + u e + v f| at time t (floating-point estimate).
+bool closest_uv(const Problem& pb, double t, double& u, double& v) {
+  double ee, ef, ff, ed, fd;
+  normal_sums(pb, t, ee, ef, ff, ed, fd);
   const double det = ee * ff - ef * ef;
   if (!(det > 1e-12 * ee * ff) || !std::isfinite(det)) return false;
   u = (-ed * ff + fd * ef) / det;
@@ -519,16 +525,8 @@ bool certify_near(const Problem& pb, double t, Box& cert, double& uc, double& vc
 // (vf) or the unit square (ee), floating-point estimate: the interior stationary point if inside, else
 // the best of the clamped minimisers along each side.
 void closest_in_domain(const Problem& pb, double t, double& u, double& v) {
-  double D[3], E[3], F[3];
-  at_time(pb, t, D, E, F);
-  double ee = 0, ef = 0, ff = 0, ed = 0, fd = 0;
-  for (int j = 0; j < 3; ++j) {
-    ee += E[j] * E[j];
-    ef += E[j] * F[j];
-    ff += F[j] * F[j];
-    ed += E[j] * D[j];
-    fd += F[j] * D[j];
-  }
+  double ee, ef, ff, ed, fd;
+  normal_sums(pb, t, ee, ef, ff, ed, fd);
   auto inside = [&](double x, double y) {
     return x >= 0.0 && y >= 0.0 && (pb.simplex ? x + y <= 1.0 : (x <= 1.0 && y <= 1.0));
   };

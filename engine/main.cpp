@@ -43,11 +43,11 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
   if (!video.empty() && fs::path(video).extension() != ".mp4")
     throw engine::InputError("--video: must name an .mp4 file (value \"" + video + "\")");
   if (video.empty() && scene.render.video && !no_render) video = (fs::path(out_dir) / "video.mp4").string();
+  for (const auto& probe : scene.probes)
+    if (!probe.replay.empty()) engine::ReplaySource check_replay(probe.replay);  // refuse a bad replay file now
   auto model = engine::compile_model(scene);
   engine::SessionOptions opt;
   opt.frames = frames;
-  for (const auto& probe : scene.probes)
-    if (!probe.replay.empty()) engine::ReplaySource check_replay(probe.replay);  // refuse a bad replay file now
   prepare_output_dir(out_dir);
   if (!video.empty()) prepare_output_dir(fs::path(video).parent_path().empty() ? "." : fs::path(video).parent_path().string());
   opt.out_dir = out_dir;

@@ -404,6 +404,16 @@ Eigen::VectorXd finish(SurfaceCompliance& compliance, const std::vector<ContactR
   return row_values(rows, u_free + out.correction);
 }
 
+// Violation of H u >= g (h = H u), and of equality where the row pushes (lambda > 0), metres.
+double lcp_residual(const Eigen::VectorXd& g, const Eigen::VectorXd& h, const Eigen::VectorXd& lambda) {
+  double res = 0.0;
+  for (Eigen::Index r = 0; r < g.size(); ++r) {
+    res = std::max(res, g[r] - h[r]);
+    if (lambda[r] > 0.0) res = std::max(res, std::abs(h[r] - g[r]));
+  }
+  return res;
+}
+
 void check_u_free(const SurfaceCompliance& compliance, const Eigen::VectorXd& u_free, const char* who) {
   if (u_free.size() != compliance.solver().n_dofs())
     fail(std::string(who) + ": u_free must have " + std::to_string(compliance.solver().n_dofs()) + " entries, got " +
@@ -463,14 +473,8 @@ ContactResult solve_lcp(SurfaceCompliance& compliance, const std::vector<Contact
   out.lambda = lcp.z;
   out.iterations = lcp.iterations;
   const Eigen::VectorXd h = finish(compliance, rows, u_free, out);
-  // Violation of H u >= g, and of equality where the row pushes.
-  double res = 0.0;
-  for (int r = 0; r < m; ++r) {
-    res = std::max(res, g[r] - h[r]);
-    if (out.lambda[r] > 0.0) res = std::max(res, std::abs(h[r] - g[r]));
-  }
-  out.residual = res;
-  out.converged = lcp.converged && res <= options.tolerance;
+  out.residual = lcp_residual(g, h, out.lambda);
+  out.converged = lcp.converged && out.residual <= options.tolerance;
   return out;
 }
 
@@ -535,14 +539,8 @@ ContactResult solve_contacts(SurfaceCompliance& compliance, const std::vector<Co
           out.force.segment<3>(3 * held->points[p].node[k]) += held->points[p].weight[k] * out.held_force.segment<3>(3 * p);
     h = row_values(rows, u_free + out.correction);
   }
-  // Violation of H u >= g, and of equality where the row pushes.
-  double res = 0.0;
-  for (int r = 0; r < m; ++r) {
-    res = std::max(res, g[r] - h[r]);
-    if (out.lambda[r] > 0.0) res = std::max(res, std::abs(h[r] - g[r]));
-  }
-  out.residual = res;
-  out.converged = lcp.converged && res <= options.tolerance;
+  out.residual = lcp_residual(g, h, out.lambda);
+  out.converged = lcp.converged && out.residual <= options.tolerance;
   return out;
 }
 
