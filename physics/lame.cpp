@@ -1,4 +1,4 @@
-// Lame thick-walled cylinder check of the tetrahedral FEM.
+// Lame thick-walled cylinder check of the tetrahedral FEM (linear and quadratic tets).
 #include "physics/lame.hpp"
 
 #include <algorithm>
@@ -40,6 +40,10 @@ LameResult lame_error(const LameSetup& setup) {
     msg << "LameSetup.pressure must be finite and non-zero, got " << setup.pressure;
     throw std::invalid_argument(msg.str());
   }
+  if (setup.element != ElementOrder::kLinear && setup.element != ElementOrder::kQuadratic) {
+    throw std::invalid_argument("LameSetup.element must be kLinear or kQuadratic, got " +
+                                std::to_string(static_cast<int>(setup.element)));
+  }
   if (!(setup.length >= 0.0)) {
     std::ostringstream msg;
     msg << "LameSetup.length must be >= 0 (0 = automatic), got " << setup.length;
@@ -56,36 +60,53 @@ LameResult lame_error(const LameSetup& setup) {
                     ? setup.length
                     : setup.segments_along * kPi * (setup.inner_radius + setup.outer_radius) / setup.segments_around;
   const TetMesh mesh = make_hollow_cylinder(spec);
-  const int n = mesh.n_nodes();
   const double a = spec.inner_radius, b = spec.outer_radius;
+  const bool quadratic = setup.element == ElementOrder::kQuadratic;
+  const QuadraticMesh qmesh = quadratic ? make_quadratic_cylinder(mesh, spec) : QuadraticMesh{};
+  const Points& x = quadratic ? qmesh.rest : mesh.rest;  // all nodes, n x 3, metres
+  const int n = static_cast<int>(x.rows());
 
-  // Constraints: u_z = 0 on both ends; u_y = 0 at angles 0 and pi, u_x = 0 at pi/2 on the start inner ring.
+  // Constraints: u_z = 0 on both ends (every end node); u_y = 0 at angles 0 and pi, u_x = 0 at pi/2 on the start
+  // inner ring (corner nodes, the same ids for both element orders).
   std::vector<FixedDof> fixed;
-  for (int v : mesh.end_nodes_start) fixed.push_back({v, 2});
-  for (int v : mesh.end_nodes_stop) fixed.push_back({v, 2});
+  for (int v : quadratic ? qmesh.end_nodes_start : mesh.end_nodes_start) fixed.push_back({v, 2});
+  for (int v : quadratic ? qmesh.end_nodes_stop : mesh.end_nodes_stop) fixed.push_back({v, 2});
   fixed.push_back({closest(mesh.rest, mesh.end_nodes_start, {a, 0.0, 0.0}), 1});
   fixed.push_back({closest(mesh.rest, mesh.end_nodes_start, {-a, 0.0, 0.0}), 1});
   fixed.push_back({closest(mesh.rest, mesh.end_nodes_start, {0.0, a, 0.0}), 0});
 
-  // Pressure as consistent nodal forces: p * area / 3 per vertex, along -(inner normal) = out of the lumen.
+  // Pressure as consistent nodal forces out of the lumen (the inner triangles' normals point into it).
   Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * n);
-  for (int t = 0; t < mesh.inner.rows(); ++t) {
-    const Eigen::Vector3d x0 = mesh.rest.row(mesh.inner(t, 0)).transpose();
-    const Eigen::Vector3d x1 = mesh.rest.row(mesh.inner(t, 1)).transpose();
-    const Eigen::Vector3d x2 = mesh.rest.row(mesh.inner(t, 2)).transpose();
-    const Eigen::Vector3d area_normal = 0.5 * (x1 - x0).cross(x2 - x0);  // into the lumen, |.| = area
-    for (int c = 0; c < 3; ++c) f.segment<3>(3 * mesh.inner(t, c)) -= setup.pressure / 3.0 * area_normal;
+  if (quadratic) {
+    // Curved 6-node faces: quadrature of p N_a n dA over each face's quadratic map.
+    for (int t = 0; t < qmesh.inner.rows(); ++t) {
+      Eigen::Matrix<double, 6, 3> X6;
+      for (int c = 0; c < 6; ++c) X6.row(c) = x.row(qmesh.inner(t, c));
+      const Eigen::Matrix<double, 6, 3> f6 = tri6_pressure_load(X6, setup.pressure);
+      for (int c = 0; c < 6; ++c) f.segment<3>(3 * qmesh.inner(t, c)) += f6.row(c).transpose();
+    }
+  } else {
+    // Flat triangles: p * area / 3 per vertex, along -(inner normal).
+    for (int t = 0; t < mesh.inner.rows(); ++t) {
+      const Eigen::Vector3d x0 = mesh.rest.row(mesh.inner(t, 0)).transpose();
+      const Eigen::Vector3d x1 = mesh.rest.row(mesh.inner(t, 1)).transpose();
+      const Eigen::Vector3d x2 = mesh.rest.row(mesh.inner(t, 2)).transpose();
+      const Eigen::Vector3d area_normal = 0.5 * (x1 - x0).cross(x2 - x0);  // into the lumen, |.| = area
+      for (int c = 0; c < 3; ++c) f.segment<3>(3 * mesh.inner(t, c)) -= setup.pressure / 3.0 * area_normal;
+    }
   }
 
   // Solve and compare the radial displacement at every node.
-  const StaticSolver solver(assemble_stiffness(mesh, setup.material), fixed);
+  const StaticSolver solver(quadratic ? assemble_stiffness(qmesh, setup.material)
+                                      : assemble_stiffness(mesh, setup.material),
+                            fixed);
   Eigen::VectorXd u;
   solver.solve(f, u);
   double err2 = 0.0, ref2 = 0.0, max_err = 0.0, max_ref = 0.0, max_t = 0.0, max_z = 0.0;
   for (int v = 0; v < n; ++v) {
-    const double x = mesh.rest(v, 0), y = mesh.rest(v, 1), r = std::hypot(x, y);
-    const double ur = (u[3 * v] * x + u[3 * v + 1] * y) / r;
-    const double ut = (-u[3 * v] * y + u[3 * v + 1] * x) / r;
+    const double px = x(v, 0), py = x(v, 1), r = std::hypot(px, py);
+    const double ur = (u[3 * v] * px + u[3 * v + 1] * py) / r;
+    const double ut = (-u[3 * v] * py + u[3 * v + 1] * px) / r;
     const double exact = lame_radial_displacement(r, a, b, setup.material, setup.pressure);
     err2 += (ur - exact) * (ur - exact);
     ref2 += exact * exact;
@@ -104,13 +125,14 @@ LameResult lame_error(const LameSetup& setup) {
   return res;
 }
 
-LameResult lame_error(int around, int along, int layers, double E, double nu, double p) {
+LameResult lame_error(int around, int along, int layers, double E, double nu, double p, ElementOrder element) {
   LameSetup s;
   s.segments_around = around;
   s.segments_along = along;
   s.layers = layers;
   s.material = {E, nu};
   s.pressure = p;
+  s.element = element;
   return lame_error(s);
 }
 

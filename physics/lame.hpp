@@ -2,6 +2,7 @@
 // Lame thick-walled cylinder under internal pressure (plane strain): an analytic check of the FEM, reusable by
 // studies that sweep the mesh resolution.
 #include "physics/fem.hpp"
+#include "physics/quadratic.hpp"
 
 namespace lumen::physics {
 
@@ -18,24 +19,29 @@ struct LameSetup {
   double length = 0.0;
   LinearMaterial material{5000.0, 0.45};
   double pressure = 100.0;  // internal pressure p, pascals
+  // 4-node tets, or 10-node isoparametric tets (make_quadratic_cylinder) with u_z = 0 on every end node (corner
+  // and edge) and the same three in-plane pins (at corner nodes).
+  ElementOrder element = ElementOrder::kLinear;
 };
 
 struct LameResult {
-  double rel_l2_error = 0.0;    // sqrt(sum (u_r - u_r*)^2 / sum u_r*^2) over all nodes
+  double rel_l2_error = 0.0;    // sqrt(sum (u_r - u_r*)^2 / sum u_r*^2) over all nodes (corners and edge nodes)
   double max_rel_error = 0.0;   // max |u_r - u_r*| / max |u_r*|
   double max_tangential = 0.0;  // max |u_theta| / max |u_r*| (exact: 0)
   double max_axial = 0.0;       // max |u_z| / max |u_r*| (exact: 0)
-  int n_nodes = 0;
+  int n_nodes = 0;  // all nodes (3 DOFs each)
   int n_tets = 0;
 };
 
 // Exact radial displacement u_r(r) = (1+nu)/E p a^2/(b^2-a^2) ((1-2nu) r + b^2/r), metres.
 double lame_radial_displacement(double r, double a, double b, const LinearMaterial& m, double pressure);
 
-// Builds the mesh, applies the pressure as consistent nodal forces (p * area / 3 per vertex of each inner
-// triangle, pointing out of the lumen), solves, and compares u_r with the exact solution at every node.
+// Builds the mesh, applies the pressure as consistent nodal forces pointing out of the lumen (linear: p * area / 3
+// per vertex of each inner triangle; quadratic: tri6_pressure_load on each curved 6-node inner face), solves, and
+// compares u_r with the exact solution at every node.
 LameResult lame_error(const LameSetup& setup);
 // Shorthand with the default radii: E pascals, nu, p pascals.
-LameResult lame_error(int around, int along, int layers, double E, double nu, double p);
+LameResult lame_error(int around, int along, int layers, double E, double nu, double p,
+                      ElementOrder element = ElementOrder::kLinear);
 
 }  // namespace lumen::physics

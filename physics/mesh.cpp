@@ -134,6 +134,18 @@ TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec) {
   return mesh;
 }
 
+Eigen::Vector3d hollow_cylinder_point(const HollowCylinderSpec& spec, double s, double r, double theta) {
+  // Same frame as the generator: straight centreline (0, 0, s) with e1 = x; bent arc with e1 = (cos phi, 0, -sin phi).
+  Eigen::Vector3d c(0.0, 0.0, s), e1(1.0, 0.0, 0.0);
+  const Eigen::Vector3d e2(0.0, 1.0, 0.0);
+  if (spec.bend_radius > 0.0) {
+    const double R = spec.bend_radius, phi = s / R;
+    c = Eigen::Vector3d(R - R * std::cos(phi), 0.0, R * std::sin(phi));
+    e1 = Eigen::Vector3d(std::cos(phi), 0.0, -std::sin(phi));
+  }
+  return c + r * std::cos(theta) * e1 + r * std::sin(theta) * e2;
+}
+
 double tet_volume(const Points& x, const Tets& tets, int t) {
   if (t < 0 || t >= tets.rows()) {
     throw std::invalid_argument("tet_volume: t must be in [0, " + std::to_string(tets.rows()) + "), got " +

@@ -43,6 +43,12 @@ struct HollowCylinderSpec {
 // close the tube on itself: length / bend_radius must be < 2 pi).
 TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec);
 
+// Point of the hollow cylinder of `spec` at arc length s along the centreline (metres), distance r from it
+// (metres) and angle theta (radians) from the local x axis of the ring at s: the map make_hollow_cylinder places
+// its nodes with (s = length j / along, r = inner + (outer - inner) k / layers, theta = 2 pi i / around). Any
+// (s, r, theta) is accepted (no validation of spec), so callers can evaluate between grid points.
+Eigen::Vector3d hollow_cylinder_point(const HollowCylinderSpec& spec, double s, double r, double theta);
+
 // Signed volume of tet t at the given positions (positive when not inverted), cubic metres.
 double tet_volume(const Points& x, const Tets& tets, int t);
 
