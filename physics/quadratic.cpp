@@ -375,4 +375,32 @@ QuadraticMesh make_quadratic_cylinder(const TetMesh& mesh, const HollowCylinderS
   return q;
 }
 
+Tris split_tri6(const Tris6& tris) {
+  Tris out(4 * tris.rows(), 3);
+  for (int t = 0; t < tris.rows(); ++t) {
+    // Corners c0..c2 and edge nodes e01, e12, e20 (kTri6Edges order).
+    const int c0 = tris(t, 0), c1 = tris(t, 1), c2 = tris(t, 2), e01 = tris(t, 3), e12 = tris(t, 4), e20 = tris(t, 5);
+    out.row(4 * t + 0) << c0, e01, e20;
+    out.row(4 * t + 1) << e01, c1, e12;
+    out.row(4 * t + 2) << e20, e12, c2;
+    out.row(4 * t + 3) << e01, e12, e20;
+  }
+  return out;
+}
+
+TetMesh surface_view(const QuadraticMesh& q, const TetMesh& linear) {
+  if (linear.n_nodes() != q.n_corners)
+    throw std::invalid_argument("surface_view: linear mesh has " + std::to_string(linear.n_nodes()) +
+                                " nodes, the quadratic mesh " + std::to_string(q.n_corners) + " corners");
+  TetMesh m;
+  m.rest = q.rest;
+  m.tets = linear.tets;
+  m.inner = split_tri6(q.inner);
+  m.outer = split_tri6(q.outer);
+  m.ends = split_tri6(q.ends);
+  m.end_nodes_start = q.end_nodes_start;
+  m.end_nodes_stop = q.end_nodes_stop;
+  return m;
+}
+
 }  // namespace lumen::physics

@@ -93,4 +93,14 @@ Eigen::SparseMatrix<double> assemble_stiffness(const QuadraticMesh& mesh, const 
 // pressure pushes against a face whose normal points out of the body. Exact for quadratic geometry (degree 5 rule).
 Eigen::Matrix<double, 6, 3> tri6_pressure_load(const Eigen::Matrix<double, 6, 3>& X, double pressure);
 
+// Each 6-node triangle split into 4 linear triangles over its corner and edge nodes, same orientation:
+// (c0, e01, e20), (e01, c1, e12), (e20, e12, c2), (e01, e12, e20). n x 6 -> 4n x 3.
+Tris split_tri6(const Tris6& tris);
+
+// The linear view of a quadratic mesh that rendering and collision use: all its nodes (corners and edge nodes,
+// so positions and displacements index alike), its walls as split_tri6 triangles (twice the linear mesh's
+// resolution along each edge, mapped onto the volume's nodes), the linear mesh's corner tets (an orientation
+// proxy for inversion counts) and its end node sets (corners and edge nodes).
+TetMesh surface_view(const QuadraticMesh& q, const TetMesh& linear);
+
 }  // namespace lumen::physics

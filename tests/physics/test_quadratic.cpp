@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <random>
 #include <set>
 #include <stdexcept>
@@ -592,6 +593,41 @@ TEST(Quadratic, PaperMeshSizesAndTimings) {
   for (int d = 0; d < r.size(); ++d)
     if (solver.is_fixed_dof(d)) r[d] = 0.0;
   EXPECT_LT(r.norm(), 1e-8 * f.norm());
+}
+
+// The split inner wall of an isoparametric cylinder is the polygonal tube through its nodes: 2 x around sides
+// inscribed in the inner radius, so its area is exactly length x 2N a sin(pi / N), N = 2 around; every split
+// triangle faces the axis and every edge is shared by two triangles or lies on an end ring.
+TEST(Quadratic, SurfaceViewSplitsTheWallsIntoTheInscribedPolygonTube) {
+  HollowCylinderSpec spec{0.01, 0.013, 0.03, 8, 3, 2, 0.0};
+  const TetMesh lin = make_hollow_cylinder(spec);
+  const QuadraticMesh q = make_quadratic_cylinder(lin, spec);
+  const TetMesh v = surface_view(q, lin);
+  ASSERT_EQ(v.inner.rows(), 4 * lin.inner.rows());
+  ASSERT_EQ(v.outer.rows(), 4 * lin.outer.rows());
+  ASSERT_EQ(v.n_nodes(), q.n_nodes());
+  const int n_sides = 2 * spec.segments_around;
+  const double pi = 3.14159265358979323846;
+  double area = 0.0;
+  std::map<std::pair<int, int>, int> edge_count;
+  for (int t = 0; t < v.inner.rows(); ++t) {
+    const Eigen::Vector3d a = v.rest.row(v.inner(t, 0)), b = v.rest.row(v.inner(t, 1)), c = v.rest.row(v.inner(t, 2));
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    area += 0.5 * n.norm();
+    // Facing the axis: the normal points from the centroid toward the axis.
+    const Eigen::Vector3d g = (a + b + c) / 3.0;
+    EXPECT_LT(n.x() * g.x() + n.y() * g.y(), 0.0) << "triangle " << t;
+    for (int k = 0; k < 3; ++k) {
+      const int p = v.inner(t, k), r = v.inner(t, (k + 1) % 3);
+      ++edge_count[{std::min(p, r), std::max(p, r)}];
+    }
+  }
+  EXPECT_NEAR(area, spec.length * 2.0 * n_sides * spec.inner_radius * std::sin(pi / n_sides), 1e-12);
+  for (const auto& [e, count] : edge_count) {
+    const bool on_end = std::abs(v.rest(e.first, 2) - v.rest(e.second, 2)) < 1e-12 &&
+                        (std::abs(v.rest(e.first, 2)) < 1e-12 || std::abs(v.rest(e.first, 2) - spec.length) < 1e-12);
+    EXPECT_EQ(count, on_end ? 1 : 2) << "edge " << e.first << "-" << e.second;
+  }
 }
 
 }  // namespace
