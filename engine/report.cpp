@@ -100,6 +100,9 @@ nlohmann::json frame_json(const FrameRecord& r) {
   j["bad_input"] = r.bad_input;
   j["physics_iterations"] = r.physics_iterations;
   j["physics_converged"] = r.physics_converged;
+  j["twist_degrees"] = r.twist_degrees;
+  j["kinetic_energy_j"] = r.kinetic_energy;
+  j["contact_force_n"] = r.contact_force;
   j["max_displacement_m"] = r.max_displacement;
   nlohmann::json re = nlohmann::json::array();
   for (const auto& f : r.reactions) re.push_back({f.x(), f.y(), f.z()});

@@ -27,8 +27,12 @@ struct FrameRecord {
   int inverted_elements = 0;          // tets with non-positive volume after the frame
   bool numerical_failure = false;     // NaN/Inf or solver failure: the last good frame was kept
   bool bad_input = false;             // a source gave a non-finite sample; its last good sample was used
-  int physics_iterations = 0;         // corotational: outer iterations of the nonlinear solve (0 for linear)
-  bool physics_converged = true;      // corotational: the nonlinear solve reached its tolerance
+  int physics_iterations = 0;         // corotational or dynamic: outer iterations of the solve (0 for static linear)
+  bool physics_converged = true;      // corotational or dynamic: the solve reached its tolerance
+  double twist_degrees = 0.0;         // angle of the twisted end ring at the end of the frame (0 without twist)
+  double kinetic_energy = 0.0;        // dynamic: 1/2 v^T M v at the end of the frame, joules (0 quasi-static)
+  double contact_force = 0.0;         // constraint response: total normal force the walls carry (sum of the
+                                      // contact multipliers), newtons; 0 without contact or with "paper"
   double max_displacement = 0.0;      // metres, max node displacement from rest
   std::vector<Eigen::Vector3d> reactions;  // per probe, newtons
 };

@@ -177,6 +177,8 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     clock = Clock::now();
   }
   rec.response_iterations = iterations;
+  // Total normal force the walls carry (the constraint response's multipliers are contact forces).
+  if (iterations > 0 && cs.response == "constraint") rec.contact_force = solved.lambda.sum();
 
   // The probes' forces with the contacts' effect (what a device displays): displacement-driven probes change
   // their force so that contacts do not move them; in the paper's response every probe is held, and the holding

@@ -99,9 +99,10 @@ class Reader {
   std::string file_;
 };
 
-void read_mesh(const Reader& r, const json& m, physics::HollowCylinderSpec& spec) {
+void read_mesh(const Reader& r, const json& m, physics::HollowCylinderSpec& spec, std::string& element) {
   r.only_keys(m, "mesh", {"type", "inner_radius", "outer_radius", "length", "segments_around", "segments_along",
-                          "layers", "bend_radius"});
+                          "layers", "bend_radius", "element"});
+  if (m.contains("element")) element = r.one_of(m.at("element"), "mesh.element", {"tet4", "tet10"});
   r.one_of(r.require(m, "mesh", "type"), "mesh.type", {"hollow_cylinder"});
   spec.inner_radius = r.positive(r.require(m, "mesh", "inner_radius"), "mesh.inner_radius");
   spec.outer_radius = r.positive(r.require(m, "mesh", "outer_radius"), "mesh.outer_radius");
@@ -179,7 +180,18 @@ void read_render(const Reader& r, const json& m, RenderSpec& spec) {
 }
 
 void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
-  r.only_keys(m, "collision", {"self", "kdop", "response", "gap", "max_iterations"});
+  r.only_keys(m, "collision", {"self", "kdop", "response", "gap", "max_iterations", "surfaces"});
+  if (m.contains("surfaces")) {
+    const json& list = m.at("surfaces");
+    if (!list.is_array() || list.empty()) r.fail("collision.surfaces", "must be a non-empty array of wall names", &list);
+    bool inner = false;
+    for (size_t i = 0; i < list.size(); ++i) {
+      const std::string wall = r.one_of(list[i], Reader::index("collision.surfaces", i), {"inner", "outer"});
+      inner = inner || wall == "inner";
+      spec.outer_wall = spec.outer_wall || wall == "outer";
+    }
+    if (!inner) r.fail("collision.surfaces", "must include \"inner\" (the lumen's walls always collide)", &list);
+  }
   if (m.contains("self")) spec.self = r.boolean(m.at("self"), "collision.self");
   if (m.contains("kdop")) {
     spec.kdop = r.integer_in(m.at("kdop"), "collision.kdop", 6, 26);
@@ -190,6 +202,45 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
   if (m.contains("gap")) spec.gap = r.number_in(m.at("gap"), "collision.gap", 0.0, 0.01, false, false);
   if (m.contains("max_iterations"))
     spec.max_iterations = r.integer_in(m.at("max_iterations"), "collision.max_iterations", 1, 100);
+}
+
+void read_solver(const Reader& r, const json& m, SolverSpec& spec) {
+  r.only_keys(m, "solver", {"type", "tolerance", "max_iterations", "rayleigh_mass", "rayleigh_stiffness"});
+  if (m.contains("type")) spec.type = r.one_of(m.at("type"), "solver.type", {"quasi_static", "dynamic"});
+  if (m.contains("tolerance"))
+    spec.tolerance = r.number_in(m.at("tolerance"), "solver.tolerance", 0.0, 1.0, true, true);
+  if (m.contains("max_iterations"))
+    spec.max_iterations = r.integer_in(m.at("max_iterations"), "solver.max_iterations", 1, 10000);
+  // Rayleigh damping: only a dynamic solve has velocities to damp (refused otherwise, as a likely mistake).
+  auto damping = [&](const char* key, double& out) {
+    if (!m.contains(key)) return;
+    const std::string path = std::string("solver.") + key;
+    if (spec.type != "dynamic") r.fail(path, "needs solver.type \"dynamic\"", &m.at(key));
+    out = r.number(m.at(key), path);
+    if (!(out >= 0.0)) r.fail(path, "must be >= 0", &m.at(key));
+  };
+  damping("rayleigh_mass", spec.rayleigh_mass);
+  damping("rayleigh_stiffness", spec.rayleigh_stiffness);
+}
+
+void read_twist(const Reader& r, const json& m, TwistSpec& spec) {
+  r.only_keys(m, "twist", {"end", "track"});
+  spec.end = r.one_of(r.require(m, "twist", "end"), "twist.end", {"start", "stop"});
+  // Key frames of the angle: times >= 0 and strictly increasing, angles within two turns either way.
+  const json& track = r.require(m, "twist", "track");
+  if (!track.is_array()) r.fail("twist.track", "must be an array of {\"t\", \"degrees\"} keys", &track);
+  if (track.empty()) r.fail("twist.track", "must not be empty", &track);
+  for (size_t k = 0; k < track.size(); ++k) {
+    const std::string kpath = Reader::index("twist.track", k);
+    r.only_keys(track[k], kpath, {"t", "degrees"});
+    TwistKey key;
+    key.t = r.number(r.require(track[k], kpath, "t"), kpath + ".t");
+    if (key.t < 0) r.fail(kpath + ".t", "must be >= 0", &track[k].at("t"));
+    if (!spec.track.empty() && !(key.t > spec.track.back().t))
+      r.fail(kpath + ".t", "track times must be strictly increasing", &track[k].at("t"));
+    key.degrees = r.number_in(r.require(track[k], kpath, "degrees"), kpath + ".degrees", -720.0, 720.0, false, false);
+    spec.track.push_back(key);
+  }
 }
 
 }  // namespace
@@ -204,7 +255,8 @@ Scene parse_scene(const std::string& text, const std::string& path) {
     // Syntax errors, and numbers that overflow a double (1e999): name the file and the parser's reason.
     throw InputError(path + ": malformed JSON: " + e.what());
   }
-  r.only_keys(root, "", {"name", "mesh", "material", "fixed", "probes", "frames", "fps", "render", "collision"});
+  r.only_keys(root, "", {"name", "mesh", "material", "fixed", "probes", "frames", "fps", "render", "collision",
+                          "solver", "twist"});
 
   Scene s;
   s.path = path;
@@ -212,7 +264,7 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   s.name = r.string(r.require(root, "", "name"), "name");
   if (s.name.empty() || s.name.find_first_of("/\\") != std::string::npos || s.name == "." || s.name == "..")
     r.fail("name", "must be a non-empty name without path separators", &root.at("name"));
-  read_mesh(r, r.require(root, "", "mesh"), s.mesh);
+  read_mesh(r, r.require(root, "", "mesh"), s.mesh, s.element);
   read_material(r, r.require(root, "", "material"), s.material);
 
   // Named node sets held still.
@@ -230,6 +282,15 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   if (!(s.fps > 0) || s.fps > 10000) r.fail("fps", "out of range (0, 10000]", &root.at("fps"));
   if (root.contains("render")) read_render(r, root.at("render"), s.render);
   if (root.contains("collision")) read_collision(r, root.at("collision"), s.collision);
+  if (root.contains("solver")) read_solver(r, root.at("solver"), s.solver);
+  if (root.contains("twist")) read_twist(r, root.at("twist"), s.twist);
+  // Quadratic elements come with the linear quasi-static model only (prefactorised, like the paper's).
+  if (s.element == "tet10" && s.material.model != "linear")
+    r.fail("mesh.element", "\"tet10\" needs material.model \"linear\" (got \"" + s.material.model + "\")",
+           &root.at("mesh").at("element"));
+  if (s.element == "tet10" && s.solver.type != "quasi_static")
+    r.fail("mesh.element", "\"tet10\" needs solver.type \"quasi_static\" (got \"" + s.solver.type + "\")",
+           &root.at("mesh").at("element"));
   return s;
 }
 

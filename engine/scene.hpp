@@ -57,12 +57,42 @@ struct CollisionSpec {
   std::string response = "constraint";  // "paper" | "constraint"
   double gap = 1e-4;               // minimum separation, metres
   int max_iterations = 8;          // response/re-check rounds before the safe fallback
+  // Walls that take part in self-collision: the inner wall only (the paper's, the default), or also the outer
+  // wall ("outer") when a scene folds the organ so that its outside meets itself.
+  bool outer_wall = false;         // key "surfaces": ["inner"] | ["inner", "outer"]
+};
+
+// How a frame is solved: quasi-statically (equilibrium with the frame's loads) or by one implicit dynamic step.
+struct SolverSpec {
+  std::string type = "quasi_static";  // "quasi_static" | "dynamic" (backward Euler, lumped mass, step 1 / fps)
+  double tolerance = 1e-3;            // corotational nonlinear solve: relative residual, (0, 1)
+  int max_iterations = 20;            // its outer iterations, >= 1
+  double rayleigh_mass = 0.0;         // dynamic: Rayleigh alpha (C = alpha M + beta K), 1/s, >= 0
+  double rayleigh_stiffness = 0.0;    // dynamic: Rayleigh beta, s, >= 0
+};
+
+// One key of a twist track: the angle reached at time t, linear in between, held after the last key.
+struct TwistKey {
+  double t = 0.0;        // seconds
+  double degrees = 0.0;  // rotation of the end ring about the tube axis (right-handed about the centreline
+                         // direction from the start end to the stop end)
+};
+
+// One end ring turned about the tube axis (z for a straight tube; the ring-plane normal for a bent one) through
+// the ring's centre: its nodes are prescribed u = R(theta) (X - c) + c - X (held, like a fixed end).
+struct TwistSpec {
+  std::string end;              // "" (no twist) | "start" | "stop"
+  std::vector<TwistKey> track;  // non-empty when end is set, times strictly increasing
+  bool enabled() const { return !end.empty(); }
 };
 
 struct Scene {
   std::string path;  // the file it was read from
   std::string name;
   physics::HollowCylinderSpec mesh;
+  // Element of the volume mesh (key mesh.element): "tet4" (linear, the paper's) or "tet10" (quadratic,
+  // isoparametric; its walls are drawn and collide as each face split into 4 triangles over the edge nodes).
+  std::string element = "tet4";
   MaterialSpec material;
   std::vector<std::string> fixed;  // named node sets held still: "ends", "start", "stop"
   std::vector<ProbeSpec> probes;
@@ -70,6 +100,8 @@ struct Scene {
   double fps = 40.0;  // frames per second of simulated time; the budget is 1 / fps
   RenderSpec render;
   CollisionSpec collision;
+  SolverSpec solver;
+  TwistSpec twist;
 };
 
 // Read and validate a scene file; throws InputError with "FILE: KEY.PATH: problem (value V)".

@@ -163,7 +163,7 @@ SessionResult run_session(const Model& model, const SessionOptions& opt) {
     double check_ms = 0.0;
     if (opt.check) {
       const auto c0 = Clock::now();
-      rec.intersecting_pairs = collision::count_intersecting_pairs(state.x, model.mesh.inner);
+      rec.intersecting_pairs = collision::count_intersecting_pairs(state.x, model.collision_tris);
       check_ms = std::chrono::duration<double, std::milli>(Clock::now() - c0).count();
     }
 
@@ -182,6 +182,9 @@ SessionResult run_session(const Model& model, const SessionOptions& opt) {
     // Surface export (off the budget, like the writers).
     if (opt.export_surface && !opt.out_dir.empty())
       export_surface_obj(numbered(out / "surface", "inner_", rec.frame, ".obj"), state.x, model.mesh.inner);
+
+    // Observer (off the budget).
+    if (opt.on_frame) opt.on_frame(model, state, rec);
 
     result.frames.push_back(std::move(rec));
     if (tty && (i % 10 == 9 || i + 1 == frames)) {

@@ -1,5 +1,6 @@
 #pragma once
 // A whole session: the fixed-step frame loop, rendering, writers, budget check, report.
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,9 @@ struct SessionOptions {
   bool check = false;           // exact intersection count of the inner wall on every frame
   bool progress = false;        // progress line on stderr
   bool classify_overlaps = false;  // k-DOP study: split bounding-volume overlaps into with / without contact
+  // Called after every frame with the committed state (off the frame's budget: not timed), e.g. by studies
+  // that measure the deformed shape. Empty: none.
+  std::function<void(const Model&, const State&, const FrameRecord&)> on_frame;
 };
 
 struct SessionResult {

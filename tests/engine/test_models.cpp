@@ -94,3 +94,32 @@ TEST(Models, FaultyDeviceIsDetectedReportedAndSurvived) {
   // Frame 12 was a bad one: it used frame 11's sample, the last good one.
   EXPECT_NEAR(rec.reactions[0].y(), 0.004 * 11 / 40.0, 1e-15);
 }
+
+// The scene's solver keys bound the corotational solve: one outer iteration cannot converge on a nonlinear
+// load, and a tighter tolerance costs more iterations and lands closer to the tight solution.
+TEST(Models, SolverKeysBoundTheCorotationalSolve) {
+  auto first_frame = [](const std::string& solver, engine::FrameRecord& rec) {
+    std::string text = scene_text("corotational", 0.1);
+    const std::string key = "\"fps\": 40}", first_key = R"({"t": 0, "force": [0, 0, 0]},)";
+    text.replace(text.find(key), key.size(), "\"fps\": 40, \"solver\": " + solver + "}");
+    text.erase(text.find(first_key), first_key.size());  // the full load from the first frame on
+    const std::string mesh = R"("segments_around": 12, "segments_along": 8, "layers": 2)";
+    text.replace(text.find(mesh), mesh.size(), R"("segments_around": 8, "segments_along": 6, "layers": 1)");
+    auto m = engine::compile_model(engine::parse_scene(text, "m.json"));
+    engine::State s = engine::make_state(*m);
+    engine::step(*m, s, rec);
+    return s.u;
+  };
+  engine::FrameRecord one, loose, tight, tighter;
+  first_frame(R"({"max_iterations": 1})", one);
+  EXPECT_EQ(one.physics_iterations, 1);
+  EXPECT_FALSE(one.physics_converged);
+  const Eigen::VectorXd u_loose = first_frame(R"({"tolerance": 0.01})", loose);
+  const Eigen::VectorXd u_tight = first_frame(R"({"tolerance": 1e-6, "max_iterations": 100})", tight);
+  const Eigen::VectorXd u_ref = first_frame(R"({"tolerance": 1e-9, "max_iterations": 100})", tighter);
+  EXPECT_TRUE(loose.physics_converged);
+  EXPECT_TRUE(tight.physics_converged);
+  EXPECT_TRUE(tighter.physics_converged);
+  EXPECT_GT(tight.physics_iterations, loose.physics_iterations);
+  EXPECT_LT((u_tight - u_ref).norm(), (u_loose - u_ref).norm());
+}

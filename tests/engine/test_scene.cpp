@@ -193,3 +193,122 @@ TEST(Scene, UnreadableFile) {
     EXPECT_STREQ(e.what(), "/nonexistent/scene.json: cannot read scene file");
   }
 }
+
+TEST(Scene, SolverKeysWithDefaultsAndValues) {
+  auto d = parse_scene(good_scene().dump(), "dir/s.json");
+  EXPECT_EQ(d.solver.type, "quasi_static");
+  EXPECT_DOUBLE_EQ(d.solver.tolerance, 1e-3);
+  EXPECT_EQ(d.solver.max_iterations, 20);
+  EXPECT_EQ(d.solver.rayleigh_mass, 0.0);
+  EXPECT_EQ(d.solver.rayleigh_stiffness, 0.0);
+  json s = good_scene();
+  s["solver"] = json::parse(R"({"type": "dynamic", "tolerance": 1e-6, "max_iterations": 7, "rayleigh_mass": 2.5,
+                                "rayleigh_stiffness": 0.01})");
+  auto scene = parse_scene(s.dump(), "dir/s.json");
+  EXPECT_EQ(scene.solver.type, "dynamic");
+  EXPECT_DOUBLE_EQ(scene.solver.tolerance, 1e-6);
+  EXPECT_EQ(scene.solver.max_iterations, 7);
+  EXPECT_DOUBLE_EQ(scene.solver.rayleigh_mass, 2.5);
+  EXPECT_DOUBLE_EQ(scene.solver.rayleigh_stiffness, 0.01);
+}
+
+TEST(Scene, SolverKeysAreValidated) {
+  json s = good_scene();
+  s["solver"] = {{"type", "explicit"}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.type: must be one of quasi_static, dynamic (value \"explicit\")");
+  s["solver"] = {{"type", "dynamic"}, {"damping", 1.0}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.damping: unknown key");
+  s["solver"] = {{"tolerance", 0.0}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.tolerance: out of range (0, 1) (value 0.0)");
+  s["solver"] = {{"tolerance", 1.0}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.tolerance: out of range (0, 1) (value 1.0)");
+  s["solver"] = {{"tolerance", "tight"}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.tolerance: must be a number (value \"tight\")");
+  s["solver"] = {{"max_iterations", 0}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.max_iterations: out of range [1, 10000] (value 0)");
+  s["solver"] = {{"max_iterations", 2.5}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.max_iterations: must be an integer (value 2.5)");
+  s["solver"] = {{"type", "dynamic"}, {"rayleigh_mass", -0.1}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.rayleigh_mass: must be >= 0 (value -0.1)");
+  s["solver"] = {{"type", "dynamic"}, {"rayleigh_stiffness", -1e-3}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.rayleigh_stiffness: must be >= 0 (value -0.001)");
+  s["solver"] = {{"type", "dynamic"}, {"rayleigh_stiffness", nullptr}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.rayleigh_stiffness: must be a number (value null)");
+  // Damping without a dynamic solve is a mistake, not a no-op.
+  s["solver"] = {{"rayleigh_mass", 1.0}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.rayleigh_mass: needs solver.type \"dynamic\" (value 1.0)");
+  s["solver"] = "dynamic";
+  EXPECT_EQ(error_of(s), "dir/s.json: solver: must be an object (value \"dynamic\")");
+}
+
+TEST(Scene, NonFiniteSolverValuesAreRefused) {
+  // JSON has no NaN: an overflowing number is refused as malformed, naming the file and the text.
+  json s = good_scene();
+  s["solver"] = {{"type", "dynamic"}, {"rayleigh_mass", 1.5}};
+  std::string text = s.dump();
+  const std::string key = "\"rayleigh_mass\":1.5";
+  ASSERT_NE(text.find(key), std::string::npos);
+  text.replace(text.find(key), key.size(), "\"rayleigh_mass\":-1e999");
+  try {
+    parse_scene(text, "dir/s.json");
+    FAIL();
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_EQ(msg.rfind("dir/s.json: malformed JSON: ", 0), 0u) << msg;
+    EXPECT_NE(msg.find("1e999"), std::string::npos) << msg;
+  }
+}
+
+TEST(Scene, TwistKeysWithTheirValues) {
+  EXPECT_FALSE(parse_scene(good_scene().dump(), "dir/s.json").twist.enabled());
+  json s = good_scene();
+  s["twist"] = json::parse(R"({"end": "stop", "track": [{"t": 0.0, "degrees": 0.0}, {"t": 3.0, "degrees": 180.0}]})");
+  auto scene = parse_scene(s.dump(), "dir/s.json");
+  EXPECT_TRUE(scene.twist.enabled());
+  EXPECT_EQ(scene.twist.end, "stop");
+  ASSERT_EQ(scene.twist.track.size(), 2u);
+  EXPECT_DOUBLE_EQ(scene.twist.track[1].t, 3.0);
+  EXPECT_DOUBLE_EQ(scene.twist.track[1].degrees, 180.0);
+  s["twist"]["end"] = "start";
+  EXPECT_EQ(parse_scene(s.dump(), "dir/s.json").twist.end, "start");
+}
+
+TEST(Scene, TwistKeysAreValidated) {
+  const json good = json::parse(R"({"end": "stop", "track": [{"t": 0.0, "degrees": 0.0}, {"t": 3.0, "degrees": 180.0}]})");
+  json s = good_scene();
+  s["twist"] = good;
+  s["twist"]["end"] = "middle";
+  EXPECT_EQ(error_of(s), "dir/s.json: twist.end: must be one of start, stop (value \"middle\")");
+  s["twist"] = good;
+  s["twist"].erase("end");
+  EXPECT_EQ(error_of(s), "dir/s.json: twist.end: missing key");
+  s["twist"] = good;
+  s["twist"].erase("track");
+  EXPECT_EQ(error_of(s), "dir/s.json: twist.track: missing key");
+  s["twist"] = good;
+  s["twist"]["axis"] = json::array({0, 0, 1});
+  EXPECT_EQ(error_of(s), "dir/s.json: twist.axis: unknown key");
+  s["twist"] = good;
+  s["twist"]["track"] = json::array();
+  EXPECT_EQ(error_of(s), "dir/s.json: twist.track: must not be empty (value [])");
+  s["twist"]["track"] = 90;
+  EXPECT_EQ(error_of(s), "dir/s.json: twist.track: must be an array of {\"t\", \"degrees\"} keys (value 90)");
+  s["twist"] = good;
+  s["twist"]["track"][1]["t"] = 0.0;
+  EXPECT_EQ(error_of(s), "dir/s.json: twist.track[1].t: track times must be strictly increasing (value 0.0)");
+  s["twist"] = good;
+  s["twist"]["track"][0]["t"] = -0.5;
+  EXPECT_EQ(error_of(s), "dir/s.json: twist.track[0].t: must be >= 0 (value -0.5)");
+  s["twist"] = good;
+  s["twist"]["track"][1]["degrees"] = 1000.0;
+  EXPECT_EQ(error_of(s), "dir/s.json: twist.track[1].degrees: out of range [-720, 720] (value 1000.0)");
+  s["twist"] = good;
+  s["twist"]["track"][1]["degrees"] = "half";
+  EXPECT_EQ(error_of(s), "dir/s.json: twist.track[1].degrees: must be a number (value \"half\")");
+  s["twist"] = good;
+  s["twist"]["track"][1].erase("degrees");
+  EXPECT_EQ(error_of(s), "dir/s.json: twist.track[1].degrees: missing key");
+  s["twist"] = good;
+  s["twist"]["track"][1]["radians"] = 3.14;
+  EXPECT_EQ(error_of(s), "dir/s.json: twist.track[1].radians: unknown key");
+}

@@ -53,3 +53,24 @@ TEST(Scenes, PaperSceneLoadsWithThePaperMeshCounts) {
   EXPECT_EQ(model->mesh.tets.rows(), 9360);
   EXPECT_EQ(model->mesh.inner.rows(), 1040);
 }
+
+// Quadratic elements at the paper's wall resolution (10 x 13 x 1 tet10: 1040 split inner triangles).
+TEST(Scenes, FullClosureTet10NeverIntersects) { expect_never_intersects("full-closure-tet10.json"); }
+
+// The outer wall in the collision surface too: the exact check then covers both walls.
+TEST(Scenes, FullClosureWithTheOuterWallCollidingNeverIntersects) {
+  Scene scene = load_scene(std::string(LUMEN_SOURCE_DIR) + "/scenes/full-closure.json");
+  scene.collision.outer_wall = true;
+  auto model = compile_model(scene);
+  ASSERT_EQ(model->collision_tris.rows(), model->mesh.inner.rows() + model->mesh.outer.rows());
+  SessionOptions opt;
+  opt.render = false;
+  opt.check = true;
+  const SessionResult r = run_session(*model, opt);
+  long contacts = 0;
+  for (const auto& f : r.frames) {
+    EXPECT_EQ(f.intersecting_pairs, 0) << "frame " << f.frame;
+    contacts += f.contacts;
+  }
+  EXPECT_GT(contacts, 0);
+}

@@ -1,0 +1,109 @@
+// Scene-selectable element and collision walls: mesh.element "tet10" (quadratic tets, walls split over the edge
+// nodes) and collision.surfaces; the loader's refusals name the key and value.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/scene.hpp"
+#include "engine/simulation.hpp"
+#include "physics/quadratic.hpp"
+
+using namespace lumen;
+using nlohmann::json;
+
+namespace {
+
+json small_scene() {
+  return json::parse(R"({
+    "name": "t",
+    "mesh": {"type": "hollow_cylinder", "inner_radius": 0.01, "outer_radius": 0.013, "length": 0.04,
+             "segments_around": 8, "segments_along": 6, "layers": 1, "element": "tet10"},
+    "material": {"model": "linear", "young_modulus": 5000.0, "poisson_ratio": 0.45},
+    "fixed": ["ends"],
+    "probes": [{"point": [0.0, 0.013, 0.02], "track": [{"t": 0.0, "force": [0, 0, 0]}, {"t": 0.1, "force": [0, -0.01, 0]}]}],
+    "frames": 4, "fps": 40
+  })");
+}
+
+std::string error_of(const json& scene) {
+  try {
+    engine::parse_scene(scene.dump(), "dir/s.json");
+  } catch (const engine::InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(Elements, LoaderNamesBadElementAndCombinations) {
+  json s = small_scene();
+  s["mesh"]["element"] = "tet8";
+  EXPECT_EQ(error_of(s), "dir/s.json: mesh.element: must be one of tet4, tet10 (value \"tet8\")");
+  s = small_scene();
+  s["material"]["model"] = "corotational";
+  EXPECT_EQ(error_of(s),
+            "dir/s.json: mesh.element: \"tet10\" needs material.model \"linear\" (got \"corotational\") (value \"tet10\")");
+  s = small_scene();
+  s["solver"] = {{"type", "dynamic"}};
+  EXPECT_EQ(error_of(s),
+            "dir/s.json: mesh.element: \"tet10\" needs solver.type \"quasi_static\" (got \"dynamic\") (value \"tet10\")");
+}
+
+TEST(Elements, LoaderNamesBadCollisionSurfaces) {
+  json s = small_scene();
+  s["collision"] = {{"self", true}, {"surfaces", {"outer"}}};
+  EXPECT_EQ(error_of(s),
+            "dir/s.json: collision.surfaces: must include \"inner\" (the lumen's walls always collide) (value [\"outer\"])");
+  s["collision"]["surfaces"] = {"inner", "ends"};
+  EXPECT_EQ(error_of(s), "dir/s.json: collision.surfaces[1]: must be one of inner, outer (value \"ends\")");
+  s["collision"]["surfaces"] = json::array();
+  EXPECT_EQ(error_of(s), "dir/s.json: collision.surfaces: must be a non-empty array of wall names (value [])");
+}
+
+// The engine's tet10 model (precomputed probe responses, walls split over the edge nodes) against a direct solve
+// of the quadratic stiffness with the same load: same displacement; the end nodes, corners and edge nodes, stay
+// at rest.
+TEST(Elements, Tet10ModelMatchesADirectQuadraticSolve) {
+  const engine::Scene scene = engine::parse_scene(small_scene().dump(), "s.json");
+  auto model = engine::compile_model(scene);
+  const physics::TetMesh linear = physics::make_hollow_cylinder(scene.mesh);
+  const physics::QuadraticMesh q = physics::make_quadratic_cylinder(linear, scene.mesh);
+  ASSERT_EQ(model->mesh.n_nodes(), q.n_nodes());
+  ASSERT_EQ(model->mesh.inner.rows(), 4 * linear.inner.rows());
+
+  // Run the frames; the last has the full force.
+  engine::State state = engine::make_state(*model);
+  engine::FrameRecord rec;
+  for (int i = 0; i < scene.frames; ++i) engine::step(*model, state, rec);
+  ASSERT_DOUBLE_EQ(state.samples[0].force.y(), -0.01);
+
+  // Direct solve: K of the 10-node tets, both ends' corner and edge nodes fixed, the probe's nodal load.
+  std::vector<int> fixed = q.end_nodes_start;
+  fixed.insert(fixed.end(), q.end_nodes_stop.begin(), q.end_nodes_stop.end());
+  const physics::StaticSolver solver(physics::assemble_stiffness(q, physics::LinearMaterial{5000.0, 0.45}), fixed);
+  Eigen::VectorXd u;
+  solver.solve(engine::nodal_loads(*model, state), u);
+  ASSERT_EQ(u.size(), state.u.size());
+  EXPECT_LT((u - state.u).norm(), 1e-9 * u.norm());
+  EXPECT_GT(u.norm(), 0.0);
+  for (int v : fixed) EXPECT_EQ(state.u.segment<3>(3 * v).norm(), 0.0) << "end node " << v;
+}
+
+// collision.surfaces with "outer": the colliding walls are the inner then the outer triangles, and their nodes.
+TEST(Elements, OuterWallJoinsTheCollisionSurfaceWhenAsked) {
+  json s = small_scene();
+  s["mesh"]["element"] = "tet4";
+  s["collision"] = {{"self", true}};
+  auto inner_only = engine::compile_model(engine::parse_scene(s.dump(), "s.json"));
+  s["collision"]["surfaces"] = {"inner", "outer"};
+  auto both = engine::compile_model(engine::parse_scene(s.dump(), "s.json"));
+  EXPECT_EQ(inner_only->collision_tris.rows(), inner_only->mesh.inner.rows());
+  ASSERT_EQ(both->collision_tris.rows(), both->mesh.inner.rows() + both->mesh.outer.rows());
+  EXPECT_TRUE(both->collision_tris.bottomRows(both->mesh.outer.rows()) == both->mesh.outer);
+  // Every inner- and outer-wall node (the whole 1-layer mesh but none else) is a collision node.
+  EXPECT_EQ(static_cast<int>(both->collision_nodes.size()), both->mesh.n_nodes());
+  EXPECT_EQ(inner_only->collision_nodes, inner_only->inner_nodes);
+}

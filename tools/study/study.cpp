@@ -1,0 +1,288 @@
+// Speed against error: sweeps mesh resolution, model and solver tolerance over one squeeze-with-contact scene
+// and the Lame cylinder, and writes one CSV row per configuration (frame time and errors against references).
+//
+//   lumen_study --out docs/study.csv --load-out docs/study_load.csv
+//
+// Per configuration:
+//  - small deformation: the relative L2 error of the radial displacement on the plane-strain Lame cylinder
+//    (physics::lame_error) at the configuration's around x layers (the corotational model equals the linear one
+//    in the small-deformation limit, tests/physics/test_corotational.cpp, so it has the linear's error);
+//  - large deformation with contact: two opposite probes squeeze the paper's tube shut (self-collision on);
+//    at the last frame the probe-patch displacement, the lumen opening at the probes' section, the contact area
+//    and the total contact force, each compared with the reference: the finest mesh, corotational, tolerance
+//    1e-6;
+//  - frame time: the whole frame (physics + collision + response + render 640x480 off-screen), median and p99
+//    over the session's frames.
+// The load sweep (--load-out) shows when linear stops being enough: one probe on the paper mesh, linear against
+// corotational (tolerance 1e-6), probe-patch displacement, over a range of forces.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "engine/scene.hpp"
+#include "engine/session.hpp"
+#include "engine/simulation.hpp"
+#include "physics/lame.hpp"
+
+namespace fs = std::filesystem;
+using namespace lumen;
+
+namespace {
+
+// One mesh resolution of the hollow cylinder (the paper's is 20 x 26 x 3).
+struct Level {
+  int around, along, layers;
+};
+
+// One configuration of the sweep.
+struct Config {
+  Level level;
+  std::string element;  // "tet4" | "tet10"
+  std::string model;    // "linear" | "corotational"
+  double tolerance;     // corotational solve tolerance (0 for the direct linear solve)
+};
+
+// What a squeeze session measured at its last frame, and its frame times.
+struct Outcome {
+  double probe_disp = 0, opening = 0, contact_area = 0, contact_force = 0;  // metres, metres, m^2, newtons
+  engine::StageSummary total, physics, collision, response, render;
+  long over_budget = 0, not_converged = 0, fallbacks = 0, failures = 0, max_inverted = 0;
+  int nodes = 0, tets = 0, inner_tris = 0;
+  double compile_s = 0, session_s = 0;
+};
+
+constexpr double kProbeZ = 0.05;        // metres, mid-length
+constexpr double kPatchRadius = 0.003;  // metres: probe displacement is averaged over the outer wall within this
+
+// The configuration's solver settings on a scene (the tolerance only matters to the corotational solve).
+void apply_solver(engine::Scene& s, const Config& c) {
+  if (c.model == "corotational") {
+    s.solver.tolerance = c.tolerance;
+    s.solver.max_iterations = 100;
+  }
+}
+
+// The squeeze scene at a level: two probes at +-y on the outer wall, ramped to `force` newtons over 2 s.
+engine::Scene squeeze_scene(const Config& c, double force, int frames, bool two_probes) {
+  engine::Scene s;
+  s.path = "<study>";
+  s.name = "study-squeeze";
+  s.mesh.inner_radius = 0.01;
+  s.mesh.outer_radius = 0.013;
+  s.mesh.length = 0.1;
+  s.mesh.segments_around = c.level.around;
+  s.mesh.segments_along = c.level.along;
+  s.mesh.layers = c.level.layers;
+  s.element = c.element;
+  s.material.model = c.model;
+  s.material.young_modulus = 5000.0;
+  s.material.poisson_ratio = 0.45;
+  s.fixed = {"ends"};
+  for (int side = 0; side < (two_probes ? 2 : 1); ++side) {
+    const double sign = side == 0 ? 1.0 : -1.0;
+    engine::ProbeSpec p;
+    p.name = side == 0 ? "top" : "bottom";
+    p.point = {0.0, sign * 0.013, kProbeZ};
+    p.track = {{0.0, {0, 0, 0}}, {2.0, {0, -sign * force, 0}}, {1e3, {0, -sign * force, 0}}};
+    s.probes.push_back(p);
+  }
+  s.frames = frames;
+  s.fps = 40.0;
+  s.render.width = 640;
+  s.render.height = 480;
+  s.render.camera = "side";
+  s.collision.self = true;
+  apply_solver(s, c);
+  return s;
+}
+
+// Runs a scene (rendering off-screen when `render`) and measures the last frame's shape.
+Outcome run(const engine::Scene& scene, bool render) {
+  Outcome o;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto model = engine::compile_model(scene);
+  o.compile_s = model->compile_seconds;
+  const physics::TetMesh& mesh = model->mesh;
+  o.nodes = mesh.n_nodes();
+  o.tets = static_cast<int>(mesh.tets.rows());
+  o.inner_tris = static_cast<int>(mesh.inner.rows());
+  const auto& ms = scene.mesh;
+
+  // Outer-wall nodes of the probe patch (rest positions within kPatchRadius of the first probe's point).
+  std::vector<int> patch;
+  std::vector<char> on_outer(mesh.n_nodes(), 0);
+  for (int t = 0; t < mesh.outer.rows(); ++t)
+    for (int k = 0; k < 3; ++k) on_outer[mesh.outer(t, k)] = 1;
+  for (int v = 0; v < mesh.n_nodes(); ++v)
+    if (on_outer[v] && (mesh.rest.row(v).transpose() - scene.probes[0].point).norm() <= kPatchRadius) patch.push_back(v);
+  // Inner-wall nodes facing each other at the probes' section: ring along/2, layer 0, angles 90 and 270 degrees.
+  const int ring = ms.segments_along / 2;
+  const int top = (ring * (ms.layers + 1)) * ms.segments_around + ms.segments_around / 4;
+  const int bottom = (ring * (ms.layers + 1)) * ms.segments_around + 3 * ms.segments_around / 4;
+  // Inner-wall area per node (a third of each incident triangle's rest area), m^2.
+  std::vector<double> node_area(mesh.n_nodes(), 0.0);
+  for (int t = 0; t < mesh.inner.rows(); ++t) {
+    const Eigen::Vector3d a = mesh.rest.row(mesh.inner(t, 0)), b = mesh.rest.row(mesh.inner(t, 1)),
+                          c = mesh.rest.row(mesh.inner(t, 2));
+    for (int k = 0; k < 3; ++k) node_area[mesh.inner(t, k)] += (b - a).cross(c - a).norm() / 6.0;
+  }
+
+  // The session, measuring the committed state after the last frame.
+  engine::SessionOptions opt;
+  opt.render = render;
+  opt.write_frames = false;
+  opt.on_frame = [&](const engine::Model& m, const engine::State& st, const engine::FrameRecord& rec) {
+    if (rec.frame != m.scene.frames) return;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (int v : patch) mean += st.u.segment<3>(3 * v);
+    o.probe_disp = patch.empty() ? 0.0 : (mean / static_cast<double>(patch.size())).norm();
+    o.opening = (st.x.row(top) - st.x.row(bottom)).norm();
+    o.contact_area = 0.0;
+    for (int v = 0; v < m.mesh.n_nodes(); ++v)
+      if (st.in_contact[v]) o.contact_area += node_area[v];
+    o.contact_force = rec.contact_force;
+  };
+  const engine::SessionResult r = engine::run_session(*model, opt);
+  o.session_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  // Frame statistics.
+  std::vector<double> col[5];
+  for (const engine::FrameRecord& f : r.frames) {
+    col[0].push_back(f.ms[engine::kTotal]);
+    col[1].push_back(f.ms[engine::kPhysics]);
+    col[2].push_back(f.ms[engine::kCollision]);
+    col[3].push_back(f.ms[engine::kResponse]);
+    col[4].push_back(f.ms[engine::kRender]);
+    o.over_budget += f.over_budget;
+    o.not_converged += !f.physics_converged;
+    o.fallbacks += f.fallback;
+    o.failures += f.numerical_failure;
+    o.max_inverted = std::max<long>(o.max_inverted, f.inverted_elements);
+  }
+  o.total = engine::summarize(col[0]);
+  o.physics = engine::summarize(col[1]);
+  o.collision = engine::summarize(col[2]);
+  o.response = engine::summarize(col[3]);
+  o.render = engine::summarize(col[4]);
+  return o;
+}
+
+double rel(double value, double ref) { return std::abs(value - ref) / std::max(std::abs(ref), 1e-300); }
+
+// Writes text to path atomically (temporary name, then rename).
+void write_atomic(const std::string& path, const std::string& text) {
+  const fs::path p(path);
+  if (p.has_parent_path()) fs::create_directories(p.parent_path());
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp);
+    out << text;
+    if (!out) throw std::runtime_error(tmp + ": cannot write");
+  }
+  fs::rename(tmp, path);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Lumen speed-against-error study"};
+  std::string out = "study.csv", load_out;
+  int frames = 100, max_level = 99;
+  bool quick = false, no_render = false;
+  app.add_option("--out", out, "CSV of the sweep");
+  app.add_option("--load-out", load_out, "CSV of the load sweep (linear vs corotational), empty: skip");
+  app.add_option("--frames", frames, "frames per session (40 fps; the squeeze ramps over 80)")->check(CLI::Range(81, 100000));
+  app.add_option("--max-level", max_level, "finest mesh level index to run (0 = coarsest)")->check(CLI::Range(0, 99));
+  app.add_flag("--quick", quick, "coarse levels only and fewer configurations (a smoke run)");
+  app.add_flag("--no-render", no_render, "leave rendering out of the frame time");
+  CLI11_PARSE(app, argc, argv);
+
+  // Mesh levels: coarser than the paper, the paper (9360 tets), then up to 13x its tets.
+  std::vector<Level> levels = {{12, 16, 2}, {20, 26, 3}, {28, 36, 4}, {40, 52, 6}, {48, 62, 7}};
+  // Quadratic levels: their walls collide and render at twice these counts along each edge (8 x 10 x 1 draws a
+  // 16 x 20 wall; 12 x 16 x 1 about the paper's 20 x 26).
+  std::vector<Level> quadratic_levels = {{8, 10, 1}, {12, 16, 1}, {16, 20, 2}, {20, 26, 2}};
+  if (quick) {
+    levels = {{8, 10, 2}, {12, 16, 2}};
+    quadratic_levels = {{8, 10, 1}};
+  }
+  if (max_level + 1 < static_cast<int>(levels.size())) levels.resize(max_level + 1);
+  const std::vector<double> tolerances = quick ? std::vector<double>{1e-2} : std::vector<double>{1e-2, 1e-3, 1e-4};
+  const double force = 0.2;  // newtons per probe: shuts the lumen over a wide area
+
+  // Reference: the finest level, corotational, tight tolerance.
+  const Level finest = levels.back();
+  std::fprintf(stderr, "reference: %dx%dx%d corotational 1e-6\n", finest.around, finest.along, finest.layers);
+  const Outcome ref = run(squeeze_scene({finest, "tet4", "corotational", 1e-6}, force, frames, true), false);
+
+  // The sweep.
+  std::vector<Config> configs;
+  for (const Level& l : levels) {
+    configs.push_back({l, "tet4", "linear", 0.0});
+    for (double tol : tolerances) configs.push_back({l, "tet4", "corotational", tol});
+  }
+  for (const Level& l : quadratic_levels) configs.push_back({l, "tet10", "linear", 0.0});
+  std::string csv =
+      "around,along,layers,nodes,tets,inner_tris,element,model,tolerance,frames,total_median_ms,total_p99_ms,"
+      "physics_median_ms,physics_p99_ms,collision_median_ms,response_median_ms,render_median_ms,over_budget,"
+      "not_converged,fallbacks,failures,max_inverted,lame_error,probe_disp_mm,opening_mm,contact_area_mm2,"
+      "contact_force_n,err_probe_disp,err_opening,err_contact_area,err_contact_force,err_large,compile_s\n";
+  char line[1024];
+  for (const Config& c : configs) {
+    std::fprintf(stderr, "%dx%dx%d %s %s %g ...", c.level.around, c.level.along, c.level.layers, c.element.c_str(),
+                 c.model.c_str(), c.tolerance);
+    // Small deformation: Lame plane strain at this cross-section resolution.
+    physics::LameSetup lame;
+    lame.segments_around = c.level.around;
+    lame.segments_along = 2;
+    lame.layers = c.level.layers;
+    lame.material = {5000.0, 0.45};
+    lame.element = c.element == "tet10" ? physics::ElementOrder::kQuadratic : physics::ElementOrder::kLinear;
+    const double lame_err = physics::lame_error(lame).rel_l2_error;
+    // Large deformation with contact, timed with rendering.
+    const Outcome o = run(squeeze_scene(c, force, frames, true), !no_render);
+    const double e_probe = rel(o.probe_disp, ref.probe_disp);
+    const double e_open = std::abs(o.opening - ref.opening) / (2.0 * 0.01);  // relative to the rest diameter
+    const double e_area = rel(o.contact_area, ref.contact_area);
+    const double e_force = rel(o.contact_force, ref.contact_force);
+    const double e_large = std::max({e_probe, e_open, e_area, e_force});
+    std::snprintf(line, sizeof line,
+                  "%d,%d,%d,%d,%d,%d,%s,%s,%g,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld,%ld,%.6g,%.6g,%.6g,"
+                  "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.3f\n",
+                  c.level.around, c.level.along, c.level.layers, o.nodes, o.tets, o.inner_tris, c.element.c_str(),
+                  c.model.c_str(), c.tolerance, frames, o.total.median_ms, o.total.p99_ms, o.physics.median_ms,
+                  o.physics.p99_ms, o.collision.median_ms, o.response.median_ms, o.render.median_ms, o.over_budget,
+                  o.not_converged, o.fallbacks, o.failures, o.max_inverted, lame_err, 1e3 * o.probe_disp,
+                  1e3 * o.opening, 1e6 * o.contact_area, o.contact_force, e_probe, e_open, e_area, e_force, e_large,
+                  o.compile_s);
+    csv += line;
+    std::fprintf(stderr, " total %.2f / %.2f ms, lame %.4f, large %.4f\n", o.total.median_ms, o.total.p99_ms, lame_err,
+                 e_large);
+  }
+  write_atomic(out, csv);
+
+  // Load sweep on the paper mesh: one probe, linear against corotational.
+  if (!load_out.empty()) {
+    std::string lcsv = "force_n,linear_probe_disp_mm,corotational_probe_disp_mm,relative_difference,max_disp_over_wall\n";
+    const Level paper{20, 26, 3};
+    for (double f : {0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2}) {
+      const Outcome lin = run(squeeze_scene({paper, "tet4", "linear", 0.0}, f, frames, false), false);
+      const Outcome cor = run(squeeze_scene({paper, "tet4", "corotational", 1e-6}, f, frames, false), false);
+      std::snprintf(line, sizeof line, "%g,%.6g,%.6g,%.6g,%.6g\n", f, 1e3 * lin.probe_disp, 1e3 * cor.probe_disp,
+                    rel(lin.probe_disp, cor.probe_disp), cor.probe_disp / 0.003);
+      lcsv += line;
+      std::fprintf(stderr, "load %g N: linear %.3f mm, corotational %.3f mm\n", f, 1e3 * lin.probe_disp,
+                   1e3 * cor.probe_disp);
+    }
+    write_atomic(load_out, lcsv);
+  }
+  return 0;
+}
