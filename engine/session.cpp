@@ -208,10 +208,11 @@ SessionResult run_session(const Model& model, const SessionOptions& opt) {
                {"tets", model.mesh.tets.rows()},
                {"inner_triangles", model.mesh.inner.rows()},
                {"outer_triangles", model.mesh.outer.rows()}};
-  r["model"] = {{"material", model.scene.material.model}, {"solver", "quasi_static_cholmod"},
-                {"compile_seconds", model.compile_seconds}};
+  r["model"] = {{"material", model.scene.material.model}, {"element", model.scene.element},
+                {"solver", model.scene.solver.type}, {"compile_seconds", model.compile_seconds}};
   r["collision"] = {{"self", model.scene.collision.self}, {"kdop", model.scene.collision.kdop},
-                    {"response", model.scene.collision.response}, {"gap_m", model.scene.collision.gap}};
+                    {"response", model.scene.collision.response}, {"gap_m", model.scene.collision.gap},
+                    {"surfaces", model.scene.collision.outer_wall ? nlohmann::json{"inner", "outer"} : nlohmann::json{"inner"}}};
   r["render"] = {{"enabled", opt.render}, {"width", rs.width}, {"height", rs.height}, {"camera", rs.camera}};
   r["stages"] = stages_json(result.frames);
   r["writer"] = {{"frames", result.writer.frames}, {"busy_seconds", result.writer.busy_seconds},

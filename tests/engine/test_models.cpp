@@ -104,7 +104,7 @@ TEST(Models, SolverKeysBoundTheCorotationalSolve) {
     text.replace(text.find(key), key.size(), "\"fps\": 40, \"solver\": " + solver + "}");
     text.erase(text.find(first_key), first_key.size());  // the full load from the first frame on
     const std::string mesh = R"("segments_around": 12, "segments_along": 8, "layers": 2)";
-    text.replace(text.find(mesh), mesh.size(), R"("segments_around": 8, "segments_along": 6, "layers": 1)");
+    text.replace(text.find(mesh), mesh.size(), R"("segments_around": 8, "segments_along": 4, "layers": 1)");
     auto m = engine::compile_model(engine::parse_scene(text, "m.json"));
     engine::State s = engine::make_state(*m);
     engine::step(*m, s, rec);

@@ -10,7 +10,7 @@
 //  - large deformation with contact: two opposite probes squeeze the paper's tube shut (self-collision on);
 //    at the last frame the probe-patch displacement, the lumen opening at the probes' section, the contact area
 //    and the total contact force, each compared with the reference: the finest mesh, corotational, tolerance
-//    1e-6;
+//    1e-5;
 //  - frame time: the whole frame (physics + collision + response + render 640x480 off-screen), median and p99
 //    over the session's frames.
 // The load sweep (--load-out) shows when linear stops being enough: one probe on the paper mesh, linear against
@@ -205,8 +205,8 @@ int main(int argc, char** argv) {
   app.add_flag("--no-render", no_render, "leave rendering out of the frame time");
   CLI11_PARSE(app, argc, argv);
 
-  // Mesh levels: coarser than the paper, the paper (9360 tets), then up to 13x its tets.
-  std::vector<Level> levels = {{12, 16, 2}, {20, 26, 3}, {28, 36, 4}, {40, 52, 6}, {48, 62, 7}};
+  // Mesh levels: coarser than the paper, the paper (9360 tets), then up to 8x its tets.
+  std::vector<Level> levels = {{12, 16, 2}, {20, 26, 3}, {28, 36, 4}, {40, 52, 6}};
   // Quadratic levels: their walls collide and render at twice these counts along each edge (8 x 10 x 1 draws a
   // 16 x 20 wall; 12 x 16 x 1 about the paper's 20 x 26).
   std::vector<Level> quadratic_levels = {{8, 10, 1}, {12, 16, 1}, {16, 20, 2}, {20, 26, 2}};
@@ -220,8 +220,8 @@ int main(int argc, char** argv) {
 
   // Reference: the finest level, corotational, tight tolerance.
   const Level finest = levels.back();
-  std::fprintf(stderr, "reference: %dx%dx%d corotational 1e-6\n", finest.around, finest.along, finest.layers);
-  const Outcome ref = run(squeeze_scene({finest, "tet4", "corotational", 1e-6}, force, frames, true), false);
+  std::fprintf(stderr, "reference: %dx%dx%d corotational 1e-5\n", finest.around, finest.along, finest.layers);
+  const Outcome ref = run(squeeze_scene({finest, "tet4", "corotational", 1e-5}, force, frames, true), false);
 
   // The sweep.
   std::vector<Config> configs;
