@@ -133,7 +133,13 @@ StepResult step(const DynamicModel& model, DynamicState& state, const Eigen::Vec
     g = f - f_int - damp - inertia;
     for (int d = 0; d < n; ++d)
       if (fixed[d]) g[d] = 0.0;
-    const double scale = std::max({f_norm, free_norm(f_int, fixed), free_norm(inertia, fixed)});
+    // Scale: the loads, the elastic and inertial forces on the free DOFs, and the support reactions (elastic forces
+    // on the fixed DOFs: they carry a prescribed-displacement problem such as a twisted end at rest).
+    double reaction2 = 0.0;
+    for (int d = 0; d < n; ++d)
+      if (fixed[d]) reaction2 += f_int[d] * f_int[d];
+    const double scale =
+        std::max({f_norm, free_norm(f_int, fixed), free_norm(inertia, fixed), std::sqrt(reaction2)});
     const double gnorm = g.norm();
     return gnorm == 0.0 ? 0.0 : (scale > 0.0 ? gnorm / scale : INFINITY);
   };

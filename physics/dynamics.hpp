@@ -72,7 +72,8 @@ struct StepResult {
   int iterations = 0;      // outer iterations (linear solves): 1 for the linear model
   int cg_iterations = 0;   // PCG iterations (0 for the linear model's direct solve)
   // |f_ext - f_int(u1) - C v1 - M (v1 - v0) / h| on the free DOFs, relative to the largest of |f_ext|,
-  // |f_int(u1)| and |M (v1 - v0) / h| there (0 when all are 0).
+  // |f_int(u1)| and |M (v1 - v0) / h| there and the support reactions |f_int(u1)| on the fixed DOFs (0 when all
+  // are 0).
   double residual = 0.0;
   bool converged = false;  // residual <= options.tolerance
   int n_inverted = 0;      // tets with det F <= 0 at u1 (corotational; 0 for linear)
