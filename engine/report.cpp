@@ -33,12 +33,14 @@ StageSummary summarize(std::vector<double> v) {
   return s;
 }
 
-void write_json_file(const std::string& path, const nlohmann::json& j) {
+void write_json_file(const std::string& path, const nlohmann::json& j) { write_text_file(path, j.dump(1) + "\n"); }
+
+void write_text_file(const std::string& path, const std::string& text) {
   const std::string tmp = path + ".tmp";
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throw std::runtime_error(path + ": cannot write");
-    out << j.dump(1) << "\n";
+    out << text;
     out.flush();
     if (!out) {
       std::filesystem::remove(tmp);

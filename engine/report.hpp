@@ -45,6 +45,8 @@ StageSummary summarize(std::vector<double> values_ms);
 
 // Writes JSON to `path` atomically (temporary name, then rename). Throws std::runtime_error naming the path.
 void write_json_file(const std::string& path, const nlohmann::json& j);
+// Writes text to `path` atomically (temporary name, then rename). Throws std::runtime_error naming the path.
+void write_text_file(const std::string& path, const std::string& text);
 
 // Stage table as text (for `lumen bench` and the end of `lumen run`).
 std::string format_stage_table(const std::vector<FrameRecord>& frames, double budget_ms);

@@ -277,6 +277,8 @@ State make_state(const Model& model) {
 }
 
 void step(const Model& model, State& state, FrameRecord& rec) {
+  // Every field of the record is this frame's (callers may reuse one record across frames).
+  rec = FrameRecord{};
   const int n = model.mesh.n_nodes();
   const double t1 = (state.frame + 1) / model.scene.fps;
   rec.frame = state.frame + 1;
@@ -306,8 +308,10 @@ void step(const Model& model, State& state, FrameRecord& rec) {
   // (precomputed unit responses when probe points are fixed); the twisted ring is held at its angle.
   clock = Clock::now();
   Eigen::VectorXd u(3 * n);
-  const Eigen::VectorXd v_before = state.dynamic.v;  // dynamic: restored when the frame fails
+  Eigen::VectorXd v_before;  // dynamic: the velocity restored when the frame fails
+  bool solved = true;        // false: the solver reported a failed (non-finite) solve
   if (model.dynamic) {
+    v_before = state.dynamic.v;
     // Backward Euler with the probes' loads; fixed nodes keep the displacement the state gives them (the ring's
     // at the end of the frame, 0 for the others).
     const Eigen::VectorXd f = nodal_loads(model, state);
@@ -319,6 +323,7 @@ void step(const Model& model, State& state, FrameRecord& rec) {
         physics::step(*model.dynamic, state.dynamic, f, model.time_step, model.corotational_options);
     rec.physics_iterations = r.iterations;
     rec.physics_converged = r.converged;
+    solved = r.finite;
     u = state.dynamic.u;
   } else if (model.corotational) {
     // Corotational: nonlinear equilibrium from the nodal loads, warm-started from the last frame.
@@ -374,13 +379,13 @@ void step(const Model& model, State& state, FrameRecord& rec) {
   state.contacts.clear();
   rec.ms[kCollision] = 0.0;
   rec.ms[kResponse] = 0.0;
-  if (state.detector && u.allFinite()) {
+  if (state.detector && solved && u.allFinite()) {
     collide_and_respond(model, state, u, rec);
     x1 = model.mesh.rest + Eigen::Map<const Points>(u.data(), n, 3);
   }
 
   // Numerical health: finite values and element orientation; a bad frame keeps the last good state.
-  bool finite = u.allFinite();
+  bool finite = solved && u.allFinite();
   int inverted = 0;
   if (finite)
     for (int e = 0; e < model.mesh.tets.rows(); ++e)

@@ -159,7 +159,8 @@ StepResult step(const DynamicModel& model, DynamicState& state, const Eigen::Vec
       result.cg_iterations = pcg.iterations;
     }
     result.iterations = 1;
-    if (v1.allFinite()) {
+    result.finite = v1.allFinite();
+    if (result.finite) {
       for (int d = 0; d < n; ++d) u1[d] = fixed[d] ? u0[d] : u0[d] + h * v1[d];
       result.residual = residual(u1, v1);
       result.converged = result.residual <= options.tolerance;

@@ -77,6 +77,7 @@ struct StepResult {
   double residual = 0.0;
   bool converged = false;  // residual <= options.tolerance
   int n_inverted = 0;      // tets with det F <= 0 at u1 (corotational; 0 for linear)
+  bool finite = true;      // false: the linear solve gave NaN/Inf and the state was left as it was (a failed step)
 };
 
 // One backward Euler step of length h (seconds, > 0) under the loads f_ext (3n, newtons; entries of fixed DOFs

@@ -102,8 +102,11 @@ def main():
         print("| %s | %s |" % (r["scene"], " | ".join(cells)))
 
     if args.json:
-        with open(args.json, "w") as f:
+        # Written under a temporary name, then renamed: never a half-written file.
+        tmp = args.json + ".tmp"
+        with open(tmp, "w") as f:
             json.dump(results, f, indent=1)
+        os.replace(tmp, args.json)
 
 
 if __name__ == "__main__":

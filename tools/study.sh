@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Speed-against-error study in one command: installs what it needs, builds, runs the sweep (about 15-25 min on
-# 2 cores) and writes docs/study.csv, docs/study_load.csv and the plot docs/study.png.
+# Speed-against-error study in one command: installs what it needs, builds, runs the sweep (about 30-40 min on
+# 2 cores) and writes docs/study.csv, docs/study_load.csv, docs/study_capacity.csv and the plot docs/study.png.
 # Extra arguments go to lumen_study (e.g. --quick, --max-level 2, --no-render).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -11,6 +11,6 @@ if ! /usr/bin/python3 -c "import matplotlib" 2>/dev/null; then
 fi
 bash tools/build.sh
 OUT="${LUMEN_STUDY_OUT:-docs}"
-build/lumen_study --out "$OUT/study.csv" --load-out "$OUT/study_load.csv" "$@"
+build/lumen_study --out "$OUT/study.csv" --load-out "$OUT/study_load.csv" --capacity-out "$OUT/study_capacity.csv" "$@"
 /usr/bin/python3 tools/study_plot.py "$OUT/study.csv" "$OUT/study.png"
-echo "wrote $OUT/study.csv $OUT/study_load.csv $OUT/study.png"
+echo "wrote $OUT/study.csv $OUT/study_load.csv $OUT/study_capacity.csv $OUT/study.png"

@@ -3,8 +3,9 @@
 marked (the configurations no other one beats on both time and error).
 
 usage: tools/study_plot.py docs/study.csv docs/study.png
-Two panels: the small-deformation error (Lame cylinder) and the large-deformation error with contact (max of the
-relative errors of probe displacement, lumen opening, contact area and contact force against the reference).
+Three panels: the small-deformation error (Lame cylinder), and the large-deformation errors of the pinch with
+contact against its reference: the shape (the larger relative error of the probe displacement and the lumen
+opening) and the contact (the larger relative error of the contact area and the total contact force).
 """
 import csv
 import os
@@ -44,9 +45,10 @@ def main():
     styles = {("tet4", "linear"): ("o", "tab:blue", "linear tet4"),
               ("tet4", "corotational"): ("s", "tab:orange", "corotational tet4"),
               ("tet10", "linear"): ("^", "tab:green", "linear tet10")}
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
+    fig, axes = plt.subplots(1, 3, figsize=(18, 5.5))
     for ax, key, title in ((axes[0], "lame_error", "small deformation: Lame cylinder (rel. L2 of u_r)"),
-                           (axes[1], "err_large", "large deformation with contact (max rel. error vs reference)")):
+                           (axes[1], "err_shape", "pinch, shape: probe displacement, lumen opening"),
+                           (axes[2], "err_contact", "pinch, contact: contact area, contact force")):
         pts = [(float(r["total_median_ms"]), max(float(r[key]), 1e-6)) for r in rows]
         seen = set()
         for r, (t, e) in zip(rows, pts):
