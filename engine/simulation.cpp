@@ -143,6 +143,10 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   // A twist rotates the tube far from rest: precondition with the rest factorisation rotated per node (several
   // times fewer CG iterations there; slower for the small rotations of a press, so only then).
   m->corotational_options.rotate_preconditioner = scene.twist.enabled();
+  // Large deformation: once a linear solve takes more than 5 PCG iterations, K_w is factorised at the rotations of
+  // that moment on the second core and preconditions the following solves (quasi-static only).
+  m->corotational_options.refactor_cg_iterations = 5;
+  m->corotational_options.refactor_in_background = true;
 
   // Linear quasi-static twist: the whole mesh's response to each basis column held on the ring (no load), so a
   // frame's twist costs two vector updates: u = P - K_ff^-1 (K P) on the free DOFs (the solve ignores fixed DOFs).

@@ -5,6 +5,7 @@
 #include <Eigen/IterativeLinearSolvers>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -201,6 +202,33 @@ void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R,
     for (int a = 0; a < 3; ++a) y.segment<3>(3 * tets_(t, a + 1)) += P.col(a);
     y.segment<3>(3 * tets_(t, 0)) -= P.rowwise().sum();
   }
+}
+
+Eigen::SparseMatrix<double> CorotationalElements::warped_stiffness(const std::vector<Eigen::Matrix3d>& R) const {
+  if (static_cast<int>(R.size()) != n_tets()) {
+    fail("CorotationalElements::warped_stiffness", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
+         R.size());
+  }
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(static_cast<size_t>(n_tets()) * 144);
+  for (int t = 0; t < n_tets(); ++t) {
+    // Shape-function gradients g_a (g_0 = -(g_1 + g_2 + g_3)), 1/metres.
+    Eigen::Vector3d g[4];
+    for (int a = 0; a < 3; ++a) g[a + 1] = grad_[t].row(a).transpose();
+    g[0] = -(g[1] + g[2] + g[3]);
+    // Block (a, b) of K_e is V (lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I); warped: R K_ab R^T.
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b) {
+        Eigen::Matrix3d Kab = lambda_ * g[a] * g[b].transpose() + mu_ * g[b] * g[a].transpose();
+        Kab.diagonal().array() += mu_ * g[a].dot(g[b]);
+        const Eigen::Matrix3d W = volume_[t] * (R[t] * Kab * R[t].transpose());
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) triplets.emplace_back(3 * tets_(t, a) + i, 3 * tets_(t, b) + j, W(i, j));
+      }
+  }
+  Eigen::SparseMatrix<double> K(n_dofs(), n_dofs());
+  K.setFromTriplets(triplets.begin(), triplets.end());
+  return K;
 }
 
 double CorotationalElements::elastic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const {
@@ -428,6 +456,7 @@ void validate_options(const CorotationalOptions& o) {
   if (o.max_iterations < 1) fail(where, "max_iterations", "be >= 1", o.max_iterations);
   if (!(o.cg_tolerance > 0.0 && o.cg_tolerance < 1.0)) fail(where, "cg_tolerance", "be in (0, 1)", o.cg_tolerance);
   if (o.max_cg_iterations < 1) fail(where, "max_cg_iterations", "be >= 1", o.max_cg_iterations);
+  if (o.refactor_cg_iterations < 0) fail(where, "refactor_cg_iterations", "be >= 0", o.refactor_cg_iterations);
 }
 
 CorotationalResult solve_corotational(const CorotationalModel& model, const Eigen::VectorXd& f_ext,
@@ -516,15 +545,44 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     result.converged = result.residual <= options.tolerance;
     if (result.converged || result.iterations >= options.max_iterations) break;
 
-    // Linear solve K_w du = r by PCG (rest factorisation as preconditioner), no more accurate than needed.
+    // A background factorisation that has finished becomes the preconditioner (one that failed is dropped).
+    if (state.pending.valid() && state.pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
+      try {
+        state.preconditioner = state.pending.get();
+      } catch (const std::exception&) {
+        state.pending = {};
+      }
+    }
+    // Linear solve K_w du = r by PCG (the lagged K_w or the rest factorisation as preconditioner), no more
+    // accurate than needed.
+    const StaticSolver& preconditioner = state.preconditioner ? *state.preconditioner : model.solver();
+    const bool rotate = options.rotate_preconditioner && !state.preconditioner;
     const WarpedSystem system{&el, &state.rotations, nullptr, 0.0, 1.0};
-    if (options.rotate_preconditioner) el.node_rotations(state.rotations, node_R);
+    if (rotate) el.node_rotations(state.rotations, node_R);
     const double cg_tol = std::max(options.cg_tolerance, std::min(0.5, 0.5 * options.tolerance * scale / rnorm));
     du.resize(0);
-    const PcgResult pcg = solve_pcg(system, model.solver(), r, du, cg_tol, options.max_cg_iterations,
-                                    options.rotate_preconditioner ? &node_R : nullptr);
+    const PcgResult pcg = solve_pcg(system, preconditioner, r, du, cg_tol, options.max_cg_iterations,
+                                    rotate ? &node_R : nullptr);
     ++result.iterations;
     result.cg_iterations += pcg.iterations;
+    // A slow solve: factorise K_w at these rotations for the solves to come (unless one is under way).
+    if (options.refactor_cg_iterations > 0 && pcg.iterations > options.refactor_cg_iterations &&
+        !state.pending.valid()) {
+      ++result.refactorisations;
+      const std::vector<int>& fixed_nodes = model.fixed_nodes();
+      auto factorise = [&el, &fixed_nodes](std::vector<Eigen::Matrix3d> R) {
+        return std::shared_ptr<const StaticSolver>(std::make_shared<StaticSolver>(el.warped_stiffness(R), fixed_nodes));
+      };
+      if (options.refactor_in_background) {
+        state.pending = std::async(std::launch::async, factorise, state.rotations);
+      } else {
+        try {
+          state.preconditioner = factorise(state.rotations);
+        } catch (const std::exception&) {
+          // (not positive definite or out of memory: keep the current preconditioner)
+        }
+      }
+    }
     if (!du.allFinite()) break;  // keep the last finite iterate (not converged)
     state.u += du;
     result.residual = evaluate();

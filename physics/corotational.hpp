@@ -5,8 +5,12 @@
 // element inverts, Irving et al. 2004). Its elastic force is f_e = R_e K_e (R_e^T x_e - X_e) and its warped
 // stiffness R_e K_e R_e^T, so rigid rotations cost no energy while small deformations match the linear model.
 // The nonlinear equilibrium f_int(u) = f_ext is solved by fixed-point iterations on the warped system; each
-// linear solve is CG preconditioned with the rest-state CHOLMOD factorisation (StaticSolver), never a new
-// factorisation, and warm-started from the previous frame's displacement.
+// linear solve is CG preconditioned with a CHOLMOD factorisation (StaticSolver): the rest state's, or, once the
+// rotations have made it a poor match (a solve needing many CG iterations), a lagged one of K_w itself at the
+// rotations of that moment, refreshed on a background thread while the solves go on; warm-started from the
+// previous frame's displacement.
+#include <future>
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
@@ -48,6 +52,8 @@ class CorotationalElements {
   void elastic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R, Eigen::VectorXd& f) const;
   // y = K_w p with the warped stiffness K_w = sum_e R_e K_e R_e^T (p, y: 3n).
   void warped_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p, Eigen::VectorXd& y) const;
+  // The same K_w assembled, 3n x 3n, N/m (the sparsity of the rest stiffness K; with R = identity it is K).
+  Eigen::SparseMatrix<double> warped_stiffness(const std::vector<Eigen::Matrix3d>& R) const;
   // Elastic energy sum_e 1/2 (R_e^T x_e - X_e)^T K_e (R_e^T x_e - X_e), joules.
   double elastic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const;
   // Per-node rotations (n_nodes): the proper rotation of the sum of the rotations of the tets around each node
@@ -129,6 +135,13 @@ struct CorotationalOptions {
   // Start from the secant prediction u + (u - u_previous) (the last two solutions of a frame sequence) instead
   // of u, when that lowers the residual (one extra evaluation of the rotations and forces).
   bool extrapolate = false;
+  // Lagged warped preconditioner (quasi-static solve only): when a linear solve takes more than this many PCG
+  // iterations, K_w at the current rotations is factorised and preconditions the following solves (of this and
+  // later frames) until the next refresh; 0 = always the rest factorisation. >= 0.
+  int refactor_cg_iterations = 0;
+  // Factorise on a background thread (the solves go on with the previous preconditioner until it is ready)
+  // rather than at once inside the solve.
+  bool refactor_in_background = false;
 };
 
 // Throws std::invalid_argument naming the field and its value unless every option is in range.
@@ -143,6 +156,10 @@ struct CorotationalState {
   Eigen::VectorXd u_eval;                     // displacement of the cached evaluation, 3n, metres
   int n_inverted = 0;                         // inverted tets at u_eval
   Eigen::VectorXd u_previous;                 // u before the last solve (for extrapolate), 3n, metres
+  // Lagged warped preconditioner: K_w factorised at earlier rotations (null: the model's rest factorisation),
+  // and a factorisation in progress on a background thread (valid() while one runs).
+  std::shared_ptr<const StaticSolver> preconditioner;
+  std::future<std::shared_ptr<const StaticSolver>> pending;
 };
 
 // Result of a quasi-static solve.
@@ -152,6 +169,7 @@ struct CorotationalResult {
   double residual = 0.0;   // final |f_ext - f_int(u)| on the free DOFs / force scale (see CorotationalOptions)
   bool converged = false;  // residual <= tolerance
   int n_inverted = 0;      // tets with det F <= 0 at the returned u
+  int refactorisations = 0;  // warped preconditioner factorisations this solve started
 };
 
 // Quasi-static equilibrium f_int(u) = f_ext (f_ext: 3n newtons, entries of fixed DOFs ignored), starting from
