@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Speed-against-error study in one command: installs what it needs, builds, runs the sweep (about 30-40 min on
+# Speed-against-error study in one command: installs what it needs, builds, runs the sweep (about 40 min on
 # 2 cores) and writes docs/study.csv, docs/study_load.csv, docs/study_capacity.csv and the plot docs/study.png.
 # Extra arguments go to lumen_study (e.g. --quick, --max-level 2, --no-render).
 set -euo pipefail
