@@ -80,6 +80,17 @@ Eigen::VectorXd tip_load(const TetMesh& m, double total) {
   return f;
 }
 
+// Prescribed displacements of a twist (3n, metres): the stop end turned by theta about the axis, the rest 0.
+Eigen::VectorXd end_twist(const TetMesh& m, double theta) {
+  Eigen::VectorXd u_fixed = Eigen::VectorXd::Zero(3 * m.n_nodes());
+  const Eigen::Matrix3d Q = Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  for (int v : m.end_nodes_stop) {
+    const Eigen::Vector3d X = m.rest.row(v).transpose();
+    u_fixed.segment<3>(3 * v) = Q * X - X;
+  }
+  return u_fixed;
+}
+
 // ---------------------------------------------------------------------------------------------------------------
 
 TEST(ProperRotation, MatchesSvdPolarAndStaysProperWhenInverted) {
@@ -317,15 +328,7 @@ TEST(CorotationalSolve, TwistOfOneEndBy180DegreesKeepsVolumeUnlikeLinear) {
   const CorotationalModel model(m, kMaterial, both_ends(m));
   const int n = model.n_dofs();
   // Prescribed end displacements: the stop end turned by theta about the axis, the start end held.
-  auto twist = [&](double theta) {
-    Eigen::VectorXd u_fixed = Eigen::VectorXd::Zero(n);
-    const Eigen::Matrix3d Q = Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-    for (int v : m.end_nodes_stop) {
-      const Eigen::Vector3d X = m.rest.row(v).transpose();
-      u_fixed.segment<3>(3 * v) = Q * X - X;
-    }
-    return u_fixed;
-  };
+  auto twist = [&](double theta) { return end_twist(m, theta); };
   // Corotational: 4 increments of 45 degrees, each warm-started from the last (extrapolated).
   CorotationalState state;
   CorotationalOptions opt;
@@ -366,15 +369,7 @@ TEST(CorotationalSolve, LaggedWarpedPreconditionerReachesTheSameEquilibriumInFew
   const TetMesh m = small_tube(8, 6, 1, 0.09);
   const CorotationalModel model(m, kMaterial, both_ends(m));
   const int n = model.n_dofs();
-  auto twist = [&](double theta) {
-    Eigen::VectorXd u_fixed = Eigen::VectorXd::Zero(n);
-    const Eigen::Matrix3d Q = Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-    for (int v : m.end_nodes_stop) {
-      const Eigen::Vector3d X = m.rest.row(v).transpose();
-      u_fixed.segment<3>(3 * v) = Q * X - X;
-    }
-    return u_fixed;
-  };
+  auto twist = [&](double theta) { return end_twist(m, theta); };
   const Eigen::VectorXd no_load = Eigen::VectorXd::Zero(n);
   // Six increments of 30 degrees with each preconditioner; CG iterations counted over the last three.
   struct Run {
