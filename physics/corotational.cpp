@@ -548,9 +548,8 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     // A background factorisation that has finished becomes the preconditioner (one that failed is dropped).
     if (state.pending.valid() && state.pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
       try {
-        state.preconditioner = state.pending.get();
+        state.preconditioner = state.pending.get();  // (get() leaves pending invalid, failed or not)
       } catch (const std::exception&) {
-        state.pending = {};
       }
     }
     // Linear solve K_w du = r by PCG (the lagged K_w or the rest factorisation as preconditioner), no more
