@@ -36,7 +36,7 @@ void prepare_output_dir(const std::string& dir) {
 }
 
 int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool no_render, std::string video,
-            bool export_surface, bool check) {
+            bool export_surface, bool check, const std::string& positions_path) {
   // Load and validate everything before touching the output folder.
   engine::Scene scene = engine::load_scene(scene_path);
   if (out_dir.empty()) out_dir = (fs::path("out") / scene.name).string();
@@ -57,9 +57,16 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
   opt.export_surface = export_surface;
   opt.check = check;
   opt.progress = true;
+  // Final node positions (for comparing runs to a baseline): the committed state after the last frame.
+  Points final_positions;
+  if (!positions_path.empty())
+    opt.on_frame = [&](const engine::Model&, const engine::State& state, const engine::FrameRecord&) {
+      final_positions = state.x;
+    };
 
   engine::SessionResult result = engine::run_session(*model, opt);
   engine::write_json_file((fs::path(out_dir) / "report.json").string(), result.report);
+  if (!positions_path.empty()) engine::write_text_file(positions_path, engine::positions_csv(final_positions));
   std::cout << engine::format_stage_table(result.frames, model->budget_ms);
   if (result.writer.frames > 0)
     std::printf("writer: %ld frames, %.1f frames/s on its thread\n", result.writer.frames, result.writer.frames_per_second());
@@ -108,7 +115,7 @@ int main(int argc, char** argv) {
   CLI::App app{"Lumen: real-time hollow-organ deformation with inner-wall self-collision"};
   app.require_subcommand(1);
 
-  std::string scene_path, out_dir, video, ccd_file;
+  std::string scene_path, out_dir, video, ccd_file, positions_path;
   int frames = -1, kdop = 0;
   bool classify = false;
   bool no_render = false, export_surface = false, json = false, check = false;
@@ -120,6 +127,7 @@ int main(int argc, char** argv) {
   run->add_flag("--no-render", no_render, "simulate only (no images, no video)");
   run->add_option("--video", video, "write an MP4 (H.264) to this file");
   run->add_flag("--export-surface", export_surface, "write the deformed inner wall per frame as OBJ (assimp)");
+  run->add_option("--positions", positions_path, "write the final node positions as CSV (x, y, z per node, metres)");
   run->add_flag("--check", check, "count intersecting inner-wall triangle pairs on every frame (exact predicates)");
 
   CLI::App* bench = app.add_subcommand("bench", "run a scene without writing images; print per-stage frame times");
@@ -142,7 +150,7 @@ int main(int argc, char** argv) {
   }
 
   try {
-    if (*run) return cmd_run(scene_path, out_dir, frames, no_render, video, export_surface, check);
+    if (*run) return cmd_run(scene_path, out_dir, frames, no_render, video, export_surface, check, positions_path);
     if (*bench) return cmd_bench(scene_path, frames, json, no_render, kdop, classify);
     if (*ccd) return cmd_ccd(ccd_file, json);
   } catch (const engine::InputError& e) {

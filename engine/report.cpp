@@ -112,4 +112,14 @@ nlohmann::json frame_json(const FrameRecord& r) {
   return j;
 }
 
+std::string positions_csv(const Points& x) {
+  std::string out;
+  char line[96];
+  for (Eigen::Index i = 0; i < x.rows(); ++i) {
+    std::snprintf(line, sizeof line, "%.17g,%.17g,%.17g\n", x(i, 0), x(i, 1), x(i, 2));
+    out += line;
+  }
+  return out;
+}
+
 }  // namespace lumen::engine

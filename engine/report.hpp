@@ -7,6 +7,8 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include "physics/types.hpp"
+
 namespace lumen::engine {
 
 // Stages of one frame, in order; Total is the simulation thread's work for the frame.
@@ -47,6 +49,8 @@ StageSummary summarize(std::vector<double> values_ms);
 void write_json_file(const std::string& path, const nlohmann::json& j);
 // Writes text to `path` atomically (temporary name, then rename). Throws std::runtime_error naming the path.
 void write_text_file(const std::string& path, const std::string& text);
+// Node positions as CSV, one "x,y,z" line per node with 17 significant digits (round-trips exactly), metres.
+std::string positions_csv(const Points& x);
 
 // Stage table as text (for `lumen bench` and the end of `lumen run`).
 std::string format_stage_table(const std::vector<FrameRecord>& frames, double budget_ms);
