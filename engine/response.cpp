@@ -84,9 +84,120 @@ physics::ContactRow contact_row(const collision::Contact& c, const Points& rest,
   return row;
 }
 
+namespace {
+
+// Behavioural constants of the response.
+constexpr double kRecheckGapFraction = 0.5;   // re-check the corrected motion at this fraction of the gap
+constexpr double kFallbackTimeFraction = 0.9; // the fallback stops the motion at this fraction of the first contact
+constexpr double kEqualityTolerance = 1e-9;   // paper response: metres
+
+// One frame's response rounds: the active constraints and the last solve.
+struct ResponseRounds {
+  std::map<FeatureKey, collision::Contact> active;  // contacts held as constraints
+  std::set<FeatureKey> pushing;                     // those whose multiplier was positive in the last solve
+  std::vector<physics::ContactRow> rows;            // the last solve's rows (active order)
+  physics::ContactResult solved;                    // the last solve
+  int iterations = 0;
+};
+
+// The paper's response (Sec. 3.4): hold every colliding vertex, and the probe points, at their time-of-contact
+// positions along the free motion.
+void solve_paper(const Model& model, State& state, const Points& x_free, const Eigen::VectorXd& u_free,
+                 ResponseRounds& rr) {
+  const Points& x0 = state.x;
+  double toi_min = 1.0;
+  std::map<int, Eigen::Vector3d> held;
+  for (const auto& [key, c] : rr.active) {
+    toi_min = std::min(toi_min, c.toi);
+    for (int k = 0; k < 4; ++k)
+      if (!held.count(c.v[k])) held[c.v[k]] = at(x0, x_free, c.v[k], c.toi);
+  }
+  for (const auto& sp : model.probe_points)
+    for (int k = 0; k < 3; ++k)
+      if (!held.count(sp.node[k])) held[sp.node[k]] = at(x0, x_free, sp.node[k], toi_min);
+  for (const auto& [node, pos] : held)
+    for (int axis = 0; axis < 3; ++axis) {
+      physics::ContactRow r;
+      r.node[0] = node;
+      r.weight[0] = 1.0;
+      r.n = Eigen::Vector3d::Unit(axis);
+      r.g = pos[axis] - model.mesh.rest(node, axis);
+      rr.rows.push_back(r);
+    }
+  rr.solved = physics::solve_equality(*state.compliance, rr.rows, u_free, kEqualityTolerance, false);
+}
+
+// Non-penetration with the gap, as an LCP on the walls' compliance: active-set method on columns of the coupling
+// matrix computed on demand, warm-started from the rows that pushed last time.
+void solve_constraint(const Model& model, State& state, const Points& x1, const Eigen::VectorXd& u_free,
+                      ResponseRounds& rr) {
+  std::vector<int> warm;
+  for (const auto& [key, c] : rr.active) {
+    if (rr.pushing.count(key)) warm.push_back(static_cast<int>(rr.rows.size()));
+    rr.rows.push_back(contact_row(c, model.mesh.rest, state.x, x1, model.scene.collision.gap));
+  }
+  rr.solved = physics::solve_contacts(*state.compliance, rr.rows, u_free, warm, {}, false,
+                                      model.integrator->held_points());
+  rr.pushing.clear();
+  int r = 0;
+  for (const auto& entry : rr.active)
+    if (rr.solved.lambda[r++] > 0.0) rr.pushing.insert(entry.first);
+}
+
+// The probes' forces with the contacts' effect (what a device displays): displacement-driven probes change their
+// force so that contacts do not move them; in the paper's response every probe is held, and the holding forces at
+// its nodes add to its force.
+void add_contact_to_probe_forces(const Model& model, State& state, const ResponseRounds& rr) {
+  const bool constraint = model.scene.collision.response == ResponseKind::kConstraint;
+  if (constraint && rr.solved.held_force.size() > 0) {
+    for (size_t a = 0; a < model.held_probes.size(); ++a)
+      state.samples[model.held_probes[a]].force += rr.solved.held_force.segment<3>(3 * a);
+  } else if (!constraint) {
+    for (size_t p = 0; p < model.probe_points.size(); ++p)
+      for (int k = 0; k < 3; ++k) {
+        const int node = model.probe_points[p].node[k];
+        for (size_t r = 0; r < rr.rows.size(); ++r)
+          if (rr.rows[r].node[0] == node) state.samples[p].force += rr.solved.lambda[static_cast<long>(r)] * rr.rows[r].n;
+      }
+  }
+}
+
+// Fallback: stop the motion x0 -> x1 at a safe fraction of its earliest true contact (intersection-free by
+// construction); u follows. Returns whether a contact was found.
+bool stop_before_contact(const Model& model, State& state, Points& x1, Eigen::VectorXd& u) {
+  std::vector<collision::Contact> hits;
+  state.detector->detect(state.x, x1, 0.0, hits, nullptr);
+  double toi_min = 1.0;
+  for (const auto& c : hits) toi_min = std::min(toi_min, c.toi);
+  const double tau = hits.empty() ? 1.0 : kFallbackTimeFraction * toi_min;
+  x1 = state.x + tau * (x1 - state.x);
+  const Points du = x1 - model.mesh.rest;
+  u = Eigen::Map<const Eigen::VectorXd>(du.data(), du.size());
+  return !hits.empty();
+}
+
+// Keep the correction and the contacts that carry force for the next frame; flag their nodes for rendering.
+void keep_for_next_frame(const Model& model, State& state, const ResponseRounds& rr, const Eigen::VectorXd& u,
+                         const Eigen::VectorXd& u_free) {
+  state.last_correction = u - u_free;
+  state.active.clear();
+  int r = 0;
+  for (const auto& [key, c] : rr.active) {
+    const bool carries = model.scene.collision.response == ResponseKind::kPaper ||
+                         (r < rr.solved.lambda.size() && rr.solved.lambda[r] > 0.0);
+    if (carries) state.active.push_back(c);
+    ++r;
+  }
+  for (const auto& c : rr.active)
+    for (int k = 0; k < 4; ++k) state.in_contact[c.second.v[k]] = 1;
+}
+
+}  // namespace
+
 void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, FrameRecord& rec) {
   const int n = model.mesh.n_nodes();
   const CollisionSpec& cs = model.scene.collision;
+  const bool paper = cs.response == ResponseKind::kPaper;
   const Points& x0 = state.x;
   const Eigen::VectorXd u_free = u;
   auto positions = [&](const Eigen::VectorXd& uu) { return Points(model.mesh.rest + Eigen::Map<const Points>(uu.data(), n, 3)); };
@@ -108,132 +219,60 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   // Active constraints: last frame's held contacts (warm start, constraint response) plus every new one. The
   // contacts that pushed last time are the active-set solver's first guess.
   clock = Clock::now();
-  std::map<FeatureKey, collision::Contact> active;
-  std::set<FeatureKey> pushing;
-  if (cs.response == "constraint")
+  ResponseRounds rr;
+  if (!paper)
     for (const auto& c : state.active) {
-      active.emplace(key_of(c), c);
-      pushing.insert(key_of(c));
+      rr.active.emplace(key_of(c), c);
+      rr.pushing.insert(key_of(c));
     }
   std::vector<collision::Contact> found = state.contacts;
-  bool resolved = found.empty() && active.empty();
-  int iterations = 0;
-  std::vector<physics::ContactRow> rows;
-  std::vector<int> warm;
-  physics::ContactResult solved;
-  while (!resolved && iterations < cs.max_iterations) {
-    ++iterations;
-    // Add the contacts found on the current trial motion.
-    for (const auto& c : found) active[key_of(c)] = c;
-    rows.clear();
-    if (cs.response == "paper") {
-      // The paper (Sec. 3.4): hold every colliding vertex, and the probe points, at their time-of-contact positions.
-      double toi_min = 1.0;
-      std::map<int, Eigen::Vector3d> held;
-      for (const auto& [key, c] : active) {
-        toi_min = std::min(toi_min, c.toi);
-        for (int k = 0; k < 4; ++k)
-          if (!held.count(c.v[k])) held[c.v[k]] = at(x0, x_free, c.v[k], c.toi);
-      }
-      for (const auto& sp : model.probe_points)
-        for (int k = 0; k < 3; ++k)
-          if (!held.count(sp.node[k])) held[sp.node[k]] = at(x0, x_free, sp.node[k], toi_min);
-      for (const auto& [node, pos] : held)
-        for (int axis = 0; axis < 3; ++axis) {
-          physics::ContactRow r;
-          r.node[0] = node;
-          r.weight[0] = 1.0;
-          r.n = Eigen::Vector3d::Unit(axis);
-          r.g = pos[axis] - model.mesh.rest(node, axis);
-          rows.push_back(r);
-        }
-      solved = physics::solve_equality(*state.compliance, rows, u_free, 1e-9, false);
-    } else {
-      // Non-penetration with the gap, as an LCP on the inner wall's compliance: active-set method on columns of
-      // the coupling matrix computed on demand, warm-started from the rows that pushed last time.
-      warm.clear();
-      for (const auto& [key, c] : active) {
-        if (pushing.count(key)) warm.push_back(static_cast<int>(rows.size()));
-        rows.push_back(contact_row(c, model.mesh.rest, x0, x1, cs.gap));
-      }
-      solved = physics::solve_contacts(*state.compliance, rows, u_free, warm, {}, false,
-                                       model.held.points.empty() ? nullptr : &model.held);
-      pushing.clear();
-      int r = 0;
-      for (const auto& entry : active)
-        if (solved.lambda[r++] > 0.0) pushing.insert(entry.first);
-    }
-    // The correction is exact on the inner wall (all the check reads); the rest of the mesh follows at the end.
-    u = u_free + solved.correction;
+  bool resolved = found.empty() && rr.active.empty();
+  while (!resolved && rr.iterations < cs.max_iterations) {
+    ++rr.iterations;
+    // Add the contacts found on the current trial motion, solve for the correction.
+    for (const auto& c : found) rr.active[key_of(c)] = c;
+    rr.rows.clear();
+    if (paper)
+      solve_paper(model, state, x_free, u_free, rr);
+    else
+      solve_constraint(model, state, x1, u_free, rr);
+    // The correction is exact on the colliding walls (all the check reads); the rest of the mesh follows at the end.
+    u = u_free + rr.solved.correction;
     x1 = positions(u);
     rec.ms[kResponse] += ms_since(clock);
 
-    // Re-check the corrected motion with one CCD pass at half the gap (the rows ask for the full gap, so a held
-    // contact is done when this is clear); what it finds joins the active set for the next round.
+    // Re-check the corrected motion with one CCD pass at a fraction of the gap (the rows ask for the full gap, so
+    // a held contact is done when this is clear); what it finds joins the active set for the next round.
     clock = Clock::now();
-    state.detector->detect(x0, x1, 0.5 * cs.gap, found, nullptr);
+    state.detector->detect(x0, x1, kRecheckGapFraction * cs.gap, found, nullptr);
     resolved = found.empty();
     rec.ms[kCollision] += ms_since(clock);
     clock = Clock::now();
   }
-  rec.response_iterations = iterations;
-  // Total normal force the walls carry (the constraint response's multipliers are contact forces).
-  if (iterations > 0 && cs.response == "constraint") rec.contact_force = solved.lambda.sum();
-
-  // The probes' forces with the contacts' effect (what a device displays): displacement-driven probes change
-  // their force so that contacts do not move them; in the paper's response every probe is held, and the holding
-  // forces at its nodes add to its force.
-  if (iterations > 0 && cs.response == "constraint" && solved.held_force.size() > 0) {
-    for (size_t a = 0; a < model.held_probes.size(); ++a)
-      state.samples[model.held_probes[a]].force += solved.held_force.segment<3>(3 * a);
-  } else if (iterations > 0 && cs.response == "paper") {
-    for (size_t p = 0; p < model.probe_points.size(); ++p)
-      for (int k = 0; k < 3; ++k) {
-        const int node = model.probe_points[p].node[k];
-        for (size_t r = 0; r < rows.size(); ++r)
-          if (rows[r].node[0] == node) state.samples[p].force += solved.lambda[static_cast<long>(r)] * rows[r].n;
-      }
-  }
-
-  // Whole-mesh correction for the last multipliers (a sum of precomputed columns or one back-substitution); the
-  // inner wall keeps the values the check saw (equal to round-off).
-  if (iterations > 0) {
+  rec.response_iterations = rr.iterations;
+  if (rr.iterations > 0) {
+    // Total normal force the walls carry (the constraint response's multipliers are contact forces).
+    if (!paper) rec.contact_force = rr.solved.lambda.sum();
+    add_contact_to_probe_forces(model, state, rr);
+    // Whole-mesh correction for the last multipliers (a sum of precomputed columns or one back-substitution); the
+    // colliding walls keep the values the check saw (equal to round-off).
     clock = Clock::now();
     Eigen::VectorXd du;
-    state.compliance->displacement(solved.force, du);
-    for (int v : state.compliance->nodes()) du.segment<3>(3 * v) = solved.correction.segment<3>(3 * v);
+    state.compliance->displacement(rr.solved.force, du);
+    for (int v : state.compliance->nodes()) du.segment<3>(3 * v) = rr.solved.correction.segment<3>(3 * v);
     u = u_free + du;
     x1 = positions(u);
     rec.ms[kResponse] += ms_since(clock);
   }
 
-  // Fallback: stop the motion at a safe fraction of the earliest true contact (intersection-free by construction).
+  // Unresolved after the last round: the safe fallback.
   if (!resolved) {
     clock = Clock::now();
-    std::vector<collision::Contact> hits;
-    state.detector->detect(x0, x1, 0.0, hits, nullptr);
-    double toi_min = 1.0;
-    for (const auto& c : hits) toi_min = std::min(toi_min, c.toi);
-    const double tau = hits.empty() ? 1.0 : 0.9 * toi_min;
-    x1 = x0 + tau * (x1 - x0);
-    const Points du = x1 - model.mesh.rest;
-    u = Eigen::Map<const Eigen::VectorXd>(du.data(), 3 * n);
-    rec.fallback = !hits.empty();
+    rec.fallback = stop_before_contact(model, state, x1, u);
     rec.ms[kCollision] += ms_since(clock);
   }
-
-  // Keep the correction and the contacts that carry force for the next frame; flag their nodes for rendering.
-  state.last_correction = u - u_free;
-  state.active.clear();
-  int r = 0;
-  for (const auto& [key, c] : active) {
-    const bool carries = cs.response == "paper" || (r < solved.lambda.size() && solved.lambda[r] > 0.0);
-    if (carries) state.active.push_back(c);
-    ++r;
-  }
-  for (const auto& c : active)
-    for (int k = 0; k < 4; ++k) state.in_contact[c.second.v[k]] = 1;
-  rec.contacts = static_cast<long>(std::max<size_t>(active.size(), static_cast<size_t>(stats.contacts)));
+  keep_for_next_frame(model, state, rr, u, u_free);
+  rec.contacts = static_cast<long>(std::max<size_t>(rr.active.size(), static_cast<size_t>(stats.contacts)));
 }
 
 }  // namespace lumen::engine

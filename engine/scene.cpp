@@ -13,6 +13,15 @@ namespace {
 
 using nlohmann::json;
 
+// JSON names of the scene's choices, indexed by the enum's value.
+constexpr const char* kMaterialModelNames[] = {"linear", "corotational"};
+constexpr const char* kElementNames[] = {"tet4", "tet10"};
+constexpr const char* kSolverNames[] = {"quasi_static", "dynamic"};
+constexpr const char* kResponseNames[] = {"paper", "constraint"};
+constexpr const char* kTwistEndNames[] = {"", "start", "stop"};
+constexpr const char* kNodeSetNames[] = {"ends", "start", "stop"};
+constexpr const char* kCameraNames[] = {"side", "diagonal", "endoscope"};
+
 // Reads one JSON object, checking keys, types and ranges; every error names file, key path and value.
 class Reader {
  public:
@@ -83,6 +92,17 @@ class Reader {
     }
     fail(path, "must be one of " + list, &v);
   }
+  // One of the names of an enum (names[i] is value i); `first` skips leading values that have no JSON name.
+  template <class E, size_t N>
+  E choice(const json& v, const std::string& path, const char* const (&names)[N], size_t first = 0) const {
+    const std::string s = string(v, path);
+    std::string list;
+    for (size_t i = first; i < N; ++i) {
+      if (s == names[i]) return static_cast<E>(i);
+      list += (list.empty() ? "" : ", ") + std::string(names[i]);
+    }
+    fail(path, "must be one of " + list, &v);
+  }
   Eigen::Vector3d vec3(const json& v, const std::string& path) const {
     if (!v.is_array() || v.size() != 3) fail(path, "must be an array of 3 numbers", &v);
     Eigen::Vector3d r;
@@ -99,10 +119,10 @@ class Reader {
   std::string file_;
 };
 
-void read_mesh(const Reader& r, const json& m, physics::HollowCylinderSpec& spec, std::string& element) {
+void read_mesh(const Reader& r, const json& m, physics::HollowCylinderSpec& spec, ElementType& element) {
   r.only_keys(m, "mesh", {"type", "inner_radius", "outer_radius", "length", "segments_around", "segments_along",
                           "layers", "bend_radius", "element"});
-  if (m.contains("element")) element = r.one_of(m.at("element"), "mesh.element", {"tet4", "tet10"});
+  if (m.contains("element")) element = r.choice<ElementType>(m.at("element"), "mesh.element", kElementNames);
   r.one_of(r.require(m, "mesh", "type"), "mesh.type", {"hollow_cylinder"});
   spec.inner_radius = r.positive(r.require(m, "mesh", "inner_radius"), "mesh.inner_radius");
   spec.outer_radius = r.positive(r.require(m, "mesh", "outer_radius"), "mesh.outer_radius");
@@ -122,7 +142,7 @@ void read_mesh(const Reader& r, const json& m, physics::HollowCylinderSpec& spec
 
 void read_material(const Reader& r, const json& m, MaterialSpec& mat) {
   r.only_keys(m, "material", {"model", "young_modulus", "poisson_ratio", "density"});
-  mat.model = r.one_of(r.require(m, "material", "model"), "material.model", {"linear", "corotational"});
+  mat.model = r.choice<MaterialModel>(r.require(m, "material", "model"), "material.model", kMaterialModelNames);
   mat.young_modulus = r.positive(r.require(m, "material", "young_modulus"), "material.young_modulus");
   mat.poisson_ratio = r.number_in(r.require(m, "material", "poisson_ratio"), "material.poisson_ratio", -1.0, 0.5,
                                   true, true);
@@ -174,7 +194,7 @@ void read_render(const Reader& r, const json& m, RenderSpec& spec) {
   if (m.contains("height")) spec.height = r.integer_in(m.at("height"), "render.height", 16, 8192);
   if (spec.width % 2) r.fail("render.width", "must be even (video encoding)", &m.at("width"));
   if (spec.height % 2) r.fail("render.height", "must be even (video encoding)", &m.at("height"));
-  if (m.contains("camera")) spec.camera = r.one_of(m.at("camera"), "render.camera", {"side", "diagonal", "endoscope"});
+  if (m.contains("camera")) spec.camera = r.choice<render::CameraPreset>(m.at("camera"), "render.camera", kCameraNames);
   if (m.contains("video")) spec.video = r.boolean(m.at("video"), "render.video");
   if (m.contains("force_scale")) spec.force_scale = r.positive(m.at("force_scale"), "render.force_scale");
 }
@@ -198,7 +218,7 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
     if (spec.kdop != 6 && spec.kdop != 14 && spec.kdop != 18 && spec.kdop != 26)
       r.fail("collision.kdop", "must be one of 6, 14, 18, 26", &m.at("kdop"));
   }
-  if (m.contains("response")) spec.response = r.one_of(m.at("response"), "collision.response", {"paper", "constraint"});
+  if (m.contains("response")) spec.response = r.choice<ResponseKind>(m.at("response"), "collision.response", kResponseNames);
   if (m.contains("gap")) spec.gap = r.number_in(m.at("gap"), "collision.gap", 0.0, 0.01, false, false);
   if (m.contains("max_iterations"))
     spec.max_iterations = r.integer_in(m.at("max_iterations"), "collision.max_iterations", 1, 100);
@@ -206,7 +226,7 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
 
 void read_solver(const Reader& r, const json& m, SolverSpec& spec) {
   r.only_keys(m, "solver", {"type", "tolerance", "max_iterations", "rayleigh_mass", "rayleigh_stiffness"});
-  if (m.contains("type")) spec.type = r.one_of(m.at("type"), "solver.type", {"quasi_static", "dynamic"});
+  if (m.contains("type")) spec.type = r.choice<SolverType>(m.at("type"), "solver.type", kSolverNames);
   if (m.contains("tolerance"))
     spec.tolerance = r.number_in(m.at("tolerance"), "solver.tolerance", 0.0, 1.0, true, true);
   if (m.contains("max_iterations"))
@@ -215,7 +235,7 @@ void read_solver(const Reader& r, const json& m, SolverSpec& spec) {
   auto damping = [&](const char* key, double& out) {
     if (!m.contains(key)) return;
     const std::string path = std::string("solver.") + key;
-    if (spec.type != "dynamic") r.fail(path, "needs solver.type \"dynamic\"", &m.at(key));
+    if (spec.type != SolverType::kDynamic) r.fail(path, "needs solver.type \"dynamic\"", &m.at(key));
     out = r.number(m.at(key), path);
     if (!(out >= 0.0)) r.fail(path, "must be >= 0", &m.at(key));
   };
@@ -225,7 +245,7 @@ void read_solver(const Reader& r, const json& m, SolverSpec& spec) {
 
 void read_twist(const Reader& r, const json& m, TwistSpec& spec) {
   r.only_keys(m, "twist", {"end", "track"});
-  spec.end = r.one_of(r.require(m, "twist", "end"), "twist.end", {"start", "stop"});
+  spec.end = r.choice<TwistEnd>(r.require(m, "twist", "end"), "twist.end", kTwistEndNames, 1);
   // Key frames of the angle: times >= 0 and strictly increasing, angles within two turns either way.
   const json& track = r.require(m, "twist", "track");
   if (!track.is_array()) r.fail("twist.track", "must be an array of {\"t\", \"degrees\"} keys", &track);
@@ -243,7 +263,41 @@ void read_twist(const Reader& r, const json& m, TwistSpec& spec) {
   }
 }
 
+// Checks across keys: what the compiled model cannot combine is refused here, naming the first key involved.
+void check_combinations(const Reader& r, const json& root, const Scene& s) {
+  // Quadratic elements come with the linear quasi-static model only (prefactorised, like the paper's).
+  if (s.element == ElementType::kTet10 && s.material.model != MaterialModel::kLinear)
+    r.fail("mesh.element", std::string("\"tet10\" needs material.model \"linear\" (got \"") + name_of(s.material.model) + "\")",
+           &root.at("mesh").at("element"));
+  if (s.element == ElementType::kTet10 && s.solver.type != SolverType::kQuasiStatic)
+    r.fail("mesh.element", std::string("\"tet10\" needs solver.type \"quasi_static\" (got \"") + name_of(s.solver.type) + "\")",
+           &root.at("mesh").at("element"));
+  // Displacement-driven probes (held points) are solved on the linear quasi-static model's probe compliance.
+  int held = -1;
+  for (size_t i = 0; i < s.probes.size() && held < 0; ++i)
+    if (s.probes[i].drive == ProbeDrive::Displacement) held = static_cast<int>(i);
+  if (held < 0) return;
+  const std::string held_path = Reader::index("probes", held);
+  for (size_t i = 0; i < s.probes.size(); ++i)
+    if (!s.probes[i].replay.empty())
+      r.fail(Reader::index("probes", i) + ".replay",
+             "replayed probes cannot be combined with displacement-driven probes", &root.at("probes")[i].at("replay"));
+  if (s.solver.type == SolverType::kDynamic)
+    r.fail(held_path + ".track", "displacement-driven probes need solver.type \"quasi_static\" (value \"dynamic\")",
+           nullptr);
+  if (s.material.model == MaterialModel::kCorotational)
+    r.fail(held_path + ".track",
+           "displacement-driven probes need material.model \"linear\" (value \"corotational\")", nullptr);
+}
+
 }  // namespace
+
+const char* name_of(MaterialModel v) { return kMaterialModelNames[static_cast<int>(v)]; }
+const char* name_of(ElementType v) { return kElementNames[static_cast<int>(v)]; }
+const char* name_of(SolverType v) { return kSolverNames[static_cast<int>(v)]; }
+const char* name_of(ResponseKind v) { return kResponseNames[static_cast<int>(v)]; }
+const char* name_of(TwistEnd v) { return kTwistEndNames[static_cast<int>(v)]; }
+const char* name_of(render::CameraPreset v) { return kCameraNames[static_cast<int>(v)]; }
 
 Scene parse_scene(const std::string& text, const std::string& path) {
   Reader r(path);
@@ -271,7 +325,7 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   const json& fixed = r.require(root, "", "fixed");
   if (!fixed.is_array() || fixed.empty()) r.fail("fixed", "must be a non-empty array of names", &fixed);
   for (size_t i = 0; i < fixed.size(); ++i)
-    s.fixed.push_back(r.one_of(fixed[i], Reader::index("fixed", i), {"ends", "start", "stop"}));
+    s.fixed.push_back(r.choice<NodeSetName>(fixed[i], Reader::index("fixed", i), kNodeSetNames));
 
   const json& probes = r.require(root, "", "probes");
   if (!probes.is_array()) r.fail("probes", "must be an array", &probes);
@@ -284,13 +338,7 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   if (root.contains("collision")) read_collision(r, root.at("collision"), s.collision);
   if (root.contains("solver")) read_solver(r, root.at("solver"), s.solver);
   if (root.contains("twist")) read_twist(r, root.at("twist"), s.twist);
-  // Quadratic elements come with the linear quasi-static model only (prefactorised, like the paper's).
-  if (s.element == "tet10" && s.material.model != "linear")
-    r.fail("mesh.element", "\"tet10\" needs material.model \"linear\" (got \"" + s.material.model + "\")",
-           &root.at("mesh").at("element"));
-  if (s.element == "tet10" && s.solver.type != "quasi_static")
-    r.fail("mesh.element", "\"tet10\" needs solver.type \"quasi_static\" (got \"" + s.solver.type + "\")",
-           &root.at("mesh").at("element"));
+  check_combinations(r, root, s);
   return s;
 }
 

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 
 #include "physics/mesh.hpp"
+#include "render/renderer.hpp"
 
 namespace lumen::engine {
 
@@ -37,8 +38,23 @@ struct ProbeSpec {
   std::string replay;                               // recorded CSV (source "replay"), absolute path
 };
 
+// Scene choices, decided once by the parser (no string compares past it). Each has its JSON names, in order.
+enum class MaterialModel { kLinear, kCorotational };  // "linear" (prefactorised, the paper's) | "corotational"
+enum class ElementType { kTet4, kTet10 };             // "tet4" | "tet10"
+enum class SolverType { kQuasiStatic, kDynamic };     // "quasi_static" | "dynamic"
+enum class ResponseKind { kPaper, kConstraint };      // "paper" | "constraint"
+enum class TwistEnd { kNone, kStart, kStop };         // (no twist) | "start" | "stop"
+enum class NodeSetName { kEnds, kStart, kStop };      // "ends" | "start" | "stop"
+// The JSON name of a choice (what the scene file says and report.json repeats).
+const char* name_of(MaterialModel v);
+const char* name_of(ElementType v);
+const char* name_of(SolverType v);
+const char* name_of(ResponseKind v);
+const char* name_of(TwistEnd v);
+const char* name_of(render::CameraPreset v);
+
 struct MaterialSpec {
-  std::string model = "linear";  // "linear" (prefactorised, the paper's) | "corotational" (large rotations)
+  MaterialModel model = MaterialModel::kLinear;  // prefactorised linear (the paper's) or corotational
   double young_modulus = 5000.0;  // pascals
   double poisson_ratio = 0.45;    // (-1, 0.5)
   double density = 1050.0;        // kg / m^3
@@ -46,7 +62,7 @@ struct MaterialSpec {
 
 struct RenderSpec {
   int width = 640, height = 480;   // pixels, even
-  std::string camera = "diagonal";  // side | diagonal | endoscope
+  render::CameraPreset camera = render::CameraPreset::Diagonal;  // side | diagonal | endoscope
   bool video = false;               // write DIR/video.mp4 by default
   double force_scale = 1.0;         // arrow length per newton, metres / N
 };
@@ -54,7 +70,7 @@ struct RenderSpec {
 struct CollisionSpec {
   bool self = false;               // inner-wall self-collision on/off
   int kdop = 26;                   // 6, 14, 18, 26
-  std::string response = "constraint";  // "paper" | "constraint"
+  ResponseKind response = ResponseKind::kConstraint;
   double gap = 1e-4;               // minimum separation, metres
   int max_iterations = 8;          // response/re-check rounds before the safe fallback
   // Walls that take part in self-collision: the inner wall only (the paper's, the default), or also the outer
@@ -64,7 +80,7 @@ struct CollisionSpec {
 
 // How a frame is solved: quasi-statically (equilibrium with the frame's loads) or by one implicit dynamic step.
 struct SolverSpec {
-  std::string type = "quasi_static";  // "quasi_static" | "dynamic" (backward Euler, lumped mass, step 1 / fps)
+  SolverType type = SolverType::kQuasiStatic;  // or dynamic (backward Euler, lumped mass, step 1 / fps)
   double tolerance = 1e-3;            // corotational nonlinear solve: relative residual, (0, 1)
   int max_iterations = 20;            // its outer iterations, >= 1
   double rayleigh_mass = 0.0;         // dynamic: Rayleigh alpha (C = alpha M + beta K), 1/s, >= 0
@@ -81,9 +97,9 @@ struct TwistKey {
 // One end ring turned about the tube axis (z for a straight tube; the ring-plane normal for a bent one) through
 // the ring's centre: its nodes are prescribed u = R(theta) (X - c) + c - X (held, like a fixed end).
 struct TwistSpec {
-  std::string end;              // "" (no twist) | "start" | "stop"
+  TwistEnd end = TwistEnd::kNone;
   std::vector<TwistKey> track;  // non-empty when end is set, times strictly increasing
-  bool enabled() const { return !end.empty(); }
+  bool enabled() const { return end != TwistEnd::kNone; }
 };
 
 struct Scene {
@@ -92,9 +108,9 @@ struct Scene {
   physics::HollowCylinderSpec mesh;
   // Element of the volume mesh (key mesh.element): "tet4" (linear, the paper's) or "tet10" (quadratic,
   // isoparametric; its walls are drawn and collide as each face split into 4 triangles over the edge nodes).
-  std::string element = "tet4";
+  ElementType element = ElementType::kTet4;
   MaterialSpec material;
-  std::vector<std::string> fixed;  // named node sets held still: "ends", "start", "stop"
+  std::vector<NodeSetName> fixed;  // named node sets held still
   std::vector<ProbeSpec> probes;
   int frames = 120;
   double fps = 40.0;  // frames per second of simulated time; the budget is 1 / fps
@@ -104,7 +120,8 @@ struct Scene {
   TwistSpec twist;
 };
 
-// Read and validate a scene file; throws InputError with "FILE: KEY.PATH: problem (value V)".
+// Read and validate a scene file; throws InputError with "FILE: KEY.PATH: problem (value V)". Every check that
+// involves several keys is made here too, so that compiling a parsed scene fails only on numerical grounds.
 Scene load_scene(const std::string& path);
 // The same from text (path used in messages and to resolve relative replay files).
 Scene parse_scene(const std::string& text, const std::string& path);

@@ -135,7 +135,7 @@ SessionResult run_session(const Model& model, const SessionOptions& opt) {
   std::unique_ptr<render::Renderer> renderer;
   std::unique_ptr<render::FrameWriter> writer;
   if (opt.render) {
-    renderer = std::make_unique<render::Renderer>(rs.width, rs.height, render::parse_camera(rs.camera), framing_of(model));
+    renderer = std::make_unique<render::Renderer>(rs.width, rs.height, rs.camera, framing_of(model));
     if (write_frames || !opt.video_path.empty())
       writer = std::make_unique<render::FrameWriter>(write_frames ? (out / "frames").string() : std::string(),
                                                      opt.video_path, rs.width, rs.height,
@@ -208,12 +208,12 @@ SessionResult run_session(const Model& model, const SessionOptions& opt) {
                {"tets", model.mesh.tets.rows()},
                {"inner_triangles", model.mesh.inner.rows()},
                {"outer_triangles", model.mesh.outer.rows()}};
-  r["model"] = {{"material", model.scene.material.model}, {"element", model.scene.element},
-                {"solver", model.scene.solver.type}, {"compile_seconds", model.compile_seconds}};
+  r["model"] = {{"material", name_of(model.scene.material.model)}, {"element", name_of(model.scene.element)},
+                {"solver", name_of(model.scene.solver.type)}, {"compile_seconds", model.compile_seconds}};
   r["collision"] = {{"self", model.scene.collision.self}, {"kdop", model.scene.collision.kdop},
-                    {"response", model.scene.collision.response}, {"gap_m", model.scene.collision.gap},
+                    {"response", name_of(model.scene.collision.response)}, {"gap_m", model.scene.collision.gap},
                     {"surfaces", model.scene.collision.outer_wall ? nlohmann::json{"inner", "outer"} : nlohmann::json{"inner"}}};
-  r["render"] = {{"enabled", opt.render}, {"width", rs.width}, {"height", rs.height}, {"camera", rs.camera}};
+  r["render"] = {{"enabled", opt.render}, {"width", rs.width}, {"height", rs.height}, {"camera", name_of(rs.camera)}};
   r["stages"] = stages_json(result.frames);
   r["writer"] = {{"frames", result.writer.frames}, {"busy_seconds", result.writer.busy_seconds},
                  {"frames_per_second", result.writer.frames_per_second()},

@@ -20,10 +20,12 @@
 
 namespace lumen::physics {
 
-// A load point on the surface: up to 3 mesh nodes with barycentric weights (unused entries: node = -1).
+// A load point on the surface: up to 3 mesh nodes with barycentric weights (unused entries: node = -1), and the
+// surface triangle it lies on (-1 when it is not given by one).
 struct LoadPoint {
   int node[3] = {-1, -1, -1};
   double weight[3] = {0.0, 0.0, 0.0};
+  int triangle = -1;
 };
 
 // Displacement of the whole mesh for forces at fixed load points, precomputed.

@@ -278,8 +278,17 @@ StaticSolver::StaticSolver(const Eigen::SparseMatrix<double>& K, const std::vect
     : StaticSolver(K, whole_nodes(fixed_nodes)) {}
 
 StaticSolver::StaticSolver(const Eigen::SparseMatrix<double>& K, const std::vector<FixedDof>& fixed_dofs)
-    : impl_(std::make_unique<Impl>()) {
+    : impl_(std::make_shared<Impl>()) {
   impl_->factorise(K, fixed_mask(K, fixed_dofs));
+}
+
+StaticSolver::StaticSolver(std::shared_ptr<Impl> impl, double inverse_scale)
+    : impl_(std::move(impl)), inverse_scale_(inverse_scale) {}
+
+StaticSolver StaticSolver::scaled(double c) const {
+  if (!(c > 0.0) || !std::isfinite(c))
+    throw std::invalid_argument("StaticSolver::scaled: c must be > 0 and finite, got " + std::to_string(c));
+  return StaticSolver(impl_, inverse_scale_ / c);
 }
 
 StaticSolver::~StaticSolver() = default;
@@ -318,7 +327,11 @@ void StaticSolver::solve(const Eigen::VectorXd& f, Eigen::VectorXd& u) const {
   }
   const double* x = static_cast<const double*>(m.X->x);
   u.setZero(m.n);
-  for (int k = 0; k < nf; ++k) u[m.dof_of[k]] = x[k];
+  if (inverse_scale_ == 1.0) {
+    for (int k = 0; k < nf; ++k) u[m.dof_of[k]] = x[k];
+  } else {
+    for (int k = 0; k < nf; ++k) u[m.dof_of[k]] = inverse_scale_ * x[k];
+  }
 }
 
 Eigen::MatrixXd StaticSolver::solve_many(const Eigen::MatrixXd& F) const {
@@ -342,6 +355,7 @@ Eigen::MatrixXd StaticSolver::solve_many(const Eigen::MatrixXd& F) const {
   const Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>> Xf(static_cast<const double*>(X->x), nf, nc,
                                                                       Eigen::OuterStride<>(X->d));
   for (int k = 0; k < nf; ++k) U.row(m.dof_of[k]) = Xf.row(k);
+  if (inverse_scale_ != 1.0) U *= inverse_scale_;
   cholmod_free_dense(&X, &m.common);
   return U;
 }

@@ -61,10 +61,15 @@ class StaticSolver {
   // Many right-hand sides at once (3n x m).
   Eigen::MatrixXd solve_many(const Eigen::MatrixXd& F) const;
   bool is_fixed_dof(int dof) const;
+  // The solver of c K (c > 0, finite) on the same factorisation (shared, not copied): its solves return
+  // K^-1 f / c. The two share workspace, so they must not be used from two threads at once either.
+  StaticSolver scaled(double c) const;
 
  private:
   struct Impl;
-  std::unique_ptr<Impl> impl_;
+  StaticSolver(std::shared_ptr<Impl> impl, double inverse_scale);
+  std::shared_ptr<Impl> impl_;
+  double inverse_scale_ = 1.0;  // solves return inverse_scale_ * (factorised matrix)^-1 f
 };
 
 }  // namespace lumen::physics

@@ -62,7 +62,7 @@ TEST(DynamicScene, DampedStepLoadSettlesOnTheLinearStaticSolution) {
   engine::step(*m, s, rec);
   Eigen::VectorXd u_static;
   statics.solve(engine::nodal_loads(*m, s), u_static);
-  EXPECT_GT((s.u - u_static).norm(), 0.3 * u_static.norm());  // one step of 25 ms: still moving
+  EXPECT_GT((s.sim.u - u_static).norm(), 0.3 * u_static.norm());  // one step of 25 ms: still moving
   EXPECT_EQ(rec.physics_iterations, 1);
   EXPECT_TRUE(rec.physics_converged);
   EXPECT_GT(rec.kinetic_energy, 0.0);
@@ -70,7 +70,7 @@ TEST(DynamicScene, DampedStepLoadSettlesOnTheLinearStaticSolution) {
   for (int i = 1; i < 160; ++i) {
     engine::step(*m, s, rec);
     ASSERT_FALSE(rec.numerical_failure);
-    error = (s.u - u_static).norm() / u_static.norm();
+    error = (s.sim.u - u_static).norm() / u_static.norm();
   }
   EXPECT_LT(error, 1e-6);
   EXPECT_LT(rec.kinetic_energy, 1e-12 * 0.5 * u_static.dot(K * u_static));
@@ -94,20 +94,20 @@ TEST(DynamicScene, UndampedStepDissipatesExactlyWhatBackwardEulerPredicts) {
   };
   engine::step(*m, s, rec);
   f = engine::nodal_loads(*m, s);
-  double e0 = energy(s.u, s.dynamic.v), scale = std::abs(e0);
-  Eigen::VectorXd u0 = s.u, v0 = s.dynamic.v;
+  double e0 = energy(s.sim.u, s.sim.v), scale = std::abs(e0);
+  Eigen::VectorXd u0 = s.sim.u, v0 = s.sim.v;
   int decreasing = 0;
   for (int i = 0; i < 40; ++i) {
     engine::step(*m, s, rec);
-    const double e1 = energy(s.u, s.dynamic.v);
-    const Eigen::VectorXd du = s.u - u0, dv = s.dynamic.v - v0;
+    const double e1 = energy(s.sim.u, s.sim.v);
+    const Eigen::VectorXd du = s.sim.u - u0, dv = s.sim.v - v0;
     const double dissipated = 0.5 * dv.dot(mass.cwiseProduct(dv)) + 0.5 * du.dot(K * du);
     EXPECT_NEAR(e1 - e0, -dissipated, 1e-9 * scale) << "frame " << rec.frame;
     EXPECT_LE(e1, e0 + 1e-12 * scale) << "frame " << rec.frame;
     decreasing += e1 < e0 - 1e-6 * scale;
     e0 = e1;
-    u0 = s.u;
-    v0 = s.dynamic.v;
+    u0 = s.sim.u;
+    v0 = s.sim.v;
   }
   EXPECT_GT(decreasing, 10);  // the dissipation is real, not round-off
   EXPECT_GT(rec.kinetic_energy, 0.0);
@@ -137,8 +137,8 @@ TEST(DynamicScene, DampedCorotationalStepLoadSettlesOnTheCorotationalEquilibrium
   // Large enough to be nonlinear: the corotational equilibrium differs from the linear one.
   Eigen::VectorXd u_linear;
   qs->solver->solve(engine::nodal_loads(*qs, sq), u_linear);
-  EXPECT_GT((sq.u - u_linear).norm(), 1e-3 * sq.u.norm());
-  EXPECT_LT((sd.u - sq.u).norm(), 1e-6 * sq.u.norm());
+  EXPECT_GT((sq.sim.u - u_linear).norm(), 1e-3 * sq.sim.u.norm());
+  EXPECT_LT((sd.sim.u - sq.sim.u).norm(), 1e-6 * sq.sim.u.norm());
 }
 
 // The contact compliance of a dynamic scene is that of one implicit step: an extra nodal force g changes the
@@ -146,7 +146,7 @@ TEST(DynamicScene, DampedCorotationalStepLoadSettlesOnTheCorotationalEquilibrium
 TEST(DynamicScene, ContactComplianceIsTheImplicitStepsResponse) {
   const auto m = compile(step_scene("linear", R"({"type": "dynamic", "rayleigh_mass": 3.0, "rayleigh_stiffness": 0.01})",
                                     12, 8, 2, 0.02));
-  ASSERT_TRUE(m->step_solver);
+  ASSERT_TRUE(m->integrator);
   // A state in motion.
   engine::State s = engine::make_state(*m);
   engine::FrameRecord rec;
@@ -174,7 +174,7 @@ TEST(DynamicScene, ContactComplianceIsTheImplicitStepsResponse) {
   with_contacts.collision.self = true;
   const auto mc = engine::compile_model(with_contacts);
   const engine::State sc = engine::make_state(*mc);
-  EXPECT_EQ(&sc.compliance->solver(), mc->step_solver.get());
+  EXPECT_EQ(&sc.compliance->solver(), &mc->contact_solver());
 }
 
 // A coarse tube squeezed shut in a dynamic scene with self-collision: every frame is intersection-free (exact
@@ -190,7 +190,7 @@ TEST(DynamicScene, SqueezeWithContactsStaysIntersectionFreeWithConsistentVelocit
     p.track = {engine::TrackKey{0.0, Eigen::Vector3d::Zero()}, engine::TrackKey{0.5, 3.0 * p.track.back().value},
                engine::TrackKey{1.0, 3.0 * p.track.back().value}};
   }
-  s.solver.type = "dynamic";
+  s.solver.type = engine::SolverType::kDynamic;
   s.solver.rayleigh_mass = 5.0;
   const auto m = engine::compile_model(s);
   engine::State st = engine::make_state(*m);

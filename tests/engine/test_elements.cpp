@@ -86,10 +86,10 @@ TEST(Elements, Tet10ModelMatchesADirectQuadraticSolve) {
   const physics::StaticSolver solver(physics::assemble_stiffness(q, physics::LinearMaterial{5000.0, 0.45}), fixed);
   Eigen::VectorXd u;
   solver.solve(engine::nodal_loads(*model, state), u);
-  ASSERT_EQ(u.size(), state.u.size());
-  EXPECT_LT((u - state.u).norm(), 1e-9 * u.norm());
+  ASSERT_EQ(u.size(), state.sim.u.size());
+  EXPECT_LT((u - state.sim.u).norm(), 1e-9 * u.norm());
   EXPECT_GT(u.norm(), 0.0);
-  for (int v : fixed) EXPECT_EQ(state.u.segment<3>(3 * v).norm(), 0.0) << "end node " << v;
+  for (int v : fixed) EXPECT_EQ(state.sim.u.segment<3>(3 * v).norm(), 0.0) << "end node " << v;
 }
 
 // collision.surfaces with "outer": the colliding walls are the inner then the outer triangles, and their nodes.

@@ -29,7 +29,7 @@ Eigen::VectorXd final_u(const std::string& model, double force) {
       EXPECT_FALSE(rec.numerical_failure);
     }
   }
-  return s.u;
+  return s.sim.u;
 }
 }  // namespace
 
@@ -85,7 +85,7 @@ TEST(Models, FaultyDeviceIsDetectedReportedAndSurvived) {
     engine::step(*m, s, rec);
     failures += rec.bad_input;
     EXPECT_EQ(rec.bad_input, (i + 1) % 3 == 0) << "frame " << rec.frame;
-    EXPECT_TRUE(s.u.allFinite());
+    EXPECT_TRUE(s.sim.u.allFinite());
     EXPECT_TRUE(rec.reactions[0].allFinite());
   }
   EXPECT_EQ(failures, 4);
@@ -108,7 +108,7 @@ TEST(Models, SolverKeysBoundTheCorotationalSolve) {
     auto m = engine::compile_model(engine::parse_scene(text, "m.json"));
     engine::State s = engine::make_state(*m);
     engine::step(*m, s, rec);
-    return s.u;
+    return s.sim.u;
   };
   engine::FrameRecord one, loose, tight, tighter;
   first_frame(R"({"max_iterations": 1})", one);

@@ -75,7 +75,7 @@ TEST(ProbeLoad, DisplacementDrivenProbeReachesItsTargetAndReportsTheForce) {
   Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * model->mesh.n_nodes()), u;
   engine::add_point_load(model->probe_points[0], -rec.reactions[0], f);
   engine::add_point_load(model->probe_points[1], t * Eigen::Vector3d(0, 0.02, 0.01), f);
-  model->solver->solve(f, u);
+  model->contact_solver().solve(f, u);
   Eigen::Vector3d moved = Eigen::Vector3d::Zero();
   for (int k = 0; k < 3; ++k) moved += model->probe_points[0].weight[k] * u.segment<3>(3 * model->probe_points[0].node[k]);
   EXPECT_LT((moved - target).norm(), 1e-9 * target.norm() + 1e-15);
@@ -116,7 +116,7 @@ TEST(ProbeLoad, HeldProbeReactionIncludesTheContact) {
   for (int p = 0; p < 2; ++p) {
     const engine::SurfacePoint& sp = held.model->probe_points[p];
     Eigen::Vector3d moved = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) moved += sp.weight[k] * held.state.u.segment<3>(3 * sp.node[k]);
+    for (int k = 0; k < 3; ++k) moved += sp.weight[k] * held.state.sim.u.segment<3>(3 * sp.node[k]);
     const Eigen::Vector3d target(0, p == 0 ? -0.013 : 0.013, 0);
     EXPECT_LT((moved - target).norm(), 1e-6 * target.norm()) << "probe " << p;
   }

@@ -417,7 +417,7 @@ Scene squeeze_scene(const std::string& response, int frames) {
                TrackKey{1.0, 3.0 * p.track.back().value}};
   }
   s.frames = frames;
-  s.collision.response = response;
+  s.collision.response = response == "paper" ? ResponseKind::kPaper : ResponseKind::kConstraint;
   return s;
 }
 

@@ -9,6 +9,10 @@
 
 using lumen::engine::InputError;
 using lumen::engine::parse_scene;
+using lumen::engine::ResponseKind;
+using lumen::engine::SolverType;
+using lumen::engine::TwistEnd;
+namespace render = lumen::render;
 using nlohmann::json;
 
 namespace {
@@ -47,7 +51,7 @@ TEST(Scene, AcceptsTheIssueExampleWithItsValues) {
   ASSERT_EQ(s.probes[0].track.size(), 2u);
   EXPECT_DOUBLE_EQ(s.probes[0].track[1].value.y(), -0.4);
   EXPECT_EQ(s.probes[0].drive, lumen::engine::ProbeDrive::Force);
-  EXPECT_EQ(s.render.camera, "diagonal");
+  EXPECT_EQ(s.render.camera, render::CameraPreset::Diagonal);
   EXPECT_TRUE(s.render.video);
   EXPECT_FALSE(s.collision.self);
 }
@@ -180,7 +184,7 @@ TEST(Scene, CollisionKeys) {
   auto scene = parse_scene(s.dump(), "dir/s.json");
   EXPECT_TRUE(scene.collision.self);
   EXPECT_EQ(scene.collision.kdop, 18);
-  EXPECT_EQ(scene.collision.response, "paper");
+  EXPECT_EQ(scene.collision.response, ResponseKind::kPaper);
   s["collision"]["kdop"] = 10;
   EXPECT_EQ(error_of(s), "dir/s.json: collision.kdop: must be one of 6, 14, 18, 26 (value 10)");
 }
@@ -196,7 +200,7 @@ TEST(Scene, UnreadableFile) {
 
 TEST(Scene, SolverKeysWithDefaultsAndValues) {
   auto d = parse_scene(good_scene().dump(), "dir/s.json");
-  EXPECT_EQ(d.solver.type, "quasi_static");
+  EXPECT_EQ(d.solver.type, SolverType::kQuasiStatic);
   EXPECT_DOUBLE_EQ(d.solver.tolerance, 1e-3);
   EXPECT_EQ(d.solver.max_iterations, 20);
   EXPECT_EQ(d.solver.rayleigh_mass, 0.0);
@@ -205,7 +209,7 @@ TEST(Scene, SolverKeysWithDefaultsAndValues) {
   s["solver"] = json::parse(R"({"type": "dynamic", "tolerance": 1e-6, "max_iterations": 7, "rayleigh_mass": 2.5,
                                 "rayleigh_stiffness": 0.01})");
   auto scene = parse_scene(s.dump(), "dir/s.json");
-  EXPECT_EQ(scene.solver.type, "dynamic");
+  EXPECT_EQ(scene.solver.type, SolverType::kDynamic);
   EXPECT_DOUBLE_EQ(scene.solver.tolerance, 1e-6);
   EXPECT_EQ(scene.solver.max_iterations, 7);
   EXPECT_DOUBLE_EQ(scene.solver.rayleigh_mass, 2.5);
@@ -247,7 +251,7 @@ TEST(Scene, TwistKeysWithTheirValues) {
   s["twist"] = json::parse(R"({"end": "stop", "track": [{"t": 0.0, "degrees": 0.0}, {"t": 3.0, "degrees": 180.0}]})");
   auto scene = parse_scene(s.dump(), "dir/s.json");
   EXPECT_TRUE(scene.twist.enabled());
-  EXPECT_EQ(scene.twist.end, "stop");
+  EXPECT_EQ(scene.twist.end, TwistEnd::kStop);
   ASSERT_EQ(scene.twist.track.size(), 2u);
   EXPECT_DOUBLE_EQ(scene.twist.track[1].t, 3.0);
   EXPECT_DOUBLE_EQ(scene.twist.track[1].degrees, 180.0);

@@ -17,6 +17,14 @@ using namespace lumen;
 
 namespace {
 
+// The scene's linear material (the model keeps only what its integrator needs).
+physics::LinearMaterial material_of(const engine::Model& m) {
+  physics::LinearMaterial mat;
+  mat.young_modulus = m.scene.material.young_modulus;
+  mat.poisson_ratio = m.scene.material.poisson_ratio;
+  return mat;
+}
+
 constexpr double kPi = 3.14159265358979323846;
 
 // Optimised builds run the finer meshes and every model; the Debug + sanitizer build coarse meshes (quickly).
@@ -157,9 +165,9 @@ TEST(Twist, TurnedRingIsAtItsRigidRotationInEveryModel) {
     EXPECT_LT(ring_error(*m, s.x, ring, stop, 40.0 * kPi / 180.0), 1e-12) << what;
     // Not trivially: the ring really turned (by 40 degrees at radius >= 1 cm: > 6 mm).
     EXPECT_GT(ring_error(*m, s.x, ring, stop, 0.0), 6e-3) << what;
-    for (int node : other) EXPECT_EQ(s.u.segment<3>(3 * node).norm(), 0.0) << what;
+    for (int node : other) EXPECT_EQ(s.sim.u.segment<3>(3 * node).norm(), 0.0) << what;
     if (v.model == "linear" && v.solver == "{}") {
-      const Eigen::VectorXd r = physics::assemble_stiffness(m->mesh, m->material) * s.u;
+      const Eigen::VectorXd r = physics::assemble_stiffness(m->mesh, material_of(*m)) * s.sim.u;
       double free_residual = 0.0, reaction = 0.0;
       for (int d = 0; d < r.size(); ++d) {
         double& slot = m->solver->is_fixed_dof(d) ? reaction : free_residual;
@@ -238,10 +246,10 @@ TEST(Twist, DisplacementDrivenProbeReachesItsTargetOnATwistedTube) {
   engine::step(*m, s, rec);
   const engine::SurfacePoint& sp = m->probe_points[0];
   Eigen::Vector3d moved = Eigen::Vector3d::Zero();
-  for (int k = 0; k < 3; ++k) moved += sp.weight[k] * s.u.segment<3>(3 * sp.node[k]);
+  for (int k = 0; k < 3; ++k) moved += sp.weight[k] * s.sim.u.segment<3>(3 * sp.node[k]);
   EXPECT_LT((moved - Eigen::Vector3d(0.0, -0.002, 0.001)).norm(), 1e-12);
   // Truth: K_ff u_f = f_f - K_fc u_c with the reported force, by a dense solve on the free DOFs.
-  const Eigen::SparseMatrix<double> K = physics::assemble_stiffness(m->mesh, m->material);
+  const Eigen::SparseMatrix<double> K = physics::assemble_stiffness(m->mesh, material_of(*m));
   Eigen::VectorXd f = Eigen::VectorXd::Zero(K.rows());
   engine::add_point_load(sp, -rec.reactions[0], f);
   const Eigen::VectorXd uc = engine::twist_displacement(*m, 20.0);
@@ -259,7 +267,7 @@ TEST(Twist, DisplacementDrivenProbeReachesItsTargetOnATwistedTube) {
   const Eigen::VectorXd uf = Kff.ldlt().solve(bf);
   Eigen::VectorXd u = uc;
   for (size_t i = 0; i < free_dofs.size(); ++i) u[free_dofs[i]] = uf[i];
-  EXPECT_LT((u - s.u).norm(), 1e-9 * u.norm());
+  EXPECT_LT((u - s.sim.u).norm(), 1e-9 * u.norm());
 }
 
 // Dynamics with the ring turned and held: the damped motion settles on the linear quasi-static twist.
@@ -294,12 +302,12 @@ TEST(Twist, TwistWithProbesAndCollisionRunsCleanly) {
       p.point.z() = 0.03;
       p.track = {engine::TrackKey{0.0, Eigen::Vector3d::Zero()}, engine::TrackKey{0.5, p.track.back().value}};
     }
-    scene.material.model = variant == "corotational" ? "corotational" : "linear";
+    scene.material.model = variant == "corotational" ? engine::MaterialModel::kCorotational : engine::MaterialModel::kLinear;
     if (variant == "linear dynamic") {
-      scene.solver.type = "dynamic";
+      scene.solver.type = engine::SolverType::kDynamic;
       scene.solver.rayleigh_mass = 5.0;
     }
-    scene.twist.end = "stop";
+    scene.twist.end = engine::TwistEnd::kStop;
     scene.twist.track = {{0.0, 0.0}, {0.5, 30.0}};
     const auto m = engine::compile_model(scene);
     engine::State s = engine::make_state(*m);
@@ -308,7 +316,7 @@ TEST(Twist, TwistWithProbesAndCollisionRunsCleanly) {
     for (int i = 0; i < 24; ++i) {
       engine::step(*m, s, rec);
       ASSERT_FALSE(rec.numerical_failure) << variant << " frame " << rec.frame;
-      ASSERT_TRUE(s.u.allFinite());
+      ASSERT_TRUE(s.sim.u.allFinite());
       EXPECT_EQ(collision::count_intersecting_pairs(s.x, m->mesh.inner), 0) << variant << " frame " << rec.frame;
       EXPECT_DOUBLE_EQ(rec.twist_degrees, std::min(30.0, 30.0 * rec.t / 0.5));
       solved += rec.response_iterations > 0 && !rec.fallback;

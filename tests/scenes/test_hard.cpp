@@ -81,7 +81,7 @@ struct Invariants {
   // Check one committed frame.
   void check(const Model& model, const State& state, const FrameRecord& rec) {
     ++frames;
-    bool finite = state.x.allFinite() && state.u.allFinite() && std::isfinite(rec.max_displacement);
+    bool finite = state.x.allFinite() && state.sim.u.allFinite() && std::isfinite(rec.max_displacement);
     for (const auto& f : rec.reactions) finite = finite && f.allFinite();
     for (double ms : rec.ms) finite = finite && std::isfinite(ms);
     if (!finite && nonfinite++ == 0) first_nonfinite = rec.frame;

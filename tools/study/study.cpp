@@ -100,11 +100,11 @@ engine::Scene squeeze_scene(const Config& c, double force, int frames, double fp
   s.mesh.segments_around = c.level.around;
   s.mesh.segments_along = c.level.along;
   s.mesh.layers = c.level.layers;
-  s.element = c.element;
-  s.material.model = c.model;
+  s.element = c.element == "tet10" ? engine::ElementType::kTet10 : engine::ElementType::kTet4;
+  s.material.model = c.model == "corotational" ? engine::MaterialModel::kCorotational : engine::MaterialModel::kLinear;
   s.material.young_modulus = 5000.0;
   s.material.poisson_ratio = 0.45;
-  s.fixed = {"ends"};
+  s.fixed = {engine::NodeSetName::kEnds};
   // Tip points sit at the mean radius of the faceted outer wall (between its corners and its facets' middles;
   // a quadratic wall is drawn with twice the facets, over its corner and edge nodes).
   const int facets = c.level.around * (c.element == "tet10" ? 2 : 1);
@@ -127,7 +127,7 @@ engine::Scene squeeze_scene(const Config& c, double force, int frames, double fp
   s.fps = fps;
   s.render.width = 640;
   s.render.height = 480;
-  s.render.camera = "side";
+  s.render.camera = render::CameraPreset::Side;
   s.collision.self = true;
   apply_solver(s, c);
   return s;
@@ -171,7 +171,7 @@ Outcome run(const engine::Scene& scene, bool render) {
   opt.on_frame = [&](const engine::Model& m, const engine::State& st, const engine::FrameRecord& rec) {
     if (rec.frame != m.scene.frames) return;
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (int v : patch) mean += st.u.segment<3>(3 * v);
+    for (int v : patch) mean += st.sim.u.segment<3>(3 * v);
     o.probe_disp = patch.empty() ? 0.0 : (mean / static_cast<double>(patch.size())).norm();
     o.opening = (st.x.row(top) - st.x.row(bottom)).norm();
     o.contact_area = 0.0;

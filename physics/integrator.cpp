@@ -1,0 +1,176 @@
+// The integrators behind the seam: linear and corotational quasi-static, backward Euler.
+#include "physics/integrator.hpp"
+
+#include <Eigen/Cholesky>
+#include <stdexcept>
+#include <string>
+
+namespace lumen::physics {
+
+Eigen::VectorXd combine_columns(const Eigen::MatrixXd& basis, const Eigen::VectorXd& c) {
+  if (c.size() != basis.cols())
+    throw std::invalid_argument("combine_columns: " + std::to_string(basis.cols()) + " coefficients expected, got " +
+                                std::to_string(c.size()));
+  if (basis.cols() == 0) return Eigen::VectorXd::Zero(basis.rows());
+  if (basis.cols() == 2) return c[0] * basis.col(0) + c[1] * basis.col(1);  // one pass (the twist's two columns)
+  Eigen::VectorXd u = c[0] * basis.col(0);
+  for (Eigen::Index j = 1; j < basis.cols(); ++j) u += c[j] * basis.col(j);
+  return u;
+}
+
+Eigen::VectorXd nodal_forces(const FrameLoads& loads, int n_dofs) {
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(n_dofs);
+  for (const PointLoad& p : loads.points)
+    for (int k = 0; k < 3; ++k)
+      if (p.at.node[k] >= 0) f.segment<3>(3 * p.at.node[k]) += p.at.weight[k] * p.force;
+  return f;
+}
+
+void Integrator::commit(const Eigen::VectorXd& u1, SimState& state) const { state.u = u1; }
+
+// ---------------------------------------------------------------------------------------------------------------
+// LinearQuasiStatic
+
+LinearQuasiStatic::LinearQuasiStatic(const Eigen::SparseMatrix<double>& K, const std::vector<int>& fixed_nodes,
+                                     const std::vector<LoadPoint>& load_points, const std::vector<bool>& held,
+                                     const PrescribedMotion& prescribed)
+    : solver_(K, fixed_nodes), response_(solver_, load_points) {
+  if (held.size() != load_points.size())
+    throw std::invalid_argument("LinearQuasiStatic: one held flag per load point expected (" +
+                                std::to_string(load_points.size()) + "), got " + std::to_string(held.size()));
+  // The prescribed basis's responses: u = P - K_ff^-1 (K P) on the free DOFs (the solve ignores fixed DOFs).
+  if (!prescribed.empty()) prescribed_response_ = prescribed.basis - solver_.solve_many(K * prescribed.basis);
+
+  // Held points: the stiffness that maps their displacements to their forces, (P_dd)^-1, and their motion per
+  // force at every load point, P_d*.
+  for (size_t i = 0; i < held.size(); ++i)
+    if (held[i]) held_index_.push_back(static_cast<int>(i));
+  if (held_index_.empty()) return;
+  const Eigen::MatrixXd& P = response_.point_compliance();
+  const int d = static_cast<int>(held_index_.size());
+  Eigen::MatrixXd Pdd(3 * d, 3 * d);
+  hold_coupling_.resize(3 * d, P.cols());
+  for (int a = 0; a < d; ++a) {
+    hold_coupling_.middleRows(3 * a, 3) = P.middleRows(3 * held_index_[a], 3);
+    for (int b = 0; b < d; ++b) Pdd.block(3 * a, 3 * b, 3, 3) = P.block(3 * held_index_[a], 3 * held_index_[b], 3, 3);
+  }
+  hold_stiffness_ = Pdd.ldlt().solve(Eigen::MatrixXd::Identity(3 * d, 3 * d));
+  // The same points for the contact solve: contacts must not move them (the device holds them).
+  held_.U.resize(response_.response().rows(), 3 * d);
+  for (int a = 0; a < d; ++a) {
+    held_.points.push_back(load_points[held_index_[a]]);
+    held_.U.middleCols(3 * a, 3) = response_.response().middleCols(3 * held_index_[a], 3);
+  }
+  held_.S = hold_stiffness_;
+}
+
+// Held points get the forces that move them to their targets given the other points' forces and the prescribed
+// motion: P_dd f_d = d - d_prescribed - P_df f_f (P: compliance between load points).
+void LinearQuasiStatic::solve_held_forces(FrameLoads& loads, const Eigen::VectorXd& prescribed_u,
+                                          Points& forces) const {
+  const int d = static_cast<int>(held_index_.size());
+  Eigen::VectorXd target(3 * d);
+  for (int a = 0; a < d; ++a) {
+    const PointLoad& p = loads.points[held_index_[a]];
+    target.segment<3>(3 * a) = p.target;
+    if (prescribed_u.size() == 0) continue;
+    for (int k = 0; k < 3; ++k)
+      target.segment<3>(3 * a) -= p.at.weight[k] * prescribed_u.segment<3>(3 * p.at.node[k]);
+  }
+  const Eigen::VectorXd f_all = Eigen::Map<const Eigen::VectorXd>(forces.data(), forces.size());
+  const Eigen::VectorXd f_held = hold_stiffness_ * (target - hold_coupling_ * f_all);
+  for (int a = 0; a < d; ++a) {
+    forces.row(held_index_[a]) = f_held.segment<3>(3 * a).transpose();
+    loads.points[held_index_[a]].force = f_held.segment<3>(3 * a);
+  }
+}
+
+Prediction LinearQuasiStatic::predict(FrameLoads& loads, const Eigen::VectorXd& prescribed_c, const SimState&,
+                                      IntegratorWork&, Eigen::VectorXd& u1) const {
+  // The prescribed nodes' effect on the whole mesh: a sum of precomputed columns.
+  const Eigen::VectorXd prescribed_u =
+      prescribed_response_.cols() > 0 ? combine_columns(prescribed_response_, prescribed_c) : Eigen::VectorXd();
+  if (loads.at_compiled_points) {
+    // u = U forces: precomputed unit responses at the load points (held points' forces solved first).
+    Points forces(loads.points.size(), 3);
+    for (size_t i = 0; i < loads.points.size(); ++i)
+      forces.row(i) = loads.points[i].held ? Eigen::RowVector3d(0, 0, 0)
+                                           : Eigen::RowVector3d(loads.points[i].force.transpose());
+    if (!held_index_.empty()) solve_held_forces(loads, prescribed_u, forces);
+    response_.displacement(forces, u1);
+  } else {
+    // A point moved: one back-substitution with the nodal loads.
+    solver_.solve(nodal_forces(loads, solver_.n_dofs()), u1);
+  }
+  if (prescribed_u.size() > 0) u1 += prescribed_u;
+  return Prediction{};
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// CorotationalQuasiStatic
+
+CorotationalQuasiStatic::CorotationalQuasiStatic(const TetMesh& mesh, const LinearMaterial& material,
+                                                 const std::vector<int>& fixed_nodes,
+                                                 const CorotationalOptions& options, const PrescribedMotion& prescribed)
+    : model_(mesh, material, fixed_nodes), options_(options), prescribed_(prescribed) {
+  validate_options(options_);
+}
+
+Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::VectorXd& prescribed_c, const SimState&,
+                                            IntegratorWork& work, Eigen::VectorXd& u1) const {
+  // Nonlinear equilibrium from the nodal loads, warm-started from the last frame's free solution.
+  const Eigen::VectorXd f = nodal_forces(loads, model_.n_dofs());
+  const Eigen::VectorXd u_fixed = prescribed_.empty() ? Eigen::VectorXd() : combine_columns(prescribed_.basis, prescribed_c);
+  const CorotationalResult r = solve_corotational(model_, f, work.corotational, options_, u_fixed);
+  u1 = work.corotational.u;
+  Prediction p;
+  p.iterations = r.iterations;
+  p.converged = r.converged;
+  return p;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// BackwardEuler
+
+BackwardEuler::BackwardEuler(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes,
+                             const DynamicParams& params, const CorotationalOptions& options,
+                             const PrescribedMotion& prescribed)
+    : model_(mesh, material, fixed_nodes, params),
+      step_solver_(model_.solver().scaled(1.0 / (params.time_step * params.time_step))),
+      options_(options),
+      prescribed_(prescribed) {
+  validate_options(options_);
+}
+
+Prediction BackwardEuler::predict(FrameLoads& loads, const Eigen::VectorXd& prescribed_c, const SimState& state,
+                                  IntegratorWork& work, Eigen::VectorXd& u1) const {
+  // The trial step starts from the committed state; prescribed nodes take their end-of-step displacement.
+  DynamicState& trial = work.step;
+  trial.u = state.u;
+  trial.v = state.v;
+  if (!prescribed_.empty()) {
+    const Eigen::VectorXd u_p = combine_columns(prescribed_.basis, prescribed_c);
+    for (int node : prescribed_.nodes) trial.u.segment<3>(3 * node) = u_p.segment<3>(3 * node);
+  }
+  const StepResult r = step(model_, trial, nodal_forces(loads, model_.n_dofs()), model_.params().time_step, options_);
+  u1 = trial.u;
+  Prediction p;
+  p.iterations = r.iterations;
+  p.converged = r.converged;
+  p.finite = r.finite;
+  return p;
+}
+
+void BackwardEuler::commit(const Eigen::VectorXd& u1, SimState& state) const {
+  // The committed velocity is the committed motion over the step (contacts included); fixed nodes have none.
+  const double h = model_.params().time_step;
+  for (Eigen::Index dof = 0; dof < u1.size(); ++dof)
+    state.v[dof] = model_.is_fixed_dof(static_cast<int>(dof)) ? 0.0 : (u1[dof] - state.u[dof]) / h;
+  state.u = u1;
+}
+
+double BackwardEuler::kinetic_energy(const SimState& state) const {
+  return 0.5 * state.v.dot(model_.mass().cwiseProduct(state.v));
+}
+
+}  // namespace lumen::physics

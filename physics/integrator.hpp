@@ -1,0 +1,154 @@
+#pragma once
+// The integrator seam: one interface between the frame loop and the ways a frame's elasticity is solved.
+//
+// A frame asks its integrator for the free motion (no contacts) under the frame's point loads and prescribed
+// displacements (predict), solves the contacts on the integrator's contact compliance (contact_solver: its
+// inverse maps nodal forces to the change of the frame's end displacement), and hands back the corrected end
+// displacement (commit), or gives the frame up (reject). One implementation per model and solve:
+//   LinearQuasiStatic      K u = f, prefactorised; probe responses precomputed (a frame is a dense product)
+//   CorotationalQuasiStatic f_int(u) = f, warped stiffness, PCG on a lagged factorisation
+//   BackwardEuler          one implicit step of h (linear or corotational elasticity, Rayleigh damping)
+// Chosen once when the scene compiles; nothing in a frame switches on the model.
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include "physics/compliance.hpp"
+#include "physics/corotational.hpp"
+#include "physics/dynamics.hpp"
+#include "physics/fem.hpp"
+
+namespace lumen::physics {
+
+// The simulation state every integrator advances: displacement and velocity from rest.
+struct SimState {
+  Eigen::VectorXd u;  // displacements, 3n, metres
+  Eigen::VectorXd v;  // velocities, 3n, metres per second (0 for quasi-static integrators)
+};
+
+// A load at a surface point this frame.
+struct PointLoad {
+  LoadPoint at;                                     // where it acts (barycentric over up to 3 nodes)
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  // newtons; for a held point, the solved force (output)
+  bool held = false;                                // displacement-driven: the point is moved to `target`
+  Eigen::Vector3d target = Eigen::Vector3d::Zero(); // held only: displacement of the point from rest, metres
+};
+
+// The frame's loads: one per load point, in the order the integrator was built with (its `load_points`).
+struct FrameLoads {
+  std::vector<PointLoad> points;
+  bool at_compiled_points = true;  // every point is where it was at compile time (precomputed responses apply)
+};
+
+// Displacements prescribed on some nodes (e.g. a turned end ring): basis * c on them, c given per frame.
+// The prescribed nodes are also among the integrator's fixed nodes.
+struct PrescribedMotion {
+  std::vector<int> nodes;  // node ids
+  Eigen::MatrixXd basis;   // 3n x k, metres: column j is the displacement per unit c_j (0 off the nodes)
+  bool empty() const { return basis.cols() == 0; }
+};
+// sum_j c_j basis.col(j), 3n, metres (c has basis.cols() entries).
+Eigen::VectorXd combine_columns(const Eigen::MatrixXd& basis, const Eigen::VectorXd& c);
+
+// What a prediction reports.
+struct Prediction {
+  int iterations = 0;     // nonlinear (outer) iterations; 0 for a direct linear solve
+  bool converged = true;  // the solve reached its tolerance
+  bool finite = true;     // false: the solve failed (non-finite values); the frame must be rejected
+};
+
+// Mutable data an integrator keeps between frames besides SimState (warm starts, lagged preconditioners).
+struct IntegratorWork {
+  CorotationalState corotational;  // corotational quasi-static: the nonlinear solve's warm start and caches
+  DynamicState step;               // backward Euler: the step's trial state (u, v)
+};
+
+class Integrator {
+ public:
+  virtual ~Integrator() = default;
+  // Free motion of the frame: u1 (3n, metres) under the loads, the prescribed nodes at combine(basis, c).
+  // Held points' solved forces are written into loads.points[i].force.
+  virtual Prediction predict(FrameLoads& loads, const Eigen::VectorXd& prescribed_c, const SimState& state,
+                             IntegratorWork& work, Eigen::VectorXd& u1) const = 0;
+  // The factorisation whose inverse is the contact compliance (K, or the implicit step's matrix).
+  virtual const StaticSolver& contact_solver() const = 0;
+  // Held points for the contact solve (their forces change so that contacts do not move them), or null.
+  virtual const HeldPoints* held_points() const { return nullptr; }
+  // Accept u1 (contacts included) as the end of the frame.
+  virtual void commit(const Eigen::VectorXd& u1, SimState& state) const;
+  // Kinetic energy of a state, joules (0 for quasi-static integrators).
+  virtual double kinetic_energy(const SimState&) const { return 0.0; }
+  // Whether a DOF is fixed (prescribed or held at rest).
+  virtual bool is_fixed_dof(int dof) const { return contact_solver().is_fixed_dof(dof); }
+};
+
+// Nodal force vector of the loads (3n, newtons): each point's force spread over its nodes by its weights.
+Eigen::VectorXd nodal_forces(const FrameLoads& loads, int n_dofs);
+
+// Linear elasticity, quasi-static: u = K^-1 f. The load points' unit responses are precomputed (LoadResponse),
+// so a frame at the compiled points is a dense 3n x 3m product; held (displacement-driven) points get the forces
+// that move them to their targets from the point compliance (a Schur complement); the prescribed basis's
+// responses are precomputed too (u = P - K^-1 K P with the basis held, no load).
+class LinearQuasiStatic final : public Integrator {
+ public:
+  // K: stiffness (3n x 3n, N/m); held: per load point, whether it is displacement-driven.
+  LinearQuasiStatic(const Eigen::SparseMatrix<double>& K, const std::vector<int>& fixed_nodes,
+                    const std::vector<LoadPoint>& load_points, const std::vector<bool>& held,
+                    const PrescribedMotion& prescribed);
+  Prediction predict(FrameLoads& loads, const Eigen::VectorXd& prescribed_c, const SimState& state,
+                     IntegratorWork& work, Eigen::VectorXd& u1) const override;
+  const StaticSolver& contact_solver() const override { return solver_; }
+  const HeldPoints* held_points() const override { return held_.points.empty() ? nullptr : &held_; }
+  const LoadResponse& load_response() const { return response_; }
+
+ private:
+  void solve_held_forces(FrameLoads& loads, const Eigen::VectorXd& prescribed_u, Points& forces) const;
+  StaticSolver solver_;                // K on the free DOFs
+  LoadResponse response_;              // K^-1 of unit loads at the load points
+  std::vector<int> held_index_;        // load point ids of the held points (d)
+  Eigen::MatrixXd hold_stiffness_;     // (P_dd)^-1, 3d x 3d, N/m: forces that move the held points
+  Eigen::MatrixXd hold_coupling_;      // P_df, 3d x 3m, m/N: held points' motion per load point force
+  HeldPoints held_;                    // the held points for the contact solve
+  Eigen::MatrixXd prescribed_response_;  // 3n x k, metres: mesh displacement with basis column j held
+};
+
+// Corotational elasticity, quasi-static: f_int(u) = f solved from the last frame's free solution.
+class CorotationalQuasiStatic final : public Integrator {
+ public:
+  CorotationalQuasiStatic(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes,
+                          const CorotationalOptions& options, const PrescribedMotion& prescribed);
+  Prediction predict(FrameLoads& loads, const Eigen::VectorXd& prescribed_c, const SimState& state,
+                     IntegratorWork& work, Eigen::VectorXd& u1) const override;
+  const StaticSolver& contact_solver() const override { return model_.solver(); }
+  const CorotationalModel& model() const { return model_; }
+
+ private:
+  CorotationalModel model_;
+  CorotationalOptions options_;
+  PrescribedMotion prescribed_;
+};
+
+// One backward Euler step of h per frame (DynamicModel). Its contact compliance is that of the step,
+// A_u = A / h^2 (A the factorised step matrix): the same factorisation, scaled. After the contacts the committed
+// velocity is the committed motion over the step, v1 = (u1 - u0) / h (0 on fixed DOFs).
+class BackwardEuler final : public Integrator {
+ public:
+  BackwardEuler(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes,
+                const DynamicParams& params, const CorotationalOptions& options, const PrescribedMotion& prescribed);
+  Prediction predict(FrameLoads& loads, const Eigen::VectorXd& prescribed_c, const SimState& state,
+                     IntegratorWork& work, Eigen::VectorXd& u1) const override;
+  const StaticSolver& contact_solver() const override { return step_solver_; }
+  void commit(const Eigen::VectorXd& u1, SimState& state) const override;
+  double kinetic_energy(const SimState& state) const override;
+  const DynamicModel& model() const { return model_; }
+
+ private:
+  DynamicModel model_;
+  StaticSolver step_solver_;  // A_u = A / h^2: a view of model_.solver()'s factorisation, scaled by h^2
+  CorotationalOptions options_;
+  PrescribedMotion prescribed_;
+};
+
+}  // namespace lumen::physics
