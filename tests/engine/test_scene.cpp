@@ -256,7 +256,7 @@ TEST(Scene, TwistKeysWithTheirValues) {
   EXPECT_DOUBLE_EQ(scene.twist.track[1].t, 3.0);
   EXPECT_DOUBLE_EQ(scene.twist.track[1].degrees, 180.0);
   s["twist"]["end"] = "start";
-  EXPECT_EQ(parse_scene(s.dump(), "dir/s.json").twist.end, "start");
+  EXPECT_EQ(parse_scene(s.dump(), "dir/s.json").twist.end, TwistEnd::kStart);
 }
 
 TEST(Scene, TwistKeysAreValidated) {

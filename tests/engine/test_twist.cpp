@@ -128,7 +128,7 @@ VolumeChange volume_change(const engine::Model& m, const Points& x) {
 
 TEST(Twist, AngleFollowsTheTrackAndIsHeldAfterIt) {
   engine::TwistSpec tw;
-  tw.end = "stop";
+  tw.end = engine::TwistEnd::kStop;
   tw.track = {{0.5, 10.0}, {1.5, 30.0}, {2.0, -20.0}};
   EXPECT_DOUBLE_EQ(engine::twist_degrees(tw, 0.0), 10.0);
   EXPECT_DOUBLE_EQ(engine::twist_degrees(tw, 1.0), 20.0);
@@ -170,7 +170,7 @@ TEST(Twist, TurnedRingIsAtItsRigidRotationInEveryModel) {
       const Eigen::VectorXd r = physics::assemble_stiffness(m->mesh, material_of(*m)) * s.sim.u;
       double free_residual = 0.0, reaction = 0.0;
       for (int d = 0; d < r.size(); ++d) {
-        double& slot = m->solver->is_fixed_dof(d) ? reaction : free_residual;
+        double& slot = m->integrator->is_fixed_dof(d) ? reaction : free_residual;
         slot = std::max(slot, std::abs(r[d]));
       }
       EXPECT_LT(free_residual, 1e-10 * reaction) << what;
@@ -189,7 +189,7 @@ TEST(Twist, LinearMatchesCorotationalInTheSmallAngleLimit) {
     const auto lin = compile(c);
     c.model = "corotational";
     const auto cor = compile(c);
-    const Eigen::VectorXd ul = run(*lin, 1).u, uc = run(*cor, 1).u;
+    const Eigen::VectorXd ul = run(*lin, 1).sim.u, uc = run(*cor, 1).sim.u;
     const double rel = (uc - ul).norm() / ul.norm();
     if (previous > 0.0) {
       EXPECT_GT(previous / rel, 3.0) << degrees;
@@ -256,7 +256,7 @@ TEST(Twist, DisplacementDrivenProbeReachesItsTargetOnATwistedTube) {
   const Eigen::VectorXd rhs = f - K * uc;
   std::vector<int> free_dofs;
   for (int d = 0; d < K.rows(); ++d)
-    if (!m->solver->is_fixed_dof(d)) free_dofs.push_back(d);
+    if (!m->integrator->is_fixed_dof(d)) free_dofs.push_back(d);
   const Eigen::MatrixXd Kd(K);
   Eigen::MatrixXd Kff(free_dofs.size(), free_dofs.size());
   Eigen::VectorXd bf(free_dofs.size());
@@ -278,11 +278,11 @@ TEST(Twist, DampedDynamicTwistSettlesOnTheQuasiStaticTwist) {
   const auto qs = compile(c);
   c.solver = R"({"type": "dynamic", "rayleigh_mass": 10.0})";
   const auto dyn = compile(c);
-  const Eigen::VectorXd uq = run(*qs, 20).u;
+  const Eigen::VectorXd uq = run(*qs, 20).sim.u;
   // (At rest with no load the step's residual is scaled by the support reactions of the turned ring: every frame
   // must converge.)
   const engine::State sd = run(*dyn, 140);
-  EXPECT_LT((sd.u - uq).norm(), 1e-6 * uq.norm());
+  EXPECT_LT((sd.sim.u - uq).norm(), 1e-6 * uq.norm());
   EXPECT_LT(ring_error(*dyn, sd.x, dyn->mesh.end_nodes_stop, true, 30.0 * kPi / 180.0), 1e-12);
 }
 

@@ -47,7 +47,7 @@ struct FrozenFrame {
     const double t1 = (state.frame + 1) / model->scene.fps;
     Points forces(state.sources.size(), 3);
     for (size_t i = 0; i < state.sources.size(); ++i) forces.row(i) = state.sources[i]->sample(t1).force.transpose();
-    model->probe_response->displacement(forces, u_free);
+    dynamic_cast<const physics::LinearQuasiStatic&>(*model->integrator).load_response().displacement(forces, u_free);
     const Points x1 = model->mesh.rest + Eigen::Map<const Points>(u_free.data(), n, 3);
     std::vector<collision::Contact> found;
     state.detector->detect(state.x, x1, model->scene.collision.gap, found, nullptr);
