@@ -19,8 +19,47 @@ using namespace lumen;
 
 namespace {
 
-constexpr int kExitBadInput = 2;
+// Exit codes: 0 done; 1 a failure while running (I/O, numerics that could not be survived); 2 bad input (the
+// message names the file or option, the key and the value); 3 an internal error (a bug in Lumen).
 constexpr int kExitFailure = 1;
+constexpr int kExitBadInput = 2;
+constexpr int kExitInternalError = 3;
+constexpr const char* kCommands[] = {"run", "bench", "ccd"};
+constexpr int kMaxFrames = 10000000;
+
+// --frames N: a whole number of frames, 1 to kMaxFrames; the message reads like the scene loader's.
+std::string check_frames(const std::string& text) {
+  size_t used = 0;
+  long long v = 0;
+  try {
+    v = std::stoll(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != text.size() || used == 0) return "must be a whole number of frames (value \"" + text + "\")";
+  if (v < 1 || v > kMaxFrames)
+    return "out of range [1, " + std::to_string(kMaxFrames) + "] (value " + text + ")";
+  return "";
+}
+
+// The first argument must name a command; CLI11 alone would report an unknown one as "A subcommand is required".
+std::string check_command(int argc, char** argv) {
+  std::string list;
+  for (const char* c : kCommands) list += (list.empty() ? "" : ", ") + std::string(c);
+  if (argc < 2) return "a command is required: one of " + list + " (lumen --help for more)";
+  const std::string first = argv[1];
+  if (first.rfind("-", 0) == 0) return "";
+  for (const char* c : kCommands)
+    if (first == c) return "";
+  return "unknown command \"" + first + "\": must be one of " + list + " (lumen --help for more)";
+}
+
+// A file argument must be a readable regular file (a folder would otherwise read as empty input).
+void require_file(const std::string& path, const std::string& what) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw engine::InputError(path + ": is a folder, not a " + what);
+  if (!fs::exists(path, ec)) throw engine::InputError(path + ": no such " + what);
+}
 
 // Create the output folder and prove it is writable before any work; InputError otherwise.
 void prepare_output_dir(const std::string& dir) {
@@ -77,7 +116,9 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
 
 int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_render, int kdop, bool classify) {
   engine::Scene scene = engine::load_scene(scene_path);
-  if (kdop > 0) scene.collision.kdop = collision::validate_kdop(kdop);
+  if (kdop > 0 && kdop != 6 && kdop != 14 && kdop != 18 && kdop != 26)
+    throw engine::InputError("--kdop: must be one of 6, 14, 18, 26 (value " + std::to_string(kdop) + ")");
+  if (kdop > 0) scene.collision.kdop = kdop;
   auto model = engine::compile_model(scene);
   engine::SessionOptions opt;
   opt.frames = frames;
@@ -99,6 +140,7 @@ int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_rend
 }
 
 int cmd_ccd(const std::string& file, bool json) {
+  require_file(file, "CCD query file");
   collision::CcdFileStats r;
   try {
     r = collision::run_ccd_file(file);
@@ -114,6 +156,7 @@ int cmd_ccd(const std::string& file, bool json) {
 int main(int argc, char** argv) {
   CLI::App app{"Lumen: real-time hollow-organ deformation with inner-wall self-collision"};
   app.require_subcommand(1);
+  const CLI::Validator frames_check(check_frames, "FRAMES");
 
   std::string scene_path, out_dir, video, ccd_file, positions_path;
   int frames = -1, kdop = 0;
@@ -123,7 +166,7 @@ int main(int argc, char** argv) {
   CLI::App* run = app.add_subcommand("run", "run a scene: PNG frames, optional MP4, report.json");
   run->add_option("scene", scene_path, "scene file (JSON)")->required();
   run->add_option("--out", out_dir, "output folder (default out/<scene name>)");
-  run->add_option("--frames", frames, "number of frames (overrides the scene)")->check(CLI::PositiveNumber);
+  run->add_option("--frames", frames, "number of frames (overrides the scene)")->check(frames_check);
   run->add_flag("--no-render", no_render, "simulate only (no images, no video)");
   run->add_option("--video", video, "write an MP4 (H.264) to this file");
   run->add_flag("--export-surface", export_surface, "write the deformed inner wall per frame as OBJ (assimp)");
@@ -132,7 +175,7 @@ int main(int argc, char** argv) {
 
   CLI::App* bench = app.add_subcommand("bench", "run a scene without writing images; print per-stage frame times");
   bench->add_option("scene", scene_path, "scene file (JSON)")->required();
-  bench->add_option("--frames", frames, "number of frames (overrides the scene)")->check(CLI::PositiveNumber);
+  bench->add_option("--frames", frames, "number of frames (overrides the scene)")->check(frames_check);
   bench->add_flag("--json", json, "print one JSON object");
   bench->add_flag("--no-render", no_render, "leave rendering out");
   bench->add_option("--kdop", kdop, "override the scene's k-DOP (6, 14, 18, 26)");
@@ -142,11 +185,18 @@ int main(int argc, char** argv) {
   ccd->add_option("file", ccd_file, "query file (CSV, see shared/data/ccd/README.md)")->required();
   ccd->add_flag("--json", json, "print one JSON object");
 
+  // Command-line errors read like the scene loader's: "lumen: error: what: problem (value V)".
+  if (const std::string bad = check_command(argc, argv); !bad.empty()) {
+    std::fprintf(stderr, "lumen: error: %s\n", bad.c_str());
+    return kExitBadInput;
+  }
   try {
     app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : kExitBadInput;
+    std::fprintf(stderr, "lumen: error: %s (lumen %s --help for more)\n", e.what(), argv[1]);
+    return kExitBadInput;
   }
 
   try {
@@ -156,9 +206,10 @@ int main(int argc, char** argv) {
   } catch (const engine::InputError& e) {
     std::fprintf(stderr, "lumen: error: %s\n", e.what());
     return kExitBadInput;
-  } catch (const std::invalid_argument& e) {
-    std::fprintf(stderr, "lumen: error: %s\n", e.what());
-    return kExitBadInput;
+  } catch (const std::logic_error& e) {
+    // A caller's bug inside Lumen (every user input was validated at the boundary): not the user's fault.
+    std::fprintf(stderr, "lumen: internal error: %s\n", e.what());
+    return kExitInternalError;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "lumen: failed: %s\n", e.what());
     return kExitFailure;

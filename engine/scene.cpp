@@ -343,6 +343,9 @@ Scene parse_scene(const std::string& text, const std::string& path) {
 }
 
 Scene load_scene(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw InputError(path + ": is a folder, not a scene file");
+  if (!std::filesystem::exists(path, ec)) throw InputError(path + ": no such scene file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot read scene file");
   std::stringstream ss;

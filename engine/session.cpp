@@ -114,96 +114,105 @@ void export_surface_obj(const std::string& path, const Points& x, const Tris& tr
   fs::rename(tmp, path);
 }
 
-SessionResult run_session(const Model& model, const SessionOptions& opt) {
-  SessionResult result;
-  const int frames = opt.frames > 0 ? opt.frames : model.scene.frames;
-  const RenderSpec& rs = model.scene.render;
+namespace {
 
-  // Output folders (validated by the caller); stale numbered outputs of earlier runs are removed.
-  const fs::path out(opt.out_dir);
-  const bool write_frames = opt.render && opt.write_frames && !opt.out_dir.empty();
-  if (write_frames) {
-    fs::create_directories(out / "frames");
-    clear_stale(out / "frames", "frame_");
-  }
-  if (opt.export_surface && !opt.out_dir.empty()) {
-    fs::create_directories(out / "surface");
-    clear_stale(out / "surface", "inner_");
-  }
-
-  // Renderer on this thread; writers on their own.
+// The session's outputs: renderer on this thread, frame and video writers on their own.
+struct SessionOutputs {
+  fs::path out;
+  bool write_frames = false;
+  bool export_surface = false;
   std::unique_ptr<render::Renderer> renderer;
   std::unique_ptr<render::FrameWriter> writer;
-  if (opt.render) {
-    renderer = std::make_unique<render::Renderer>(rs.width, rs.height, rs.camera, framing_of(model));
-    if (write_frames || !opt.video_path.empty())
-      writer = std::make_unique<render::FrameWriter>(write_frames ? (out / "frames").string() : std::string(),
+};
+
+// Output folders (validated by the caller; stale numbered outputs of earlier runs are removed), renderer, writers.
+SessionOutputs open_outputs(const Model& model, const SessionOptions& opt) {
+  SessionOutputs o;
+  const RenderSpec& rs = model.scene.render;
+  o.out = fs::path(opt.out_dir);
+  o.write_frames = opt.render && opt.write_frames && !opt.out_dir.empty();
+  o.export_surface = opt.export_surface && !opt.out_dir.empty();
+  if (o.write_frames) {
+    fs::create_directories(o.out / "frames");
+    clear_stale(o.out / "frames", "frame_");
+  }
+  if (o.export_surface) {
+    fs::create_directories(o.out / "surface");
+    clear_stale(o.out / "surface", "inner_");
+  }
+  if (!opt.render) return o;
+  o.renderer = std::make_unique<render::Renderer>(rs.width, rs.height, rs.camera, framing_of(model));
+  if (o.write_frames || !opt.video_path.empty())
+    o.writer = std::make_unique<render::FrameWriter>(o.write_frames ? (o.out / "frames").string() : std::string(),
                                                      opt.video_path, rs.width, rs.height,
                                                      static_cast<int>(std::lround(model.scene.fps)));
+  return o;
+}
+
+// One frame: step, the optional exact check, render and hand the image to the writer, export, observe. The total
+// is the simulation thread's work for the frame without the check, the export and the observer.
+FrameRecord run_frame(const Model& model, const SessionOptions& opt, SessionOutputs& io, State& state) {
+  FrameRecord rec;
+  const auto frame_start = Clock::now();
+  step(model, state, rec);
+  // Optional exact intersection count (not part of the frame's budget).
+  double check_ms = 0.0;
+  if (opt.check) {
+    const auto c0 = Clock::now();
+    rec.intersecting_pairs = collision::count_intersecting_pairs(state.x, model.collision_tris);
+    check_ms = std::chrono::duration<double, std::milli>(Clock::now() - c0).count();
   }
-
-  State state = make_state(model);
-  // Warm-up draw of the rest state: the GL driver's one-time set-up (shader compilation) happens at load time,
-  // not in the first frame's budget.
-  if (renderer) {
-    render::Image warm;
-    renderer->draw(frame_view(model, state), warm);
+  // Render the committed state and hand the image to the writer thread.
+  if (io.renderer) {
+    const auto r0 = Clock::now();
+    render::Image image;
+    io.renderer->draw(frame_view(model, state), image);
+    rec.ms[kRender] = std::chrono::duration<double, std::milli>(Clock::now() - r0).count();
+    if (io.writer) io.writer->push(std::move(image));
   }
-  if (opt.classify_overlaps && state.detector) state.detector->set_classify_overlaps(true);
-  result.frames.reserve(frames);
-  const bool tty = opt.progress && isatty(fileno(stderr));
-  long over_budget = 0;
-  const auto session_start = Clock::now();
-  for (int i = 0; i < frames; ++i) {
-    FrameRecord rec;
-    const auto frame_start = Clock::now();
-    step(model, state, rec);
+  rec.ms[kTotal] = std::chrono::duration<double, std::milli>(Clock::now() - frame_start).count() - check_ms;
+  rec.over_budget = rec.ms[kTotal] > model.budget_ms;
+  // Surface export and observer (off the budget, like the writers).
+  if (io.export_surface)
+    export_surface_obj(numbered(io.out / "surface", "inner_", rec.frame, ".obj"), state.x, model.mesh.inner);
+  if (opt.on_frame) opt.on_frame(model, state, rec);
+  return rec;
+}
 
-    // Optional exact intersection count (not part of the frame's budget).
-    double check_ms = 0.0;
-    if (opt.check) {
-      const auto c0 = Clock::now();
-      rec.intersecting_pairs = collision::count_intersecting_pairs(state.x, model.collision_tris);
-      check_ms = std::chrono::duration<double, std::milli>(Clock::now() - c0).count();
-    }
-
-    // Render the committed state and hand the image to the writer thread.
-    if (renderer) {
-      const auto r0 = Clock::now();
-      render::Image image;
-      renderer->draw(frame_view(model, state), image);
-      rec.ms[kRender] = std::chrono::duration<double, std::milli>(Clock::now() - r0).count();
-      if (writer) writer->push(std::move(image));
-    }
-    rec.ms[kTotal] = std::chrono::duration<double, std::milli>(Clock::now() - frame_start).count() - check_ms;
-    rec.over_budget = rec.ms[kTotal] > model.budget_ms;
-    over_budget += rec.over_budget;
-
-    // Surface export (off the budget, like the writers).
-    if (opt.export_surface && !opt.out_dir.empty())
-      export_surface_obj(numbered(out / "surface", "inner_", rec.frame, ".obj"), state.x, model.mesh.inner);
-
-    // Observer (off the budget).
-    if (opt.on_frame) opt.on_frame(model, state, rec);
-
-    result.frames.push_back(std::move(rec));
-    if (tty && (i % 10 == 9 || i + 1 == frames)) {
-      const double wall = std::chrono::duration<double>(Clock::now() - session_start).count();
-      std::fprintf(stderr, "\rframe %d of %d  %.1f fps  over budget %ld", i + 1, frames, (i + 1) / wall, over_budget);
-      std::fflush(stderr);
-    }
+// Per-session sums of the per-frame records.
+struct SessionTotals {
+  long over_budget = 0, fallbacks = 0, inverted_frames = 0, failures = 0, intersecting_frames = 0;
+  long bv_overlaps = 0, feature_tests = 0, contacts = 0, iterations = 0, preconditioner_failures = 0;
+};
+SessionTotals totals_of(const std::vector<FrameRecord>& frames) {
+  SessionTotals t;
+  for (const auto& f : frames) {
+    t.over_budget += f.over_budget;
+    t.bv_overlaps += f.bv_overlaps;
+    t.feature_tests += f.feature_tests;
+    t.contacts += f.contacts;
+    t.iterations += f.response_iterations;
+    t.fallbacks += f.fallback;
+    t.inverted_frames += f.inverted_elements > 0;
+    t.failures += f.numerical_failure;
+    t.intersecting_frames += f.intersecting_pairs > 0;
+    t.preconditioner_failures += f.preconditioner_failures;
   }
-  if (tty) std::fprintf(stderr, "\n");
-  if (writer) result.writer = writer->finish();
+  return t;
+}
 
-  // Session report.
-  nlohmann::json& r = result.report;
+// The session report (report.json), built in one place.
+nlohmann::json session_report(const Model& model, const SessionOptions& opt, const SessionResult& result,
+                              const State& state) {
+  const RenderSpec& rs = model.scene.render;
+  const SessionTotals t = totals_of(result.frames);
+  nlohmann::json r;
   r["scene"] = model.scene.name;
   r["scene_file"] = model.scene.path;
-  r["frames"] = frames;
+  r["frames"] = static_cast<long>(result.frames.size());
   r["fps"] = model.scene.fps;
   r["budget_ms"] = model.budget_ms;
-  r["over_budget_frames"] = over_budget;
+  r["over_budget_frames"] = t.over_budget;
   r["mesh"] = {{"nodes", model.mesh.n_nodes()},
                {"tets", model.mesh.tets.rows()},
                {"inner_triangles", model.mesh.inner.rows()},
@@ -218,35 +227,59 @@ SessionResult run_session(const Model& model, const SessionOptions& opt) {
   r["writer"] = {{"frames", result.writer.frames}, {"busy_seconds", result.writer.busy_seconds},
                  {"frames_per_second", result.writer.frames_per_second()},
                  {"keeps_up", result.writer.frames == 0 || result.writer.frames_per_second() >= model.scene.fps}};
-  long fallbacks = 0, inverted_frames = 0, failures = 0, intersecting_frames = 0;
-  long bv_overlaps = 0, feature_tests = 0, contacts = 0, iterations = 0;
-  for (const auto& f : result.frames) {
-    bv_overlaps += f.bv_overlaps;
-    feature_tests += f.feature_tests;
-    contacts += f.contacts;
-    iterations += f.response_iterations;
-    fallbacks += f.fallback;
-    inverted_frames += f.inverted_elements > 0;
-    failures += f.numerical_failure;
-    intersecting_frames += f.intersecting_pairs > 0;
-  }
-  r["collision_totals"] = {{"bv_overlaps", bv_overlaps}, {"feature_tests", feature_tests}, {"contacts", contacts},
-                           {"response_iterations", iterations}};
+  r["collision_totals"] = {{"bv_overlaps", t.bv_overlaps}, {"feature_tests", t.feature_tests}, {"contacts", t.contacts},
+                           {"response_iterations", t.iterations}};
   if (opt.classify_overlaps && state.detector) {
-    const auto t = state.detector->overlap_totals();
-    r["overlap_classification"] = {{"detect_calls", t.calls}, {"bv_overlaps", t.overlaps},
-                                   {"with_contact", t.overlaps_with_contact},
-                                   {"false_positives", t.overlaps - t.overlaps_with_contact},
-                                   {"separate_bv_overlaps", t.separate_overlaps},
-                                   {"separate_false_positives", t.separate_overlaps - t.separate_with_contact}};
+    const auto o = state.detector->overlap_totals();
+    r["overlap_classification"] = {{"detect_calls", o.calls}, {"bv_overlaps", o.overlaps},
+                                   {"with_contact", o.overlaps_with_contact},
+                                   {"false_positives", o.overlaps - o.overlaps_with_contact},
+                                   {"separate_bv_overlaps", o.separate_overlaps},
+                                   {"separate_false_positives", o.separate_overlaps - o.separate_with_contact}};
   }
-  r["fallback_frames"] = fallbacks;
-  r["frames_with_inverted_elements"] = inverted_frames;
-  r["numerical_failures"] = failures;
-  if (opt.check) r["frames_with_intersections"] = intersecting_frames;
+  r["fallback_frames"] = t.fallbacks;
+  r["frames_with_inverted_elements"] = t.inverted_frames;
+  r["numerical_failures"] = t.failures;
+  r["preconditioner_failures"] = t.preconditioner_failures;
+  if (opt.check) r["frames_with_intersections"] = t.intersecting_frames;
   nlohmann::json per = nlohmann::json::array();
   for (const auto& f : result.frames) per.push_back(frame_json(f));
   r["per_frame"] = std::move(per);
+  return r;
+}
+
+}  // namespace
+
+SessionResult run_session(const Model& model, const SessionOptions& opt) {
+  SessionResult result;
+  const int frames = opt.frames > 0 ? opt.frames : model.scene.frames;
+  SessionOutputs io = open_outputs(model, opt);
+  State state = make_state(model);
+  // Warm-up draw of the rest state: the GL driver's one-time set-up (shader compilation) happens at load time,
+  // not in the first frame's budget.
+  if (io.renderer) {
+    render::Image warm;
+    io.renderer->draw(frame_view(model, state), warm);
+  }
+  if (opt.classify_overlaps && state.detector) state.detector->set_classify_overlaps(true);
+
+  // The frames, with a progress line on a terminal.
+  result.frames.reserve(frames);
+  const bool tty = opt.progress && isatty(fileno(stderr));
+  long over_budget = 0;
+  const auto session_start = Clock::now();
+  for (int i = 0; i < frames; ++i) {
+    result.frames.push_back(run_frame(model, opt, io, state));
+    over_budget += result.frames.back().over_budget;
+    if (tty && (i % 10 == 9 || i + 1 == frames)) {
+      const double wall = std::chrono::duration<double>(Clock::now() - session_start).count();
+      std::fprintf(stderr, "\rframe %d of %d  %.1f fps  over budget %ld", i + 1, frames, (i + 1) / wall, over_budget);
+      std::fflush(stderr);
+    }
+  }
+  if (tty) std::fprintf(stderr, "\n");
+  if (io.writer) result.writer = io.writer->finish();
+  result.report = session_report(model, opt, result, state);
   return result;
 }
 

@@ -367,6 +367,7 @@ void step(const Model& model, State& state, FrameRecord& rec) {
   for (int p : model.held_probes) state.samples[p].force = loads.points[p].force;
   rec.physics_iterations = pred.iterations;
   rec.physics_converged = pred.converged;
+  rec.preconditioner_failures = pred.preconditioner_failures;
   rec.ms[kPhysics] = ms_since(clock);
 
   // Collide and respond: contacts constrain the solve on the contact compliance, CCD re-checks.

@@ -459,6 +459,124 @@ void validate_options(const CorotationalOptions& o) {
   if (o.refactor_cg_iterations < 0) fail(where, "refactor_cg_iterations", "be >= 0", o.refactor_cg_iterations);
 }
 
+namespace {
+
+// The quasi-static residual at state.u on the free DOFs: rotations and elastic forces (reused from the last
+// evaluation while u has not changed), r = f - f_int, and |r| relative to the loads or the support reactions.
+class CorotationalResidual {
+ public:
+  CorotationalResidual(const CorotationalElements& el, CorotationalState& state, const Eigen::VectorXd& f,
+                       const std::vector<char>& fixed)
+      : el_(el), state_(state), f_(f), fixed_(fixed), r_(f.size()) {}
+
+  double evaluate() {
+    const int n = static_cast<int>(f_.size());
+    const bool cached = state_.u_eval.size() == n && static_cast<int>(state_.rotations.size()) == el_.n_tets() &&
+                        state_.f_int.size() == n && state_.u_eval == state_.u;
+    if (!cached) {
+      state_.n_inverted = el_.rotations(state_.u, state_.rotations);
+      el_.elastic_forces(state_.u, state_.rotations, state_.f_int);
+      state_.u_eval = state_.u;
+    }
+    double reaction2 = 0.0;
+    for (int d = 0; d < n; ++d) {
+      if (fixed_[d]) {
+        r_[d] = 0.0;
+        reaction2 += state_.f_int[d] * state_.f_int[d];
+      } else {
+        r_[d] = f_[d] - state_.f_int[d];
+      }
+    }
+    scale_ = std::max(f_.norm(), std::sqrt(reaction2));
+    rnorm_ = r_.norm();
+    return rnorm_ == 0.0 ? 0.0 : (scale_ > 0.0 ? rnorm_ / scale_ : INFINITY);
+  }
+  const Eigen::VectorXd& r() const { return r_; }
+  double scale() const { return scale_; }  // force scale, newtons
+  double norm() const { return rnorm_; }   // |r|, newtons
+
+ private:
+  const CorotationalElements& el_;
+  CorotationalState& state_;
+  const Eigen::VectorXd& f_;
+  const std::vector<char>& fixed_;
+  Eigen::VectorXd r_;
+  double scale_ = 0.0, rnorm_ = 0.0;
+};
+
+// Fixed DOFs take the prescribed values (u_fixed, empty = 0) and carry no load; with no load and nothing
+// prescribed the state goes back to rest. Fills the fixed mask and the free loads f.
+void prescribe(const CorotationalModel& model, const Eigen::VectorXd& f_ext, const Eigen::VectorXd& u_fixed,
+               CorotationalState& state, std::vector<char>& fixed, Eigen::VectorXd& f) {
+  const int n = model.n_dofs();
+  fixed.assign(n, 0);
+  f = f_ext;
+  bool any_prescribed = false;
+  for (int d = 0; d < n; ++d) {
+    fixed[d] = model.is_fixed_dof(d) ? 1 : 0;
+    if (!fixed[d]) continue;
+    f[d] = 0.0;
+    state.u[d] = u_fixed.size() ? u_fixed[d] : 0.0;
+    any_prescribed = any_prescribed || state.u[d] != 0.0;
+  }
+  if (!any_prescribed && f.isZero(0.0)) state.u.setZero();
+}
+
+// Secant predictor u + (u - u_before) on the free DOFs, kept only when it lowers the residual; returns the
+// residual at the kept start.
+double extrapolate_start(CorotationalState& state, CorotationalResidual& residual, const std::vector<char>& fixed,
+                         const Eigen::VectorXd& u_before, double residual_now) {
+  CorotationalState saved;
+  std::swap(saved.rotations, state.rotations);
+  std::swap(saved.f_int, state.f_int);
+  std::swap(saved.u_eval, state.u_eval);
+  saved.n_inverted = state.n_inverted;
+  const Eigen::VectorXd u_start = state.u;
+  for (Eigen::Index d = 0; d < state.u.size(); ++d)
+    if (!fixed[d]) state.u[d] += state.u[d] - u_before[d];
+  const double predicted = residual.evaluate();
+  if (predicted < residual_now) return predicted;
+  state.u = u_start;
+  std::swap(saved.rotations, state.rotations);
+  std::swap(saved.f_int, state.f_int);
+  std::swap(saved.u_eval, state.u_eval);
+  state.n_inverted = saved.n_inverted;
+  return residual.evaluate();  // cached: no new evaluation
+}
+
+// A background factorisation that has finished becomes the preconditioner; one that failed is dropped, keeps the
+// current preconditioner and is counted (never silently).
+void adopt_finished_factorisation(CorotationalState& state, CorotationalResult& result) {
+  if (!state.pending.valid() || state.pending.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return;
+  try {
+    state.preconditioner = state.pending.get();  // (get() leaves pending invalid, failed or not)
+  } catch (const std::exception&) {
+    ++result.refactor_failures;
+  }
+}
+
+// Factorise K_w at the current rotations for the solves to come: on a background thread, or now.
+void start_factorisation(const CorotationalModel& model, const CorotationalOptions& options, CorotationalState& state,
+                         CorotationalResult& result) {
+  ++result.refactorisations;
+  const CorotationalElements& el = model.elements();
+  const std::vector<int>& fixed_nodes = model.fixed_nodes();
+  auto factorise = [&el, &fixed_nodes](std::vector<Eigen::Matrix3d> R) {
+    return std::shared_ptr<const StaticSolver>(std::make_shared<StaticSolver>(el.warped_stiffness(R), fixed_nodes));
+  };
+  if (options.refactor_in_background) {
+    state.pending = std::async(std::launch::async, factorise, state.rotations);
+    return;
+  }
+  try {
+    state.preconditioner = factorise(state.rotations);
+  } catch (const std::exception&) {
+    ++result.refactor_failures;  // not positive definite or out of memory: keep the current preconditioner
+  }
+}
+
+}  // namespace
+
 CorotationalResult solve_corotational(const CorotationalModel& model, const Eigen::VectorXd& f_ext,
                                       CorotationalState& state, const CorotationalOptions& options,
                                       const Eigen::VectorXd& u_fixed) {
@@ -474,117 +592,43 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
   const Eigen::VectorXd u_before = can_extrapolate ? state.u_previous : Eigen::VectorXd();
   state.u_previous = state.u;
 
-  // Fixed DOFs take the prescribed values; loads act on the free DOFs only.
-  std::vector<char> fixed(n);
-  Eigen::VectorXd f = f_ext;
-  bool any_prescribed = false;
-  for (int d = 0; d < n; ++d) {
-    fixed[d] = model.is_fixed_dof(d) ? 1 : 0;
-    if (!fixed[d]) continue;
-    f[d] = 0.0;
-    state.u[d] = u_fixed.size() ? u_fixed[d] : 0.0;
-    any_prescribed = any_prescribed || state.u[d] != 0.0;
-  }
-  // No load and no prescribed displacement: the rest state.
-  if (!any_prescribed && f.isZero(0.0)) state.u.setZero();
-
-  // Rotations, elastic forces (reused from the last evaluation when u has not changed) and the residual at
-  // state.u on the free DOFs; returns it relative to the loads or the support reactions (see the options).
+  // Prescribed DOFs, the residual at the start, the secant start when it is better.
+  std::vector<char> fixed;
+  Eigen::VectorXd f;
+  prescribe(model, f_ext, u_fixed, state, fixed, f);
   CorotationalResult result;
-  Eigen::VectorXd r(n), du;
-  double scale = 0.0, rnorm = 0.0;
-  auto evaluate = [&]() {
-    const bool cached = state.u_eval.size() == n && static_cast<int>(state.rotations.size()) == el.n_tets() &&
-                        state.f_int.size() == n && state.u_eval == state.u;
-    if (!cached) {
-      state.n_inverted = el.rotations(state.u, state.rotations);
-      el.elastic_forces(state.u, state.rotations, state.f_int);
-      state.u_eval = state.u;
-    }
-    double reaction2 = 0.0;
-    for (int d = 0; d < n; ++d) {
-      if (fixed[d]) {
-        r[d] = 0.0;
-        reaction2 += state.f_int[d] * state.f_int[d];
-      } else {
-        r[d] = f[d] - state.f_int[d];
-      }
-    }
-    scale = std::max(f.norm(), std::sqrt(reaction2));
-    rnorm = r.norm();
-    return rnorm == 0.0 ? 0.0 : (scale > 0.0 ? rnorm / scale : INFINITY);
-  };
-  result.residual = evaluate();
+  CorotationalResidual residual(el, state, f, fixed);
+  result.residual = residual.evaluate();
+  if (can_extrapolate && result.residual > options.tolerance)
+    result.residual = extrapolate_start(state, residual, fixed, u_before, result.residual);
 
-  // Secant predictor u + (u - u_previous) on the free DOFs, kept only when it lowers the residual.
-  if (can_extrapolate && result.residual > options.tolerance) {
-    CorotationalState saved;
-    std::swap(saved.rotations, state.rotations);
-    std::swap(saved.f_int, state.f_int);
-    std::swap(saved.u_eval, state.u_eval);
-    saved.n_inverted = state.n_inverted;
-    const Eigen::VectorXd u_start = state.u;
-    for (int d = 0; d < n; ++d)
-      if (!fixed[d]) state.u[d] += state.u[d] - u_before[d];
-    const double predicted = evaluate();
-    if (!(predicted < result.residual)) {
-      state.u = u_start;
-      std::swap(saved.rotations, state.rotations);
-      std::swap(saved.f_int, state.f_int);
-      std::swap(saved.u_eval, state.u_eval);
-      state.n_inverted = saved.n_inverted;
-      result.residual = evaluate();  // cached: no new evaluation
-    } else {
-      result.residual = predicted;
-    }
-  }
-
+  // Fixed-point iterations on the warped system.
+  Eigen::VectorXd du;
   std::vector<Eigen::Matrix3d> node_R;
   for (;;) {
     result.n_inverted = state.n_inverted;
     result.converged = result.residual <= options.tolerance;
     if (result.converged || result.iterations >= options.max_iterations) break;
-
-    // A background factorisation that has finished becomes the preconditioner (one that failed is dropped).
-    if (state.pending.valid() && state.pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
-      try {
-        state.preconditioner = state.pending.get();  // (get() leaves pending invalid, failed or not)
-      } catch (const std::exception&) {
-      }
-    }
+    adopt_finished_factorisation(state, result);
     // Linear solve K_w du = r by PCG (the lagged K_w or the rest factorisation as preconditioner), no more
     // accurate than needed.
     const StaticSolver& preconditioner = state.preconditioner ? *state.preconditioner : model.solver();
     const bool rotate = options.rotate_preconditioner && !state.preconditioner;
     const WarpedSystem system{&el, &state.rotations, nullptr, 0.0, 1.0};
     if (rotate) el.node_rotations(state.rotations, node_R);
-    const double cg_tol = std::max(options.cg_tolerance, std::min(0.5, 0.5 * options.tolerance * scale / rnorm));
+    const double cg_tol =
+        std::max(options.cg_tolerance, std::min(0.5, 0.5 * options.tolerance * residual.scale() / residual.norm()));
     du.resize(0);
-    const PcgResult pcg = solve_pcg(system, preconditioner, r, du, cg_tol, options.max_cg_iterations,
+    const PcgResult pcg = solve_pcg(system, preconditioner, residual.r(), du, cg_tol, options.max_cg_iterations,
                                     rotate ? &node_R : nullptr);
     ++result.iterations;
     result.cg_iterations += pcg.iterations;
     // A slow solve: factorise K_w at these rotations for the solves to come (unless one is under way).
-    if (options.refactor_cg_iterations > 0 && pcg.iterations > options.refactor_cg_iterations &&
-        !state.pending.valid()) {
-      ++result.refactorisations;
-      const std::vector<int>& fixed_nodes = model.fixed_nodes();
-      auto factorise = [&el, &fixed_nodes](std::vector<Eigen::Matrix3d> R) {
-        return std::shared_ptr<const StaticSolver>(std::make_shared<StaticSolver>(el.warped_stiffness(R), fixed_nodes));
-      };
-      if (options.refactor_in_background) {
-        state.pending = std::async(std::launch::async, factorise, state.rotations);
-      } else {
-        try {
-          state.preconditioner = factorise(state.rotations);
-        } catch (const std::exception&) {
-          // (not positive definite or out of memory: keep the current preconditioner)
-        }
-      }
-    }
+    if (options.refactor_cg_iterations > 0 && pcg.iterations > options.refactor_cg_iterations && !state.pending.valid())
+      start_factorisation(model, options, state, result);
     if (!du.allFinite()) break;  // keep the last finite iterate (not converged)
     state.u += du;
-    result.residual = evaluate();
+    result.residual = residual.evaluate();
   }
   return result;
 }

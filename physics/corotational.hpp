@@ -170,6 +170,8 @@ struct CorotationalResult {
   bool converged = false;  // residual <= tolerance
   int n_inverted = 0;      // tets with det F <= 0 at the returned u
   int refactorisations = 0;  // warped preconditioner factorisations this solve started
+  int refactor_failures = 0; // factorisations that failed (not positive definite, out of memory): the solve went
+                             // on with the previous preconditioner
 };
 
 // Quasi-static equilibrium f_int(u) = f_ext (f_ext: 3n newtons, entries of fixed DOFs ignored), starting from

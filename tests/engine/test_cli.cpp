@@ -73,7 +73,7 @@ TEST(Cli, BadSceneExitsTwoNamingFileKeyValueAndWritesNothing) {
 TEST(Cli, MissingSceneAndUnwritableOutput) {
   CliRun r = run_lumen("run /nonexistent/scene.json --no-render");
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.output.find("/nonexistent/scene.json: cannot read scene file"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("/nonexistent/scene.json: no such scene file"), std::string::npos) << r.output;
 
   const fs::path d = temp_dir("unwritable");
   std::ofstream(d / "s.json") << small_scene("s");
@@ -81,6 +81,38 @@ TEST(Cli, MissingSceneAndUnwritableOutput) {
   r = run_lumen("run " + (d / "s.json").string() + " --out " + (d / "file" / "out").string());
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find((d / "file" / "out").string() + ": cannot create output folder"), std::string::npos) << r.output;
+}
+
+// The command line's own errors read like the scene loader's: what, the problem, the value; exit 2.
+TEST(Cli, CommandLineErrorsNameTheArgumentAndTheValue) {
+  CliRun r = run_lumen("frobnicate");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("lumen: error: unknown command \"frobnicate\": must be one of run, bench, ccd"),
+            std::string::npos) << r.output;
+  r = run_lumen("");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("lumen: error: a command is required: one of run, bench, ccd"), std::string::npos) << r.output;
+
+  const fs::path d = temp_dir("cli_args");
+  std::ofstream(d / "s.json") << small_scene("s");
+  r = run_lumen("run " + (d / "s.json").string() + " --frames 0 --out " + (d / "out").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("--frames: out of range [1, 10000000] (value 0)"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("1797693"), std::string::npos) << r.output;
+  r = run_lumen("run " + (d / "s.json").string() + " --frames abc --out " + (d / "out").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("--frames: must be a whole number of frames (value \"abc\")"), std::string::npos) << r.output;
+  r = run_lumen("bench " + (d / "s.json").string() + " --kdop 7");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("--kdop: must be one of 6, 14, 18, 26 (value 7)"), std::string::npos) << r.output;
+  // A folder where a file is expected.
+  r = run_lumen("run " + d.string() + " --out " + (d / "out").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find(d.string() + ": is a folder, not a scene file"), std::string::npos) << r.output;
+  r = run_lumen("ccd " + d.string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find(d.string() + ": is a folder, not a CCD query file"), std::string::npos) << r.output;
+  EXPECT_TRUE(is_empty_dir(d / "out"));
 }
 
 TEST(Cli, BadReplayFileExitsTwoBeforeWriting) {

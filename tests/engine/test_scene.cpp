@@ -194,7 +194,7 @@ TEST(Scene, UnreadableFile) {
     lumen::engine::load_scene("/nonexistent/scene.json");
     FAIL();
   } catch (const InputError& e) {
-    EXPECT_STREQ(e.what(), "/nonexistent/scene.json: cannot read scene file");
+    EXPECT_STREQ(e.what(), "/nonexistent/scene.json: no such scene file");
   }
 }
 
