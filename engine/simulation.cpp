@@ -110,23 +110,16 @@ void add_fixed_sets(const Scene& scene, Model& m) {
   }
 }
 
-// Twisted end ring: turned about the centreline tangent through its centre (the generator's geometry: the arc
-// c(s) = (R - R cos(s/R), 0, R sin(s/R)) with tangent (sin(s/R), 0, cos(s/R)), or the z axis when straight). Its
-// nodes are prescribed (and fixed): u = (cos theta - 1) P + sin theta Q with the basis [P Q].
+// Twisted end ring: turned about the centreline tangent through its centre (the generator's centreline frame).
+// Its nodes are prescribed (and fixed): u = (cos theta - 1) P + sin theta Q with the basis [P Q].
 void add_twist(const Scene& scene, Model& m) {
   if (!scene.twist.enabled()) return;
   const bool start = scene.twist.end == TwistEnd::kStart;
   physics::PrescribedMotion& pm = m.prescribed;
   pm.nodes = start ? m.mesh.end_nodes_start : m.mesh.end_nodes_stop;
-  const double s_end = start ? 0.0 : scene.mesh.length, bend = scene.mesh.bend_radius;
-  if (bend == 0.0) {
-    m.twist_center = Eigen::Vector3d(0.0, 0.0, s_end);
-    m.twist_axis = Eigen::Vector3d::UnitZ();
-  } else {
-    const double phi = s_end / bend;
-    m.twist_center = Eigen::Vector3d(bend - bend * std::cos(phi), 0.0, bend * std::sin(phi));
-    m.twist_axis = Eigen::Vector3d(std::sin(phi), 0.0, std::cos(phi));
-  }
+  const physics::CentrelineFrame frame = physics::hollow_cylinder_frame(scene.mesh, start ? 0.0 : scene.mesh.length);
+  m.twist_center = frame.point;
+  m.twist_axis = frame.tangent;
   // Rotation basis per ring node: R(theta) r - r = (cos theta - 1) (r - a (a . r)) + sin theta (a x r).
   pm.basis = Eigen::MatrixXd::Zero(3 * m.mesh.n_nodes(), 2);
   const Eigen::Vector3d& a = m.twist_axis;

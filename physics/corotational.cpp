@@ -102,10 +102,9 @@ Eigen::Matrix3d proper_rotation(const Eigen::Matrix3d& F, bool* inverted) {
 
 CorotationalElements::CorotationalElements(const TetMesh& mesh, const LinearMaterial& material)
     : n_nodes_(mesh.n_nodes()), tets_(mesh.tets), material_(material) {
-  validate_material(material);
-  const double E = material.young_modulus, nu = material.poisson_ratio;
-  lambda_ = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
-  mu_ = E / (2.0 * (1.0 + nu));
+  const LameParameters lame = lame_parameters(material);  // validates the material
+  lambda_ = lame.lambda;
+  mu_ = lame.mu;
   const int nt = n_tets();
   grad_.resize(nt);
   volume_.resize(nt);
@@ -217,14 +216,15 @@ Eigen::SparseMatrix<double> CorotationalElements::warped_stiffness(const std::ve
     for (int a = 0; a < 3; ++a) g[a + 1] = grad_[t].row(a).transpose();
     g[0] = -(g[1] + g[2] + g[3]);
     // Block (a, b) of K_e is V (lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I); warped: R K_ab R^T.
+    Eigen::Matrix<double, 12, 12> W;
     for (int a = 0; a < 4; ++a)
       for (int b = 0; b < 4; ++b) {
         Eigen::Matrix3d Kab = lambda_ * g[a] * g[b].transpose() + mu_ * g[b] * g[a].transpose();
         Kab.diagonal().array() += mu_ * g[a].dot(g[b]);
-        const Eigen::Matrix3d W = volume_[t] * (R[t] * Kab * R[t].transpose());
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j) triplets.emplace_back(3 * tets_(t, a) + i, 3 * tets_(t, b) + j, W(i, j));
+        const Eigen::Matrix3d Wab = volume_[t] * (R[t] * Kab * R[t].transpose());  // (as a 3 x 3: same round-off)
+        W.block<3, 3>(3 * a, 3 * b) = Wab;
       }
+    scatter_element_matrix(W, tets_.row(t), triplets);
   }
   Eigen::SparseMatrix<double> K(n_dofs(), n_dofs());
   K.setFromTriplets(triplets.begin(), triplets.end());

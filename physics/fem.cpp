@@ -36,14 +36,6 @@ Mat43 shape_gradients(const Mat43& X, double& volume) {
   return g;
 }
 
-// Lame parameters (pascals) of a validated material.
-void lame_parameters(const LinearMaterial& m, double& lambda, double& mu) {
-  validate_material(m);
-  const double E = m.young_modulus, nu = m.poisson_ratio;
-  lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
-  mu = E / (2.0 * (1.0 + nu));
-}
-
 }  // namespace
 
 void validate_material(const LinearMaterial& m) {
@@ -59,9 +51,16 @@ void validate_material(const LinearMaterial& m) {
   }
 }
 
+LameParameters lame_parameters(const LinearMaterial& m) {
+  validate_material(m);
+  const double E = m.young_modulus, nu = m.poisson_ratio;
+  return {E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), E / (2.0 * (1.0 + nu))};
+}
+
 Eigen::Matrix<double, 12, 12> tet_stiffness(const Mat43& X, const LinearMaterial& m) {
-  double lambda, mu, volume;
-  lame_parameters(m, lambda, mu);
+  const LameParameters lame = lame_parameters(m);
+  const double lambda = lame.lambda, mu = lame.mu;
+  double volume;
   const Mat43 g = shape_gradients(X, volume);
 
   // Strain-displacement matrix B (6 x 12): Voigt strain (xx, yy, zz, 2yz, 2xz, 2xy) from nodal displacements.
@@ -89,8 +88,9 @@ Eigen::Matrix<double, 12, 12> tet_stiffness(const Mat43& X, const LinearMaterial
 }
 
 double tet_energy(const Mat43& X, const Mat43& u, const LinearMaterial& m) {
-  double lambda, mu, volume;
-  lame_parameters(m, lambda, mu);
+  const LameParameters lame = lame_parameters(m);
+  const double lambda = lame.lambda, mu = lame.mu;
+  double volume;
   const Mat43 g = shape_gradients(X, volume);
   // Displacement gradient H = sum_a u_a (x) grad N_a, small strain eps = sym(H).
   const Eigen::Matrix3d H = u.transpose() * g;
@@ -116,12 +116,7 @@ Eigen::SparseMatrix<double> assemble_stiffness(const TetMesh& mesh, const Linear
       }
       X.row(a) = mesh.rest.row(v);
     }
-    const Eigen::Matrix<double, 12, 12> Ke = tet_stiffness(X, m);
-    for (int a = 0; a < 4; ++a)
-      for (int b = 0; b < 4; ++b)
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-            triplets.emplace_back(3 * mesh.tets(t, a) + i, 3 * mesh.tets(t, b) + j, Ke(3 * a + i, 3 * b + j));
+    scatter_element_matrix(tet_stiffness(X, m), mesh.tets.row(t), triplets);
   }
   Eigen::SparseMatrix<double> K(3 * n, 3 * n);
   K.setFromTriplets(triplets.begin(), triplets.end());

@@ -26,6 +26,27 @@ double tet_energy(const Eigen::Matrix<double, 4, 3>& X, const Eigen::Matrix<doub
 // Throws std::invalid_argument unless E > 0 and finite and nu in (-1, 0.5).
 void validate_material(const LinearMaterial& m);
 
+// Lame parameters of an isotropic material, pascals.
+struct LameParameters {
+  double lambda;  // E nu / ((1 + nu) (1 - 2 nu))
+  double mu;      // shear modulus E / (2 (1 + nu))
+};
+// The Lame parameters of a material; throws as validate_material.
+LameParameters lame_parameters(const LinearMaterial& m);
+
+// Appends the entries of an element matrix Ke (3k x 3k, DOF order (x0, y0, z0, x1, ..., z_{k-1})) of the element
+// with mesh nodes nodes(0..k-1) to triplets of the global 3n x 3n matrix: Ke(3a + i, 3b + j) at
+// (3 nodes(a) + i, 3 nodes(b) + j), in the order a, b, i, j (setFromTriplets then sums them in that order).
+template <class ElementMatrix, class Nodes>
+void scatter_element_matrix(const ElementMatrix& Ke, const Nodes& nodes,
+                            std::vector<Eigen::Triplet<double>>& triplets) {
+  const int k = static_cast<int>(Ke.rows()) / 3;
+  for (int a = 0; a < k; ++a)
+    for (int b = 0; b < k; ++b)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) triplets.emplace_back(3 * nodes(a) + i, 3 * nodes(b) + j, Ke(3 * a + i, 3 * b + j));
+}
+
 // Global stiffness, 3n x 3n, symmetric, DOF 3*i+c for node i, coordinate c.
 Eigen::SparseMatrix<double> assemble_stiffness(const TetMesh& mesh, const LinearMaterial& m);
 

@@ -12,8 +12,6 @@ namespace lumen::physics {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 // Node of `ring` (node ids) closest to point p.
 int closest(const Points& x, const std::vector<int>& ring, const Eigen::Vector3d& p) {
   int best = ring.front();
@@ -58,7 +56,8 @@ LameResult lame_error(const LameSetup& setup) {
   spec.layers = setup.layers;
   spec.length = setup.length > 0.0
                     ? setup.length
-                    : setup.segments_along * kPi * (setup.inner_radius + setup.outer_radius) / setup.segments_around;
+                    : setup.segments_along * static_cast<double>(EIGEN_PI) *
+                          (setup.inner_radius + setup.outer_radius) / setup.segments_around;
   const TetMesh mesh = make_hollow_cylinder(spec);
   const double a = spec.inner_radius, b = spec.outer_radius;
   const bool quadratic = setup.element == ElementOrder::kQuadratic;

@@ -10,8 +10,6 @@ namespace lumen::physics {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 // Throws std::invalid_argument "HollowCylinderSpec.<field> <rule>, got <value>".
 template <typename T>
 [[noreturn]] void fail_spec(const char* field, const char* rule, T value) {
@@ -37,7 +35,7 @@ void validate(const HollowCylinderSpec& s) {
   if (s.bend_radius != 0.0) {
     if (!(s.bend_radius > s.outer_radius) || !std::isfinite(s.bend_radius))
       fail_spec("bend_radius", "must be 0 (straight) or finite and > outer_radius", s.bend_radius);
-    if (!(s.length / s.bend_radius < 2.0 * kPi))
+    if (!(s.length / s.bend_radius < 2.0 * static_cast<double>(EIGEN_PI)))
       fail_spec("bend_radius", "must make the arc angle length / bend_radius < 2 pi", s.bend_radius);
   }
 }
@@ -56,22 +54,15 @@ TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec) {
   TetMesh mesh;
   mesh.rest.resize(n_nodes, 3);
 
-  // Node positions: ring at arc length s, radius r, angle theta in the local frame (e1, e2) of the centreline.
-  // Straight: centreline is the z axis, e1 = x, e2 = y. Bent: centreline c(s) = (R - R cos phi, 0, R sin phi),
-  // phi = s / R (centre of curvature at (R, 0, 0)), e1 = (cos phi, 0, -sin phi), e2 = y, tangent (sin phi, 0, cos phi).
+  // Node positions: ring at arc length s, radius r, angle theta in the local frame (e1, e2) = (normal, binormal)
+  // of the centreline (hollow_cylinder_frame).
   for (int j = 0; j <= nl; ++j) {
-    const double s = spec.length * j / nl;
-    Eigen::Vector3d c(0.0, 0.0, s), e1(1.0, 0.0, 0.0);
-    const Eigen::Vector3d e2(0.0, 1.0, 0.0);
-    if (spec.bend_radius > 0.0) {
-      const double R = spec.bend_radius, phi = s / R;
-      c = Eigen::Vector3d(R - R * std::cos(phi), 0.0, R * std::sin(phi));
-      e1 = Eigen::Vector3d(std::cos(phi), 0.0, -std::sin(phi));
-    }
+    const CentrelineFrame frame = hollow_cylinder_frame(spec, spec.length * j / nl);
+    const Eigen::Vector3d &c = frame.point, &e1 = frame.normal, &e2 = frame.binormal;
     for (int k = 0; k <= nr; ++k) {
       const double r = spec.inner_radius + (spec.outer_radius - spec.inner_radius) * k / nr;
       for (int i = 0; i < na; ++i) {
-        const double theta = 2.0 * kPi * i / na;
+        const double theta = 2.0 * static_cast<double>(EIGEN_PI) * i / na;
         mesh.rest.row(node(i, j, k)) = (c + r * std::cos(theta) * e1 + r * std::sin(theta) * e2).transpose();
       }
     }
@@ -134,16 +125,22 @@ TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec) {
   return mesh;
 }
 
-Eigen::Vector3d hollow_cylinder_point(const HollowCylinderSpec& spec, double s, double r, double theta) {
-  // Same frame as the generator: straight centreline (0, 0, s) with e1 = x; bent arc with e1 = (cos phi, 0, -sin phi).
-  Eigen::Vector3d c(0.0, 0.0, s), e1(1.0, 0.0, 0.0);
-  const Eigen::Vector3d e2(0.0, 1.0, 0.0);
+CentrelineFrame hollow_cylinder_frame(const HollowCylinderSpec& spec, double s) {
+  CentrelineFrame f{Eigen::Vector3d(0.0, 0.0, s), Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX(),
+                    Eigen::Vector3d::UnitY()};
   if (spec.bend_radius > 0.0) {
-    const double R = spec.bend_radius, phi = s / R;
-    c = Eigen::Vector3d(R - R * std::cos(phi), 0.0, R * std::sin(phi));
-    e1 = Eigen::Vector3d(std::cos(phi), 0.0, -std::sin(phi));
+    const double R = spec.bend_radius, phi = s / R, cos_phi = std::cos(phi), sin_phi = std::sin(phi);
+    f.point = Eigen::Vector3d(R - R * cos_phi, 0.0, R * sin_phi);
+    f.tangent = Eigen::Vector3d(sin_phi, 0.0, cos_phi);
+    f.normal = Eigen::Vector3d(cos_phi, 0.0, -sin_phi);
   }
-  return c + r * std::cos(theta) * e1 + r * std::sin(theta) * e2;
+  return f;
+}
+
+Eigen::Vector3d hollow_cylinder_point(const HollowCylinderSpec& spec, double s, double r, double theta) {
+  // Same frame as the generator: the ring at s has local axes normal (x) and binormal (y).
+  const CentrelineFrame f = hollow_cylinder_frame(spec, s);
+  return f.point + r * std::cos(theta) * f.normal + r * std::sin(theta) * f.binormal;
 }
 
 double tet_volume(const Points& x, const Tets& tets, int t) {

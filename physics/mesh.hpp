@@ -43,6 +43,18 @@ struct HollowCylinderSpec {
 // close the tube on itself: length / bend_radius must be < 2 pi).
 TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec);
 
+// Frame of the hollow cylinder's centreline at arc length s (metres). Bent (bend_radius R > 0): the arc point
+// c(s) = (R - R cos(s/R), 0, R sin(s/R)), tangent (sin(s/R), 0, cos(s/R)), normal (cos(s/R), 0, -sin(s/R))
+// toward the centre of curvature (the rings' local x axis) and binormal y (the local y axis). Straight
+// (R <= 0): (0, 0, s), z, x and y. Any s is accepted (no validation of spec).
+struct CentrelineFrame {
+  Eigen::Vector3d point;     // metres
+  Eigen::Vector3d tangent;   // unit
+  Eigen::Vector3d normal;    // unit, local x axis of the ring at s
+  Eigen::Vector3d binormal;  // unit, local y axis of the ring at s (tangent x normal)
+};
+CentrelineFrame hollow_cylinder_frame(const HollowCylinderSpec& spec, double s);
+
 // Point of the hollow cylinder of `spec` at arc length s along the centreline (metres), distance r from it
 // (metres) and angle theta (radians) from the local x axis of the ring at s: the map make_hollow_cylinder places
 // its nodes with (s = length j / along, r = inner + (outer - inner) k / layers, theta = 2 pi i / around). Any

@@ -14,22 +14,12 @@ namespace lumen::physics {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 using Mat10x3 = Eigen::Matrix<double, 10, 3>;
 
 // Key of the undirected edge (a, b) for the edge map.
 std::int64_t edge_key(int a, int b) {
   if (a > b) std::swap(a, b);
   return (static_cast<std::int64_t>(a) << 32) | static_cast<std::uint32_t>(b);
-}
-
-// Lame parameters (pascals) of a validated material.
-void lame_parameters(const LinearMaterial& m, double& lambda, double& mu) {
-  validate_material(m);
-  const double E = m.young_modulus, nu = m.poisson_ratio;
-  lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
-  mu = E / (2.0 * (1.0 + nu));
 }
 
 // Physical shape-function gradients (10 x 3, 1/metres) and Jacobian determinant (dimension m^3 per reference
@@ -50,8 +40,8 @@ Mat10x3 physical_gradients(const Mat10x3& X, const Eigen::Vector3d& xi, int q, i
 }
 
 Eigen::Matrix<double, 30, 30> stiffness(const Mat10x3& X, const LinearMaterial& m, int element) {
-  double lambda, mu;
-  lame_parameters(m, lambda, mu);
+  const LameParameters lame = lame_parameters(m);
+  const double lambda = lame.lambda, mu = lame.mu;
   // K = sum_q w_q det J_q B_q^T D B_q for isotropic D, written per node pair (a, b) and components (i, j):
   // K_ab(i, j) = lambda g_a,i g_b,j + mu g_a,j g_b,i + mu (g_a . g_b) delta_ij, g = physical gradients.
   // Only blocks b >= a are accumulated; the upper triangle is mirrored at the end (exactly symmetric K).
@@ -193,8 +183,8 @@ Eigen::Matrix<double, 30, 30> tet10_stiffness(const Mat10x3& X, const LinearMate
 }
 
 double tet10_energy(const Mat10x3& X, const Mat10x3& u, const LinearMaterial& m) {
-  double lambda, mu;
-  lame_parameters(m, lambda, mu);
+  const LameParameters lame = lame_parameters(m);
+  const double lambda = lame.lambda, mu = lame.mu;
   const auto& rule = tet_quadrature();
   double energy = 0.0;
   for (int q = 0; q < static_cast<int>(rule.size()); ++q) {
@@ -236,12 +226,7 @@ Eigen::SparseMatrix<double> assemble_stiffness(const QuadraticMesh& mesh, const 
       }
       X.row(a) = mesh.rest.row(v);
     }
-    const Eigen::Matrix<double, 30, 30> Ke = stiffness(X, m, t);
-    for (int a = 0; a < 10; ++a)
-      for (int b = 0; b < 10; ++b)
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-            triplets.emplace_back(3 * mesh.tets(t, a) + i, 3 * mesh.tets(t, b) + j, Ke(3 * a + i, 3 * b + j));
+    scatter_element_matrix(stiffness(X, m, t), mesh.tets.row(t), triplets);
   }
   Eigen::SparseMatrix<double> K(3 * n, 3 * n);
   K.setFromTriplets(triplets.begin(), triplets.end());
@@ -369,7 +354,7 @@ QuadraticMesh make_quadratic_cylinder(const TetMesh& mesh, const HollowCylinderS
     if (2 * di < -na) di += na;
     const double s = spec.length * 0.5 * (j0 + j1) / spec.segments_along;
     const double r = spec.inner_radius + (spec.outer_radius - spec.inner_radius) * 0.5 * (k0 + k1) / spec.layers;
-    const double theta = 2.0 * kPi * (i0 + 0.5 * di) / na;
+    const double theta = 2.0 * static_cast<double>(EIGEN_PI) * (i0 + 0.5 * di) / na;
     q.rest.row(q.n_corners + e) = hollow_cylinder_point(spec, s, r, theta).transpose();
   }
   return q;

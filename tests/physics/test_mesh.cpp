@@ -275,5 +275,34 @@ TEST(HollowCylinder, RejectsInvalidSpecsNamingFieldAndValue) {
   expect_invalid([&] { tet_volume(m.rest, m.tets, 9360); }, "t", "9360");
 }
 
+// The centreline frame: orthonormal and right-handed (binormal = tangent x normal), the tangent is the derivative
+// of the point (central differences), the normal points at the centre of curvature (R, 0, 0), and ring points
+// are the point plus the normal and binormal at radius r; straight when bend_radius is 0.
+TEST(HollowCylinder, CentrelineFrameIsTheArcsFrenetFrame) {
+  for (const double R : {0.0, 0.05}) {
+    HollowCylinderSpec spec;
+    spec.bend_radius = R;
+    for (const double s : {0.0, 0.013, 0.05, 0.1}) {
+      const CentrelineFrame f = hollow_cylinder_frame(spec, s);
+      EXPECT_NEAR(f.tangent.norm(), 1.0, 1e-15);
+      EXPECT_NEAR(f.normal.norm(), 1.0, 1e-15);
+      EXPECT_NEAR(f.tangent.dot(f.normal), 0.0, 1e-15);
+      EXPECT_LE((f.tangent.cross(f.normal) - f.binormal).norm(), 1e-15);
+      const double h = 1e-6;
+      const Eigen::Vector3d fd =
+          (hollow_cylinder_frame(spec, s + h).point - hollow_cylinder_frame(spec, s - h).point) / (2.0 * h);
+      EXPECT_LE((fd - f.tangent).norm(), 1e-8);
+      if (R > 0.0) {
+        EXPECT_LE(((Eigen::Vector3d(R, 0.0, 0.0) - f.point) / R - f.normal).norm(), 1e-12);
+      } else {
+        EXPECT_EQ(f.point, Eigen::Vector3d(0.0, 0.0, s));
+      }
+      const double r = 0.011, theta = 0.7;
+      EXPECT_EQ(hollow_cylinder_point(spec, s, r, theta),
+                Eigen::Vector3d(f.point + r * std::cos(theta) * f.normal + r * std::sin(theta) * f.binormal));
+    }
+  }
+}
+
 }  // namespace
 }  // namespace lumen::physics

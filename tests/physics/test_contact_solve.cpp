@@ -1,173 +1,130 @@
-// LoadResponse, SurfaceCompliance and the contact solves against a dense twin (Eigen LDLT of K on the free DOFs)
-// and brute-force active-set enumeration.
+// The contact solves against a dense twin (Eigen LDLT of K on the free DOFs) and brute-force active-set
+// enumeration (brute_force_lcp, also the twin of the dense-LCP test here), and solve_contacts (active set on
+// columns of A computed on demand) against solve_lcp (Lemke on all of A) on random contact rows of a real
+// inner-wall compliance (SolveContacts, moved as-is from tests/engine/test_response.cpp).
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <cmath>
+#include <memory>
 #include <random>
 #include <stdexcept>
 #include <vector>
 
-#include "physics/compliance.hpp"
+#include "physics/contact_solve.hpp"
+#include "physics/fem.hpp"
 #include "physics/mesh.hpp"
+#include "tests/physics/compliance_model.hpp"
 
 namespace lumen::physics {
 namespace {
 
-// A coarse tube with both ends fixed, its solver and a dense inverse of K (0 on fixed DOFs) as the twin.
-struct Model {
-  TetMesh mesh;
-  Eigen::SparseMatrix<double> K;
-  std::unique_ptr<StaticSolver> solver;
-  Eigen::MatrixXd Kinv;         // 3n x 3n
-  std::vector<int> inner;       // inner-wall node ids
-  std::vector<int> free_nodes;  // nodes not fixed
-  std::vector<int> outer_free;  // free nodes not on the inner wall
-  std::vector<int> inner_free;  // free nodes on the inner wall
-
-  Model() {
-    HollowCylinderSpec s;
-    s.segments_around = 8, s.segments_along = 4, s.layers = 2, s.length = 0.04;
-    mesh = make_hollow_cylinder(s);
-    K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
+// A coarse tube with both ends fixed and its inner-wall compliance.
+struct Tube {
+  physics::TetMesh mesh;
+  std::unique_ptr<physics::StaticSolver> solver;
+  std::vector<int> inner, outer_free;
+  std::unique_ptr<physics::SurfaceCompliance> compliance;
+  Tube() {
+    physics::HollowCylinderSpec s;
+    s.segments_around = 8, s.segments_along = 5, s.layers = 2, s.length = 0.04;
+    mesh = physics::make_hollow_cylinder(s);
     std::vector<int> fixed = mesh.end_nodes_start;
     fixed.insert(fixed.end(), mesh.end_nodes_stop.begin(), mesh.end_nodes_stop.end());
-    solver = std::make_unique<StaticSolver>(K, fixed);
-    const int n = mesh.n_nodes();
-    std::vector<char> is_fixed(n, 0), is_inner(n, 0);
+    solver = std::make_unique<physics::StaticSolver>(physics::assemble_stiffness(mesh, {5000.0, 0.45}), fixed);
+    std::vector<char> on(mesh.n_nodes(), 0), is_fixed(mesh.n_nodes(), 0);
+    for (int i = 0; i < mesh.inner.size(); ++i) on[mesh.inner.data()[i]] = 1;
     for (int v : fixed) is_fixed[v] = 1;
-    for (int i = 0; i < mesh.inner.size(); ++i) is_inner[mesh.inner.data()[i]] = 1;
-    for (int v = 0; v < n; ++v) {
-      if (is_inner[v]) inner.push_back(v);
-      if (!is_fixed[v]) free_nodes.push_back(v);
-      if (!is_fixed[v] && !is_inner[v]) outer_free.push_back(v);
-      if (!is_fixed[v] && is_inner[v]) inner_free.push_back(v);
+    for (int v = 0; v < mesh.n_nodes(); ++v) {
+      if (on[v]) inner.push_back(v);
+      if (!on[v] && !is_fixed[v]) outer_free.push_back(v);
     }
-    // Dense twin.
-    std::vector<int> free;
-    for (int v : free_nodes)
-      for (int c = 0; c < 3; ++c) free.push_back(3 * v + c);
-    const Eigen::MatrixXd Kd(K);
-    Eigen::MatrixXd Kf(free.size(), free.size());
-    for (size_t i = 0; i < free.size(); ++i)
-      for (size_t j = 0; j < free.size(); ++j) Kf(i, j) = Kd(free[i], free[j]);
-    const Eigen::MatrixXd Kfi = Kf.ldlt().solve(Eigen::MatrixXd::Identity(free.size(), free.size()));
-    Kinv = Eigen::MatrixXd::Zero(3 * n, 3 * n);
-    for (size_t i = 0; i < free.size(); ++i)
-      for (size_t j = 0; j < free.size(); ++j) Kinv(free[i], free[j]) = Kfi(i, j);
+    compliance = std::make_unique<physics::SurfaceCompliance>(*solver, inner);
   }
-  int n() const { return mesh.n_nodes(); }
 };
 
-const Model& model() {
-  static const Model m;
-  return m;
+Tube& tube() {
+  static Tube t;
+  return t;
 }
 
-// H as a dense matrix (rows x 3n), built directly from the row definition.
-Eigen::MatrixXd dense_H(const std::vector<ContactRow>& rows, int n) {
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(rows.size(), 3 * n);
-  for (size_t r = 0; r < rows.size(); ++r)
-    for (int k = 0; k < 4; ++k)
-      if (rows[r].node[k] >= 0)
-        for (int c = 0; c < 3; ++c) H(r, 3 * rows[r].node[k] + c) += rows[r].weight[k] * rows[r].n[c];
-  return H;
-}
-
-Eigen::Vector3d random_unit(std::mt19937& rng) {
-  std::normal_distribution<double> d;
-  return Eigen::Vector3d(d(rng), d(rng), d(rng)).normalized();
-}
-
-// Vertex-face row n . (u_p - sum b_i u_fi) on random nodes: the vertex free, the face nodes anywhere on the
-// inner wall (fixed ones included) or, with allow_outer, anywhere in the mesh (outside the compliance set).
-ContactRow random_vertex_face(std::mt19937& rng, const Model& m, bool allow_outer) {
-  const std::vector<int>& vpool = allow_outer ? m.free_nodes : m.inner_free;
-  std::vector<int> fpool = m.inner;
-  if (allow_outer) fpool.insert(fpool.end(), m.outer_free.begin(), m.outer_free.end());
-  std::uniform_int_distribution<size_t> pickv(0, vpool.size() - 1), pickf(0, fpool.size() - 1);
-  std::uniform_real_distribution<double> u01(0.05, 1.0);
-  ContactRow row;
-  row.node[0] = vpool[pickv(rng)];
-  for (int k = 1; k < 4; ++k) row.node[k] = fpool[pickf(rng)];
-  double b[3] = {u01(rng), u01(rng), u01(rng)};
-  const double s = b[0] + b[1] + b[2];
-  row.weight[0] = 1.0;
-  for (int k = 0; k < 3; ++k) row.weight[k + 1] = -b[k] / s;
-  row.n = random_unit(rng);
-  return row;
-}
-
-TEST(LoadResponse, EqualsDirectSolve) {
-  const Model& m = model();
-  std::mt19937 rng(11);
-  std::uniform_int_distribution<int> tri(0, static_cast<int>(m.mesh.inner.rows()) - 1);
-  std::uniform_real_distribution<double> u01(0.0, 1.0), force(-0.05, 0.05);
-  std::vector<LoadPoint> points(3);
-  for (LoadPoint& p : points) {
-    const int t = tri(rng);
-    double b0 = u01(rng), b1 = u01(rng) * (1 - b0);
-    const double b[3] = {b0, b1, 1 - b0 - b1};
-    for (int k = 0; k < 3; ++k) p.node[k] = m.mesh.inner(t, k), p.weight[k] = b[k];
+// Random vertex-face or edge-edge rows on inner nodes (with_outer: some nodes off the compliance's set).
+ContactRow random_row(std::mt19937& rng, const Tube& t, bool edge_edge, bool with_outer) {
+  std::uniform_int_distribution<size_t> pick(0, t.inner.size() - 1), pick_out(0, t.outer_free.size() - 1);
+  std::uniform_real_distribution<double> u01(0.05, 0.95);
+  std::normal_distribution<double> nd;
+  ContactRow r;
+  for (int k = 0; k < 4; ++k) r.node[k] = t.inner[pick(rng)];
+  if (with_outer) r.node[3] = t.outer_free[pick_out(rng)];
+  if (edge_edge) {
+    const double s = u01(rng), tt = u01(rng);
+    r.weight[0] = 1 - s, r.weight[1] = s, r.weight[2] = -(1 - tt), r.weight[3] = -tt;
+  } else {
+    const double a = u01(rng), b = u01(rng) * (1 - a);
+    r.weight[0] = 1, r.weight[1] = -(1 - a - b), r.weight[2] = -a, r.weight[3] = -b;
   }
-  points[2].node[2] = -1;  // a point on an edge (two nodes)
-  const LoadResponse lr(*m.solver, points);
-  ASSERT_EQ(lr.response().rows(), 3 * m.n());
-  ASSERT_EQ(lr.response().cols(), 9);
-  for (int trial = 0; trial < 5; ++trial) {
-    Points F(3, 3);
-    for (int i = 0; i < 9; ++i) F.data()[i] = force(rng);
-    // Direct: nodal forces from the weights, one solve; twin: dense inverse.
-    Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * m.n());
-    for (int p = 0; p < 3; ++p)
-      for (int k = 0; k < 3; ++k)
-        if (points[p].node[k] >= 0) f.segment<3>(3 * points[p].node[k]) += points[p].weight[k] * F.row(p).transpose();
-    Eigen::VectorXd u_direct, u;
-    m.solver->solve(f, u_direct);
-    lr.displacement(F, u);
-    EXPECT_LE((u - u_direct).norm(), 1e-12 * u_direct.norm());
-    EXPECT_LE((u - m.Kinv * f).norm(), 1e-9 * u_direct.norm());
-    // Point compliance: the weighted displacement of each load point.
-    const Eigen::Map<const Eigen::VectorXd> fv(F.data(), 9);
-    const Eigen::VectorXd up = lr.point_compliance() * fv;
-    for (int p = 0; p < 3; ++p) {
-      Eigen::Vector3d d = Eigen::Vector3d::Zero();
-      for (int k = 0; k < 3; ++k)
-        if (points[p].node[k] >= 0) d += points[p].weight[k] * u.segment<3>(3 * points[p].node[k]);
-      EXPECT_LE((up.segment<3>(3 * p) - d).norm(), 1e-12 * u.norm());
+  r.n = Eigen::Vector3d(nd(rng), nd(rng), nd(rng)).normalized();
+  return r;
+}
+
+// solve_contacts (active set on columns on demand) equals solve_lcp (all of A, Lemke) on contact rows of a real
+// compliance, with duplicated rows and rows reaching off the set: same contact force (unique) and correction,
+// every row satisfied (the problems are feasible by construction); the set-only correction equals the whole-mesh one on the set and the rows' nodes.
+TEST(SolveContacts, EqualsLemkeOnContactRows) {
+  Tube& t = tube();
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> d(-1e-3, 1e-3), force(-0.02, 0.02);
+  int pushing = 0;
+  for (int trial = 0; trial < 16; ++trial) {
+    const int m = 4 + 3 * trial;
+    Eigen::VectorXd f(3 * t.mesh.n_nodes());
+    for (int i = 0; i < f.size(); ++i) f[i] = force(rng);
+    Eigen::VectorXd u_free;
+    t.solver->solve(f, u_free);
+    std::vector<ContactRow> rows;
+    for (int r = 0; r < m; ++r) rows.push_back(random_row(rng, t, r % 2 == 1, trial % 4 == 3 && r % 5 == 0));
+    // Feasible by construction: a second displacement u_target (other loads) satisfies every row with slack.
+    for (int i = 0; i < f.size(); ++i) f[i] = force(rng);
+    Eigen::VectorXd u_target;
+    t.solver->solve(f, u_target);
+    const Eigen::VectorXd h_target = physics::row_values(rows, u_target);
+    for (int r = 0; r < m; ++r) rows[r].g = h_target[r] - 0.2 * std::abs(d(rng));
+    for (int r = 0; r < m / 4; ++r) rows.push_back(rows[r]);  // duplicates
+    const std::vector<int> warm = {0, 1};
+    const std::string what = "trial " + std::to_string(trial);
+
+    const physics::ContactResult fast = physics::solve_contacts(*t.compliance, rows, u_free, warm);
+    const physics::ContactResult lemke = physics::solve_lcp(*t.compliance, rows, u_free);
+    ASSERT_TRUE(fast.converged) << what << " residual " << fast.residual;
+    ASSERT_TRUE(lemke.converged) << what;
+    EXPECT_FALSE(fast.used_lemke) << what;
+    EXPECT_LE((fast.force - lemke.force).norm(), 1e-7 * (lemke.force.norm() + 1e-12)) << what;
+    EXPECT_LE((fast.correction - lemke.correction).norm(), 1e-7 * (lemke.correction.norm() + 1e-15)) << what;
+    const Eigen::VectorXd h = physics::row_values(rows, u_free + fast.correction);
+    for (size_t r = 0; r < rows.size(); ++r) {
+      EXPECT_GE(fast.lambda[r], 0.0);
+      EXPECT_GE(h[r], rows[r].g - 1e-12) << what << " row " << r;
+      if (fast.lambda[r] > 0.0) {
+        EXPECT_NEAR(h[r], rows[r].g, 1e-12) << what << " row " << r;
+      }
+      pushing += fast.lambda[r] > 0.0;
     }
+    // Set-only correction: equal where it is defined, zero elsewhere.
+    const physics::ContactResult part = physics::solve_contacts(*t.compliance, rows, u_free, warm, {}, false);
+    std::vector<char> defined(t.mesh.n_nodes(), 0);
+    for (int v : t.inner) defined[v] = 1;
+    for (const ContactRow& r : rows)
+      for (int k = 0; k < 4; ++k) defined[r.node[k]] = 1;
+    for (int v = 0; v < t.mesh.n_nodes(); ++v) {
+      const Eigen::Vector3d expected = defined[v] ? Eigen::Vector3d(fast.correction.segment<3>(3 * v)) : Eigen::Vector3d::Zero();
+      EXPECT_LE((part.correction.segment<3>(3 * v) - expected).norm(), 1e-12 * (1e-9 + fast.correction.norm())) << what;
+    }
+    EXPECT_EQ(part.residual <= 1e-9, fast.residual <= 1e-9) << what;
   }
-  EXPECT_LE((lr.point_compliance() - lr.point_compliance().transpose()).norm(), 1e-12 * lr.point_compliance().norm());
-  LoadPoint bad;
-  bad.node[0] = m.n();
-  EXPECT_THROW(LoadResponse(*m.solver, {bad}), std::invalid_argument);
-  EXPECT_THROW(LoadResponse(*m.solver, {LoadPoint{}}), std::invalid_argument);
-  EXPECT_THROW(lr.displacement(Points(2, 3)), std::invalid_argument);
-}
-
-TEST(SurfaceCompliance, BlocksEqualDirectSolves) {
-  const Model& m = model();
-  SurfaceCompliance sc(*m.solver, m.inner, 7);  // 7 columns per block: exercises a partial last block
-  const int s = static_cast<int>(m.inner.size());
-  ASSERT_EQ(sc.matrix().rows(), 3 * s);
-  for (int a = 0; a < s; ++a)
-    for (int b = 0; b < s; ++b)
-      ASSERT_LE((sc.matrix().block<3, 3>(3 * a, 3 * b) - m.Kinv.block<3, 3>(3 * m.inner[a], 3 * m.inner[b])).norm(),
-                1e-9 * m.Kinv.norm() / m.n());
-  EXPECT_LE((sc.matrix() - sc.matrix().transpose()).norm(), 1e-12 * sc.matrix().norm());
-  // Any pair of mesh nodes, inside or outside the set; outside columns are computed once and cached.
-  const int in = m.inner[13], out1 = m.outer_free[2], out2 = m.outer_free[9];
-  EXPECT_EQ(sc.index_of(in), 13);
-  EXPECT_EQ(sc.index_of(out1), -1);
-  const std::pair<int, int> pairs[] = {{in, in}, {in, out1}, {out1, in}, {out1, out2}, {out2, out2}, {in, out2}};
-  for (const auto& [a, b] : pairs) {
-    const Eigen::Matrix3d blk = sc.block(a, b), twin = m.Kinv.block(3 * a, 3 * b, 3, 3);
-    EXPECT_LE((blk - twin).norm(), 1e-9 * twin.norm() + 1e-15);
-  }
-  EXPECT_EQ(sc.n_cached_nodes(), 2);
-  EXPECT_THROW(SurfaceCompliance(*m.solver, {1, 2, 1}), std::invalid_argument);
-  EXPECT_THROW(SurfaceCompliance(*m.solver, {-1}), std::invalid_argument);
-  EXPECT_THROW(SurfaceCompliance(*m.solver, {1}, 0), std::invalid_argument);
-  EXPECT_THROW(sc.block(0, m.n()), std::invalid_argument);
+  EXPECT_GT(pushing, 30);
+  EXPECT_THROW(physics::solve_contacts(*t.compliance, {random_row(rng, t, false, false)},
+                                       Eigen::VectorXd::Zero(3 * t.mesh.n_nodes()), {1}),
+               std::invalid_argument);
 }
 
 // Holding nodes at prescribed displacements (3 unit rows per node, the paper's response) equals the dense
@@ -372,69 +329,6 @@ TEST(Lcp, DenseRandomSemidefiniteMatchesBruteForce) {
   EXPECT_EQ(r0.z.norm(), 0.0);
   EXPECT_EQ(r0.iterations, 0);
   EXPECT_THROW(solve_lcp_dense(A, Eigen::VectorXd::Ones(2)), std::invalid_argument);
-}
-
-// The coupling matrix column by column equals the dense twin H K^-1 H^T, rows inside and outside the set.
-TEST(CouplingMatrix, ColumnsEqualDenseTwin) {
-  const Model& m = model();
-  SurfaceCompliance sc(*m.solver, m.inner);
-  std::mt19937 rng(16);
-  std::vector<ContactRow> rows;
-  for (int r = 0; r < 30; ++r) rows.push_back(random_vertex_face(rng, m, r % 4 == 0));
-  ContactRow held;  // a one-node unit row (the paper's hold) on a node outside the set
-  held.node[0] = m.outer_free[3], held.weight[0] = 1.0, held.n = Eigen::Vector3d::UnitY();
-  rows.push_back(held);
-  const Eigen::MatrixXd H = dense_H(rows, m.n());
-  const Eigen::MatrixXd twin = H * m.Kinv * H.transpose();
-  CouplingMatrix A(sc, rows);
-  ASSERT_EQ(A.size(), 31);
-  EXPECT_EQ(A.columns_computed(), 0);
-  for (int s : {30, 4, 0}) EXPECT_LE((A.column(s) - twin.col(s)).norm(), 1e-9 * twin.norm()) << "column " << s;
-  EXPECT_EQ(A.columns_computed(), 3);
-  const Eigen::MatrixXd dense = A.dense();
-  EXPECT_LE((dense - twin).norm(), 1e-9 * twin.norm());
-  EXPECT_EQ((dense - dense.transpose()).norm(), 0.0);
-  EXPECT_LE((coupling_matrix(sc, rows) - dense).norm(), 1e-15 * twin.norm());
-  EXPECT_THROW(A.column(31), std::invalid_argument);
-}
-
-// Whole-mesh and set-only displacements for sparse nodal forces equal the dense twin K^-1 f, with the
-// whole-mesh columns kept and without them (a back-substitution).
-TEST(SurfaceCompliance, DisplacementsEqualDenseTwin) {
-  const Model& m = model();
-  SurfaceCompliance kept(*m.solver, m.inner), lean(*m.solver, m.inner, 64, 0);
-  EXPECT_TRUE(kept.keeps_mesh_columns());
-  EXPECT_FALSE(lean.keeps_mesh_columns());
-  std::mt19937 rng(17);
-  std::uniform_real_distribution<double> force(-0.02, 0.02);
-  for (int trial = 0; trial < 6; ++trial) {
-    // Forces on a few inner nodes, and in odd trials on an outer node too.
-    Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * m.n());
-    for (int k = 0; k < 2 + trial; ++k)
-      for (int c = 0; c < 3; ++c) f[3 * m.inner[(7 * k + trial) % m.inner.size()] + c] = force(rng);
-    const int outer = m.outer_free[trial];
-    if (trial % 2) f.segment<3>(3 * outer) << force(rng), force(rng), force(rng);
-    const Eigen::VectorXd twin = m.Kinv * f;
-    for (SurfaceCompliance* sc : {&kept, &lean}) {
-      Eigen::VectorXd du;
-      sc->displacement(f, du);
-      EXPECT_LE((du - twin).norm(), 1e-9 * twin.norm()) << "trial " << trial;
-      // Set-only: exact on the set and the listed node, zero elsewhere.
-      const int listed = m.outer_free[trial + 1];
-      sc->displacement_on_set(f, du, {listed});
-      std::vector<char> defined(m.n(), 0);
-      for (int v : m.inner) defined[v] = 1;
-      defined[listed] = 1;
-      for (int v = 0; v < m.n(); ++v) {
-        const Eigen::Vector3d expected = defined[v] ? Eigen::Vector3d(twin.segment<3>(3 * v)) : Eigen::Vector3d::Zero();
-        EXPECT_LE((du.segment<3>(3 * v) - expected).norm(), 1e-9 * twin.norm()) << "trial " << trial << " node " << v;
-      }
-    }
-  }
-  Eigen::VectorXd du;
-  EXPECT_THROW(kept.displacement(Eigen::VectorXd::Zero(5), du), std::invalid_argument);
-  EXPECT_THROW(kept.displacement_on_set(Eigen::VectorXd::Zero(3 * m.n()), du, {m.n()}), std::invalid_argument);
-  EXPECT_THROW(SurfaceCompliance(*m.solver, m.inner, 64, -1), std::invalid_argument);
 }
 
 // Holding nodes that include fixed ones (zero rows of A): the fixed rows get lambda = 0 and the rest equals the

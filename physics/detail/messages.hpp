@@ -1,0 +1,26 @@
+#pragma once
+// Error-message helpers of the physics sources (internal: not part of the public interface).
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+namespace lumen::physics::detail {
+
+[[noreturn]] inline void fail(const std::string& what) { throw std::invalid_argument(what); }
+
+// A double with all 17 significant digits.
+inline std::string num(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+// Validates a node id of a slot that may be unused (-1).
+inline void check_slot(int node, int n_nodes, const std::string& name) {
+  if (node < -1 || node >= n_nodes)
+    fail(name + " must be -1 (unused) or a node id in [0, " + std::to_string(n_nodes) + "), got " +
+         std::to_string(node));
+}
+
+}  // namespace lumen::physics::detail

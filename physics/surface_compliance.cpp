@@ -1,0 +1,166 @@
+// Surface compliance: K^-1 restricted to a node set, cached outside columns, whole-mesh and on-set responses.
+#include "physics/surface_compliance.hpp"
+
+#include <algorithm>
+#include <string>
+
+#include "physics/detail/messages.hpp"
+
+namespace lumen::physics {
+
+using detail::fail;
+
+SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns,
+                                     long max_mesh_column_bytes)
+    : solver_(&solver), nodes_(nodes) {
+  const int n = solver.n_dofs(), n_mesh = n / 3, s = static_cast<int>(nodes_.size());
+  if (block_columns < 1) fail("SurfaceCompliance: block_columns must be >= 1, got " + std::to_string(block_columns));
+  if (max_mesh_column_bytes < 0)
+    fail("SurfaceCompliance: max_mesh_column_bytes must be >= 0, got " + std::to_string(max_mesh_column_bytes));
+  // Node ids: in range and distinct.
+  index_.assign(n_mesh, -1);
+  extra_index_.assign(n_mesh, -1);
+  for (int a = 0; a < s; ++a) {
+    const int v = nodes_[a];
+    if (v < 0 || v >= n_mesh)
+      fail("SurfaceCompliance: nodes[" + std::to_string(a) + "] must be in [0, " + std::to_string(n_mesh) + "), got " +
+           std::to_string(v));
+    if (index_[v] >= 0) fail("SurfaceCompliance: nodes[" + std::to_string(a) + "] repeats node " + std::to_string(v));
+    index_[v] = a;
+  }
+  // C by blocks of unit columns: solve, keep the rows of the set (and all rows when they fit the budget).
+  const bool keep = static_cast<double>(n) * 3.0 * s * sizeof(double) <= static_cast<double>(max_mesh_column_bytes);
+  C_.resize(3 * s, 3 * s);
+  if (keep && s > 0) Kc_.resize(n, 3 * s);
+  for (int c0 = 0; c0 < 3 * s; c0 += block_columns) {
+    const int nc = std::min(block_columns, 3 * s - c0);
+    Eigen::MatrixXd F = Eigen::MatrixXd::Zero(n, nc);
+    for (int c = 0; c < nc; ++c) F(3 * nodes_[(c0 + c) / 3] + (c0 + c) % 3, c) = 1.0;
+    const Eigen::MatrixXd X = solver.solve_many(F);
+    for (int a = 0; a < s; ++a) C_.block(3 * a, c0, 3, nc) = X.middleRows(3 * nodes_[a], 3);
+    if (Kc_.size() > 0) Kc_.middleCols(c0, nc) = X;
+  }
+}
+
+void SurfaceCompliance::displacement(const Eigen::VectorXd& f, Eigen::VectorXd& du) {
+  const int n = solver_->n_dofs();
+  if (f.size() != n) fail("SurfaceCompliance::displacement: f must have " + std::to_string(n) + " entries, got " +
+                          std::to_string(f.size()));
+  // Loaded nodes, and whether each has whole-mesh columns at hand.
+  std::vector<int> loaded;
+  bool all_at_hand = true;
+  for (int v = 0; v < n / 3; ++v) {
+    if (f[3 * v] == 0.0 && f[3 * v + 1] == 0.0 && f[3 * v + 2] == 0.0) continue;
+    loaded.push_back(v);
+    all_at_hand = all_at_hand && ((index_[v] >= 0 && Kc_.size() > 0) || extra_index_[v] >= 0);
+  }
+  // Summing 3 columns of 3n per loaded node against two sweeps over the factor (forward and back).
+  const double sum_cost = 3.0 * n * static_cast<double>(loaded.size());
+  const double solve_cost = 2.0 * static_cast<double>(solver_->factor_nonzeros());
+  if (!all_at_hand || sum_cost > solve_cost) {
+    solver_->solve(f, du);
+    return;
+  }
+  du.setZero(n);
+  for (int v : loaded) {
+    const Eigen::Vector3d fv = f.segment<3>(3 * v);
+    if (index_[v] >= 0)
+      du.noalias() += Kc_.middleCols<3>(3 * index_[v]) * fv;
+    else
+      du.noalias() += extra_cols_[extra_index_[v]] * fv;
+  }
+}
+
+void SurfaceCompliance::check_node(int node, const char* what) const {
+  if (node < 0 || node >= n_nodes_mesh())
+    fail(std::string("SurfaceCompliance: ") + what + " must be in [0, " + std::to_string(n_nodes_mesh()) + "), got " +
+         std::to_string(node));
+}
+
+int SurfaceCompliance::index_of(int node) const {
+  check_node(node, "node");
+  return index_[node];
+}
+
+void SurfaceCompliance::ensure_columns(const std::vector<int>& nodes) {
+  // Nodes outside the set and not cached, each once.
+  std::vector<int> missing;
+  for (int v : nodes) {
+    check_node(v, "node");
+    if (index_[v] < 0 && extra_index_[v] < 0 && std::find(missing.begin(), missing.end(), v) == missing.end())
+      missing.push_back(v);
+  }
+  if (missing.empty()) return;
+  // One multi-column solve for all of them, cached per node.
+  const int n = solver_->n_dofs(), nm = static_cast<int>(missing.size());
+  Eigen::MatrixXd F = Eigen::MatrixXd::Zero(n, 3 * nm);
+  for (int k = 0; k < nm; ++k)
+    for (int c = 0; c < 3; ++c) F(3 * missing[k] + c, 3 * k + c) = 1.0;
+  const Eigen::MatrixXd X = solver_->solve_many(F);
+  for (int k = 0; k < nm; ++k) {
+    extra_index_[missing[k]] = static_cast<int>(extra_nodes_.size());
+    extra_nodes_.push_back(missing[k]);
+    extra_cols_.push_back(X.middleCols(3 * k, 3));
+  }
+}
+
+Eigen::Matrix3d SurfaceCompliance::block(int node_a, int node_b) {
+  check_node(node_a, "node_a");
+  check_node(node_b, "node_b");
+  const int ia = index_[node_a], ib = index_[node_b];
+  // Both in the set: the precomputed matrix.
+  if (ia >= 0 && ib >= 0) return C_.block<3, 3>(3 * ia, 3 * ib);
+  // Otherwise a cached column of b (rows of a), or of a transposed (C is symmetric).
+  if (ib < 0) {
+    ensure_columns({node_b});
+    return extra_cols_[extra_index_[node_b]].middleRows<3>(3 * node_a);
+  }
+  ensure_columns({node_a});
+  return extra_cols_[extra_index_[node_a]].middleRows<3>(3 * node_b).transpose();
+}
+
+void SurfaceCompliance::displacement_on_set(const Eigen::VectorXd& f, Eigen::VectorXd& du, const std::vector<int>& also) {
+  const int n = solver_->n_dofs(), s = static_cast<int>(nodes_.size());
+  if (f.size() != n) fail("SurfaceCompliance::displacement_on_set: f must have " + std::to_string(n) +
+                          " entries, got " + std::to_string(f.size()));
+  // Loaded nodes; columns of the ones outside the set, and of the listed outside nodes, at hand.
+  std::vector<int> loaded, outside;
+  for (int v = 0; v < n / 3; ++v) {
+    if (f[3 * v] == 0.0 && f[3 * v + 1] == 0.0 && f[3 * v + 2] == 0.0) continue;
+    loaded.push_back(v);
+    if (index_[v] < 0) outside.push_back(v);
+  }
+  for (int v : also) {
+    check_node(v, "also");
+    if (index_[v] < 0) outside.push_back(v);
+  }
+  ensure_columns(outside);
+  // Set nodes: C times the set loads plus the cached columns of outside loads, gathered on the set rows.
+  Eigen::VectorXd v_set = Eigen::VectorXd::Zero(3 * s);
+  for (int b : loaded) {
+    const Eigen::Vector3d fb = f.segment<3>(3 * b);
+    if (index_[b] >= 0) {
+      v_set.noalias() += C_.middleCols<3>(3 * index_[b]) * fb;
+    } else {
+      const Eigen::MatrixXd& X = extra_cols_[extra_index_[b]];
+      for (int a = 0; a < s; ++a) v_set.segment<3>(3 * a).noalias() += X.middleRows<3>(3 * nodes_[a]) * fb;
+    }
+  }
+  du.setZero(n);
+  for (int a = 0; a < s; ++a) du.segment<3>(3 * nodes_[a]) = v_set.segment<3>(3 * a);
+  // Listed nodes outside the set: K^-1_ab f_b from the cached columns of a (C symmetric) or of b.
+  for (int a : also) {
+    if (index_[a] >= 0) continue;
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    for (int b : loaded) {
+      const Eigen::Vector3d fb = f.segment<3>(3 * b);
+      if (index_[b] >= 0)
+        d.noalias() += extra_cols_[extra_index_[a]].middleRows<3>(3 * b).transpose() * fb;
+      else
+        d.noalias() += extra_cols_[extra_index_[b]].middleRows<3>(3 * a) * fb;
+    }
+    du.segment<3>(3 * a) = d;
+  }
+}
+
+}  // namespace lumen::physics

@@ -1,0 +1,64 @@
+#pragma once
+// Surface compliance: C = K^-1 of a prefactorised FEM model restricted to a node set (the inner wall), with
+// on-demand columns outside the set and the whole-mesh response to forces on few nodes.
+#include <Eigen/Core>
+#include <vector>
+
+#include "physics/fem.hpp"
+
+namespace lumen::physics {
+
+class CouplingMatrix;
+
+// Dense compliance C = K^-1 restricted to a set of nodes (e.g. the inner wall), plus on-demand columns for
+// nodes outside the set. Keeps a reference to the solver, which must outlive it.
+//
+// The whole-mesh columns K^-1 e of the set's DOFs (3n x 3s) come out of the same solves; they are kept when
+// they take at most max_mesh_column_bytes, so that the whole-mesh response to forces on a few set nodes is a
+// short sum of columns instead of a back-substitution (see displacement()).
+class SurfaceCompliance {
+ public:
+  // nodes: distinct mesh node ids. Columns are computed block_columns at a time (solve_many).
+  SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns = 64,
+                    long max_mesh_column_bytes = 256L << 20);
+
+  const StaticSolver& solver() const { return *solver_; }
+  int n_nodes_mesh() const { return solver_->n_dofs() / 3; }
+  const std::vector<int>& nodes() const { return nodes_; }
+  // Position of a mesh node in nodes(), or -1.
+  int index_of(int node) const;
+  // C, 3s x 3s, metres per newton: C(3a + i, 3b + j) = d u(nodes[a], i) / d f(nodes[b], j).
+  const Eigen::MatrixXd& matrix() const { return C_; }
+
+  // 3 x 3 block d u(node_a) / d f(node_b) for any two mesh nodes; columns of nodes outside the set are
+  // solved for and cached on first use.
+  Eigen::Matrix3d block(int node_a, int node_b);
+  // Solves for the columns of every listed node outside the set not cached yet, in one solve_many.
+  void ensure_columns(const std::vector<int>& nodes);
+  // Number of nodes outside the set whose columns are cached.
+  int n_cached_nodes() const { return static_cast<int>(extra_nodes_.size()); }
+  // Whether the whole-mesh columns of the set nodes are kept (3n x 3s, m/N).
+  bool keeps_mesh_columns() const { return Kc_.size() > 0; }
+
+  // du = K^-1 f (3n, metres) for nodal forces f (3n, newtons). When f acts on few nodes whose whole-mesh
+  // columns are at hand (kept set columns, cached outside columns) and summing them is cheaper than a
+  // back-substitution, du is that sum; otherwise one StaticSolver::solve. Both give K^-1 f to round-off.
+  void displacement(const Eigen::VectorXd& f, Eigen::VectorXd& du);
+  // du = K^-1 f on the set nodes and on the nodes listed in `also` only, every other entry 0 (3n, metres): what
+  // a check of the set (the inner wall) needs, for a fraction of the whole-mesh cost.
+  void displacement_on_set(const Eigen::VectorXd& f, Eigen::VectorXd& du, const std::vector<int>& also = {});
+
+ private:
+  void check_node(int node, const char* what) const;
+  friend class CouplingMatrix;
+  const StaticSolver* solver_;
+  std::vector<int> nodes_;
+  std::vector<int> index_;                   // mesh node -> position in nodes_, or -1
+  Eigen::MatrixXd C_;                        // 3s x 3s, m/N
+  Eigen::MatrixXd Kc_;                       // 3n x 3s whole-mesh columns of the set DOFs, m/N (or empty)
+  std::vector<int> extra_index_;             // mesh node -> position in extra_nodes_, or -1
+  std::vector<int> extra_nodes_;             // nodes outside the set with cached columns
+  std::vector<Eigen::MatrixXd> extra_cols_;  // per cached node: 3n x 3, K^-1 columns of its DOFs, m/N
+};
+
+}  // namespace lumen::physics

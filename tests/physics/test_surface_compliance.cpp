@@ -1,0 +1,80 @@
+// SurfaceCompliance blocks and displacements against direct solves and the dense twin.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <random>
+#include <vector>
+
+#include "physics/surface_compliance.hpp"
+#include "tests/physics/compliance_model.hpp"
+
+namespace lumen::physics {
+namespace {
+
+TEST(SurfaceCompliance, BlocksEqualDirectSolves) {
+  const Model& m = model();
+  SurfaceCompliance sc(*m.solver, m.inner, 7);  // 7 columns per block: exercises a partial last block
+  const int s = static_cast<int>(m.inner.size());
+  ASSERT_EQ(sc.matrix().rows(), 3 * s);
+  for (int a = 0; a < s; ++a)
+    for (int b = 0; b < s; ++b)
+      ASSERT_LE((sc.matrix().block<3, 3>(3 * a, 3 * b) - m.Kinv.block<3, 3>(3 * m.inner[a], 3 * m.inner[b])).norm(),
+                1e-9 * m.Kinv.norm() / m.n());
+  EXPECT_LE((sc.matrix() - sc.matrix().transpose()).norm(), 1e-12 * sc.matrix().norm());
+  // Any pair of mesh nodes, inside or outside the set; outside columns are computed once and cached.
+  const int in = m.inner[13], out1 = m.outer_free[2], out2 = m.outer_free[9];
+  EXPECT_EQ(sc.index_of(in), 13);
+  EXPECT_EQ(sc.index_of(out1), -1);
+  const std::pair<int, int> pairs[] = {{in, in}, {in, out1}, {out1, in}, {out1, out2}, {out2, out2}, {in, out2}};
+  for (const auto& [a, b] : pairs) {
+    const Eigen::Matrix3d blk = sc.block(a, b), twin = m.Kinv.block(3 * a, 3 * b, 3, 3);
+    EXPECT_LE((blk - twin).norm(), 1e-9 * twin.norm() + 1e-15);
+  }
+  EXPECT_EQ(sc.n_cached_nodes(), 2);
+  EXPECT_THROW(SurfaceCompliance(*m.solver, {1, 2, 1}), std::invalid_argument);
+  EXPECT_THROW(SurfaceCompliance(*m.solver, {-1}), std::invalid_argument);
+  EXPECT_THROW(SurfaceCompliance(*m.solver, {1}, 0), std::invalid_argument);
+  EXPECT_THROW(sc.block(0, m.n()), std::invalid_argument);
+}
+
+// Whole-mesh and set-only displacements for sparse nodal forces equal the dense twin K^-1 f, with the
+// whole-mesh columns kept and without them (a back-substitution).
+TEST(SurfaceCompliance, DisplacementsEqualDenseTwin) {
+  const Model& m = model();
+  SurfaceCompliance kept(*m.solver, m.inner), lean(*m.solver, m.inner, 64, 0);
+  EXPECT_TRUE(kept.keeps_mesh_columns());
+  EXPECT_FALSE(lean.keeps_mesh_columns());
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> force(-0.02, 0.02);
+  for (int trial = 0; trial < 6; ++trial) {
+    // Forces on a few inner nodes, and in odd trials on an outer node too.
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * m.n());
+    for (int k = 0; k < 2 + trial; ++k)
+      for (int c = 0; c < 3; ++c) f[3 * m.inner[(7 * k + trial) % m.inner.size()] + c] = force(rng);
+    const int outer = m.outer_free[trial];
+    if (trial % 2) f.segment<3>(3 * outer) << force(rng), force(rng), force(rng);
+    const Eigen::VectorXd twin = m.Kinv * f;
+    for (SurfaceCompliance* sc : {&kept, &lean}) {
+      Eigen::VectorXd du;
+      sc->displacement(f, du);
+      EXPECT_LE((du - twin).norm(), 1e-9 * twin.norm()) << "trial " << trial;
+      // Set-only: exact on the set and the listed node, zero elsewhere.
+      const int listed = m.outer_free[trial + 1];
+      sc->displacement_on_set(f, du, {listed});
+      std::vector<char> defined(m.n(), 0);
+      for (int v : m.inner) defined[v] = 1;
+      defined[listed] = 1;
+      for (int v = 0; v < m.n(); ++v) {
+        const Eigen::Vector3d expected = defined[v] ? Eigen::Vector3d(twin.segment<3>(3 * v)) : Eigen::Vector3d::Zero();
+        EXPECT_LE((du.segment<3>(3 * v) - expected).norm(), 1e-9 * twin.norm()) << "trial " << trial << " node " << v;
+      }
+    }
+  }
+  Eigen::VectorXd du;
+  EXPECT_THROW(kept.displacement(Eigen::VectorXd::Zero(5), du), std::invalid_argument);
+  EXPECT_THROW(kept.displacement_on_set(Eigen::VectorXd::Zero(3 * m.n()), du, {m.n()}), std::invalid_argument);
+  EXPECT_THROW(SurfaceCompliance(*m.solver, m.inner, 64, -1), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace lumen::physics
