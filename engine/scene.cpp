@@ -225,7 +225,10 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
 }
 
 void read_solver(const Reader& r, const json& m, SolverSpec& spec) {
-  r.only_keys(m, "solver", {"type", "tolerance", "max_iterations", "rayleigh_mass", "rayleigh_stiffness"});
+  r.only_keys(m, "solver", {"type", "tolerance", "max_iterations", "rayleigh_mass", "rayleigh_stiffness",
+                            "background_factorisation"});
+  if (m.contains("background_factorisation"))
+    spec.background_factorisation = r.boolean(m.at("background_factorisation"), "solver.background_factorisation");
   if (m.contains("type")) spec.type = r.choice<SolverType>(m.at("type"), "solver.type", kSolverNames);
   if (m.contains("tolerance"))
     spec.tolerance = r.number_in(m.at("tolerance"), "solver.tolerance", 0.0, 1.0, true, true);

@@ -83,6 +83,10 @@ struct SolverSpec {
   SolverType type = SolverType::kQuasiStatic;  // or dynamic (backward Euler, lumped mass, step 1 / fps)
   double tolerance = 1e-3;            // corotational nonlinear solve: relative residual, (0, 1)
   int max_iterations = 20;            // its outer iterations, >= 1
+  // Corotational: the lagged warped factorisation runs on a second core while the frames go on (true), or inside
+  // the solve that asks for it (false: slower frames, but a session gives the same result on every run; with the
+  // background thread the iteration where it lands depends on timing).
+  bool background_factorisation = true;
   double rayleigh_mass = 0.0;         // dynamic: Rayleigh alpha (C = alpha M + beta K), 1/s, >= 0
   double rayleigh_stiffness = 0.0;    // dynamic: Rayleigh beta, s, >= 0
 };

@@ -178,7 +178,7 @@ physics::CorotationalOptions corotational_options(const Scene& scene) {
   o.extrapolate = true;
   o.rotate_preconditioner = scene.twist.enabled();
   o.refactor_cg_iterations = kRefactorCgIterations;
-  o.refactor_in_background = true;
+  o.refactor_in_background = scene.solver.background_factorisation;
   return o;
 }
 

@@ -1,6 +1,8 @@
 // Corotational tet kernels (rotations, forces, warped products), PCG on the warped system, quasi-static solve.
 #include "physics/corotational.hpp"
 
+#include "physics/detail/dofs.hpp"
+
 #include <Eigen/Dense>
 #include <Eigen/IterativeLinearSolvers>
 
@@ -478,16 +480,8 @@ class CorotationalResidual {
       el_.elastic_forces(state_.u, state_.rotations, state_.f_int);
       state_.u_eval = state_.u;
     }
-    double reaction2 = 0.0;
-    for (int d = 0; d < n; ++d) {
-      if (fixed_[d]) {
-        r_[d] = 0.0;
-        reaction2 += state_.f_int[d] * state_.f_int[d];
-      } else {
-        r_[d] = f_[d] - state_.f_int[d];
-      }
-    }
-    scale_ = std::max(f_.norm(), std::sqrt(reaction2));
+    for (int d = 0; d < n; ++d) r_[d] = fixed_[d] ? 0.0 : f_[d] - state_.f_int[d];
+    scale_ = std::max(f_.norm(), detail::reaction_norm(state_.f_int, fixed_));
     rnorm_ = r_.norm();
     return rnorm_ == 0.0 ? 0.0 : (scale_ > 0.0 ? rnorm_ / scale_ : INFINITY);
   }

@@ -1,6 +1,8 @@
 // Backward Euler with lumped mass and Rayleigh damping: linear (prefactorised) and corotational (PCG).
 #include "physics/dynamics.hpp"
 
+#include "physics/detail/dofs.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -45,14 +47,6 @@ Eigen::VectorXd lumped_mass(const CorotationalElements& el, double density) {
   return m;
 }
 
-// Norm of v over the free DOFs.
-double free_norm(const Eigen::VectorXd& v, const std::vector<char>& fixed) {
-  double s = 0.0;
-  for (Eigen::Index i = 0; i < v.size(); ++i)
-    if (!fixed[i]) s += v[i] * v[i];
-  return std::sqrt(s);
-}
-
 }  // namespace
 
 Eigen::SparseMatrix<double> DynamicModel::system_matrix(const Eigen::SparseMatrix<double>& K,
@@ -87,103 +81,117 @@ double elastic_energy(const DynamicModel& model, const Eigen::VectorXd& u) {
   return model.elements().elastic_energy(u, R);
 }
 
-StepResult step(const DynamicModel& model, DynamicState& state, const Eigen::VectorXd& f_ext, double h,
-                const CorotationalOptions& options) {
-  const char* where = "step";
-  // Validate the step, the loads and the state.
-  validate_options(options);
-  if (!(h > 0.0) || !std::isfinite(h)) fail(where, "h", "be > 0 and finite", h);
-  const int n = model.n_dofs();
-  const CorotationalElements& el = model.elements();
+namespace {
+
+using detail::free_norm;
+using detail::reaction_norm;
+
+// The step's residual g = f - f_int(u1) - C v1 - M (v1 - v0) / h on the free DOFs and its size relative to the
+// loads, the elastic and inertial forces on the free DOFs and the support reactions (elastic forces on the fixed
+// DOFs: they carry a prescribed-displacement problem such as a twisted end at rest).
+class StepResidual {
+ public:
+  StepResidual(const DynamicModel& model, const Eigen::VectorXd& f, const std::vector<char>& fixed,
+               const Eigen::VectorXd& v0, double h)
+      : model_(model), f_(f), fixed_(fixed), v0_(v0), h_(h), f_norm_(f.norm()), g_(f.size()) {}
+
+  // Relative residual at (u1, v1); the per-tet rotations at u1 (corotational) are kept in rotations().
+  double evaluate(const Eigen::VectorXd& u1, const Eigen::VectorXd& v1, StepResult& result) {
+    const DynamicParams& p = model_.params();
+    const Eigen::VectorXd& M = model_.mass();
+    if (p.elastic == ElasticModel::kLinear) {
+      f_int_ = model_.stiffness() * u1;
+      damp_ = p.beta * (model_.stiffness() * v1);
+    } else {
+      result.n_inverted = model_.elements().rotations(u1, R_);
+      model_.elements().elastic_forces(u1, R_, f_int_);
+      model_.elements().warped_product(R_, v1, damp_);
+      damp_ *= p.beta;
+    }
+    damp_.array() += p.alpha * M.array() * v1.array();
+    const Eigen::VectorXd inertia = M.cwiseProduct(v1 - v0_) / h_;
+    g_ = f_ - f_int_ - damp_ - inertia;
+    for (Eigen::Index d = 0; d < g_.size(); ++d)
+      if (fixed_[d]) g_[d] = 0.0;
+    const double scale = std::max(
+        {f_norm_, free_norm(f_int_, fixed_), free_norm(inertia, fixed_), reaction_norm(f_int_, fixed_)});
+    const double gnorm = g_.norm();
+    return gnorm == 0.0 ? 0.0 : (scale > 0.0 ? gnorm / scale : INFINITY);
+  }
+  const Eigen::VectorXd& g() const { return g_; }
+  const std::vector<Eigen::Matrix3d>& rotations() const { return R_; }
+
+ private:
+  const DynamicModel& model_;
+  const Eigen::VectorXd& f_;
+  const std::vector<char>& fixed_;
+  const Eigen::VectorXd& v0_;
+  double h_, f_norm_;
+  Eigen::VectorXd f_int_, damp_, g_;
+  std::vector<Eigen::Matrix3d> R_;
+};
+
+// u1 = u0 + h v1 on the free DOFs; fixed DOFs keep u0.
+void advance(const Eigen::VectorXd& u0, const Eigen::VectorXd& v1, const std::vector<char>& fixed, double h,
+             Eigen::VectorXd& u1) {
+  for (Eigen::Index d = 0; d < u0.size(); ++d) u1[d] = fixed[d] ? u0[d] : u0[d] + h * v1[d];
+}
+
+// Linear: (M + h C + h^2 K) v1 = M v0 + h (f - K u0), direct at the factorised step, else PCG on that matrix
+// (identity rotations: the warped product is K p) preconditioned with the factorisation. A non-finite solve leaves
+// the state as it was.
+StepResult step_linear(const DynamicModel& model, DynamicState& state, const Eigen::VectorXd& f,
+                       const std::vector<char>& fixed, double h, const CorotationalOptions& options) {
   const DynamicParams& p = model.params();
   const Eigen::VectorXd& M = model.mass();
-  check_vector(where, "f_ext", f_ext, n);
-  if (state.u.size() == 0) state.u.setZero(n);
-  if (state.v.size() == 0) state.v.setZero(n);
-  check_vector(where, "state.u", state.u, n);
-  check_vector(where, "state.v", state.v, n);
-
-  // Loads on the free DOFs; fixed DOFs have zero velocity.
-  std::vector<char> fixed(n);
-  Eigen::VectorXd f = f_ext;
-  for (int d = 0; d < n; ++d) {
-    fixed[d] = model.is_fixed_dof(d) ? 1 : 0;
-    if (fixed[d]) f[d] = 0.0, state.v[d] = 0.0;
-  }
   const Eigen::VectorXd u0 = state.u, v0 = state.v;
-  const double c_mass = 1.0 + h * p.alpha, c_stiff = h * p.beta + h * h;
-  const double f_norm = f.norm();
-
-  // Residual g = f - f_int(u1) - C v1 - M (v1 - v0) / h (free DOFs) and its relative size.
   StepResult result;
-  Eigen::VectorXd f_int, damp, g(n);
-  std::vector<Eigen::Matrix3d> R;
-  auto residual = [&](const Eigen::VectorXd& u1, const Eigen::VectorXd& v1) {
-    if (p.elastic == ElasticModel::kLinear) {
-      f_int = model.stiffness() * u1;
-      damp = p.beta * (model.stiffness() * v1);
-    } else {
-      result.n_inverted = el.rotations(u1, R);
-      el.elastic_forces(u1, R, f_int);
-      el.warped_product(R, v1, damp);
-      damp *= p.beta;
-    }
-    damp.array() += p.alpha * M.array() * v1.array();
-    const Eigen::VectorXd inertia = M.cwiseProduct(v1 - v0) / h;
-    g = f - f_int - damp - inertia;
-    for (int d = 0; d < n; ++d)
-      if (fixed[d]) g[d] = 0.0;
-    // Scale: the loads, the elastic and inertial forces on the free DOFs, and the support reactions (elastic forces
-    // on the fixed DOFs: they carry a prescribed-displacement problem such as a twisted end at rest).
-    double reaction2 = 0.0;
-    for (int d = 0; d < n; ++d)
-      if (fixed[d]) reaction2 += f_int[d] * f_int[d];
-    const double scale =
-        std::max({f_norm, free_norm(f_int, fixed), free_norm(inertia, fixed), std::sqrt(reaction2)});
-    const double gnorm = g.norm();
-    return gnorm == 0.0 ? 0.0 : (scale > 0.0 ? gnorm / scale : INFINITY);
-  };
-
-  Eigen::VectorXd v1 = v0, u1 = u0, dv;
-  if (p.elastic == ElasticModel::kLinear) {
-    // (M + h C + h^2 K) v1 = M v0 + h (f - K u0): direct at the factorised step, else PCG on that matrix
-    // (identity rotations: the warped product is K p) preconditioned with the factorisation.
-    const Eigen::VectorXd b = M.cwiseProduct(v0) + h * (f - model.stiffness() * u0);
-    if (h == p.time_step) {
-      model.solver().solve(b, v1);
-    } else {
-      const std::vector<Eigen::Matrix3d> identity(el.n_tets(), Eigen::Matrix3d::Identity());
-      const WarpedSystem system{&el, &identity, &M, c_mass, c_stiff};
-      const double tol = std::min(0.5, 0.1 * options.tolerance);
-      const PcgResult pcg = solve_pcg(system, model.solver(), b, v1, tol, options.max_cg_iterations);
-      result.cg_iterations = pcg.iterations;
-    }
-    result.iterations = 1;
-    result.finite = v1.allFinite();
-    if (result.finite) {
-      for (int d = 0; d < n; ++d) u1[d] = fixed[d] ? u0[d] : u0[d] + h * v1[d];
-      result.residual = residual(u1, v1);
-      result.converged = result.residual <= options.tolerance;
-      state.u = u1;
-      state.v = v1;
-    }
-    return result;
+  Eigen::VectorXd v1 = v0, u1 = u0;
+  const Eigen::VectorXd b = M.cwiseProduct(v0) + h * (f - model.stiffness() * u0);
+  if (h == p.time_step) {
+    model.solver().solve(b, v1);
+  } else {
+    const CorotationalElements& el = model.elements();
+    const std::vector<Eigen::Matrix3d> identity(el.n_tets(), Eigen::Matrix3d::Identity());
+    const WarpedSystem system{&el, &identity, &M, 1.0 + h * p.alpha, h * p.beta + h * h};
+    const double tol = std::min(0.5, 0.1 * options.tolerance);
+    const PcgResult pcg = solve_pcg(system, model.solver(), b, v1, tol, options.max_cg_iterations);
+    result.cg_iterations = pcg.iterations;
   }
+  result.iterations = 1;
+  result.finite = v1.allFinite();
+  if (!result.finite) return result;
+  advance(u0, v1, fixed, h, u1);
+  StepResidual residual(model, f, fixed, v0, h);
+  result.residual = residual.evaluate(u1, v1, result);
+  result.converged = result.residual <= options.tolerance;
+  state.u = u1;
+  state.v = v1;
+  return result;
+}
 
-  // Corotational: fixed-point iterations from v1 = v0; each solves A_w dv = h g, A_w = (1 + h alpha) M +
-  // (h beta + h^2) K_w(R(u1)), by PCG preconditioned with the rest factorisation of A.
+// Corotational: fixed-point iterations from v1 = v0; each solves A_w dv = h g, A_w = (1 + h alpha) M +
+// (h beta + h^2) K_w(R(u1)), by PCG preconditioned with the rest factorisation of A.
+StepResult step_corotational(const DynamicModel& model, DynamicState& state, const Eigen::VectorXd& f,
+                             const std::vector<char>& fixed, double h, const CorotationalOptions& options) {
+  const DynamicParams& p = model.params();
+  const CorotationalElements& el = model.elements();
+  const Eigen::VectorXd u0 = state.u, v0 = state.v;
+  StepResult result;
+  StepResidual residual(model, f, fixed, v0, h);
+  Eigen::VectorXd v1 = v0, u1 = u0, dv;
   std::vector<Eigen::Matrix3d> node_R;
   for (;;) {
-    for (int d = 0; d < n; ++d) u1[d] = fixed[d] ? u0[d] : u0[d] + h * v1[d];
-    result.residual = residual(u1, v1);
+    advance(u0, v1, fixed, h, u1);
+    result.residual = residual.evaluate(u1, v1, result);
     result.converged = result.residual <= options.tolerance;
     if (result.converged || result.iterations >= options.max_iterations) break;
-    const WarpedSystem system{&el, &R, &M, c_mass, c_stiff};
-    if (options.rotate_preconditioner) el.node_rotations(R, node_R);
+    const WarpedSystem system{&el, &residual.rotations(), &model.mass(), 1.0 + h * p.alpha, h * p.beta + h * h};
+    if (options.rotate_preconditioner) el.node_rotations(residual.rotations(), node_R);
     // (|h g| relative: the outer tolerance halved, as in solve_corotational)
     const double cg_tol = std::max(options.cg_tolerance, std::min(0.5, 0.5 * options.tolerance / result.residual));
     dv.resize(0);
-    const PcgResult pcg = solve_pcg(system, model.solver(), h * g, dv, cg_tol, options.max_cg_iterations,
+    const PcgResult pcg = solve_pcg(system, model.solver(), h * residual.g(), dv, cg_tol, options.max_cg_iterations,
                                     options.rotate_preconditioner ? &node_R : nullptr);
     ++result.iterations;
     result.cg_iterations += pcg.iterations;
@@ -193,6 +201,31 @@ StepResult step(const DynamicModel& model, DynamicState& state, const Eigen::Vec
   state.u = u1;
   state.v = v1;
   return result;
+}
+
+}  // namespace
+
+StepResult step(const DynamicModel& model, DynamicState& state, const Eigen::VectorXd& f_ext, double h,
+                const CorotationalOptions& options) {
+  const char* where = "step";
+  // Validate the step, the loads and the state.
+  validate_options(options);
+  if (!(h > 0.0) || !std::isfinite(h)) fail(where, "h", "be > 0 and finite", h);
+  const int n = model.n_dofs();
+  check_vector(where, "f_ext", f_ext, n);
+  if (state.u.size() == 0) state.u.setZero(n);
+  if (state.v.size() == 0) state.v.setZero(n);
+  check_vector(where, "state.u", state.u, n);
+  check_vector(where, "state.v", state.v, n);
+  // Loads on the free DOFs; fixed DOFs have zero velocity.
+  std::vector<char> fixed(n);
+  Eigen::VectorXd f = f_ext;
+  for (int d = 0; d < n; ++d) {
+    fixed[d] = model.is_fixed_dof(d) ? 1 : 0;
+    if (fixed[d]) f[d] = 0.0, state.v[d] = 0.0;
+  }
+  return model.params().elastic == ElasticModel::kLinear ? step_linear(model, state, f, fixed, h, options)
+                                                         : step_corotational(model, state, f, fixed, h, options);
 }
 
 }  // namespace lumen::physics

@@ -205,15 +205,17 @@ TEST(Scene, SolverKeysWithDefaultsAndValues) {
   EXPECT_EQ(d.solver.max_iterations, 20);
   EXPECT_EQ(d.solver.rayleigh_mass, 0.0);
   EXPECT_EQ(d.solver.rayleigh_stiffness, 0.0);
+  EXPECT_TRUE(d.solver.background_factorisation);
   json s = good_scene();
   s["solver"] = json::parse(R"({"type": "dynamic", "tolerance": 1e-6, "max_iterations": 7, "rayleigh_mass": 2.5,
-                                "rayleigh_stiffness": 0.01})");
+                                "rayleigh_stiffness": 0.01, "background_factorisation": false})");
   auto scene = parse_scene(s.dump(), "dir/s.json");
   EXPECT_EQ(scene.solver.type, SolverType::kDynamic);
   EXPECT_DOUBLE_EQ(scene.solver.tolerance, 1e-6);
   EXPECT_EQ(scene.solver.max_iterations, 7);
   EXPECT_DOUBLE_EQ(scene.solver.rayleigh_mass, 2.5);
   EXPECT_DOUBLE_EQ(scene.solver.rayleigh_stiffness, 0.01);
+  EXPECT_FALSE(scene.solver.background_factorisation);
 }
 
 TEST(Scene, SolverKeysAreValidated) {
@@ -226,6 +228,8 @@ TEST(Scene, SolverKeysAreValidated) {
   EXPECT_EQ(error_of(s), "dir/s.json: solver.tolerance: out of range (0, 1) (value 0.0)");
   s["solver"] = {{"tolerance", 1.0}};
   EXPECT_EQ(error_of(s), "dir/s.json: solver.tolerance: out of range (0, 1) (value 1.0)");
+  s["solver"] = {{"background_factorisation", 1}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.background_factorisation: must be true or false (value 1)");
   s["solver"] = {{"tolerance", "tight"}};
   EXPECT_EQ(error_of(s), "dir/s.json: solver.tolerance: must be a number (value \"tight\")");
   s["solver"] = {{"max_iterations", 0}};

@@ -210,10 +210,8 @@ double rel(double value, double ref) {
   return std::abs(value - ref) / std::abs(ref);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"Lumen speed-against-error study"};
+// The study's command-line options.
+struct StudyOptions {
   std::string out = "study.csv", load_out, capacity_out;
   int capacity_frames = 60;
   bool capacity_only = false;
@@ -221,173 +219,188 @@ int main(int argc, char** argv) {
   double fps = 20.0;
   bool quick = false, no_render = false;
   int max_corotational_tets = 30000;
-  app.add_option("--out", out, "CSV of the sweep");
-  app.add_option("--load-out", load_out, "CSV of the load sweep (linear vs corotational), empty: skip");
-  app.add_option("--capacity-out", capacity_out,
+};
+
+// Two opposite probes at 1.25x the force that first shuts the lumen (0.08 N on the paper mesh, linear): the walls
+// pressed together over an area.
+constexpr double kShutForce = 0.1;
+
+// The error sweep: every configuration against the reference (the finest level, corotational, tight tolerance),
+// small deformation against Lame's solution; one CSV row per configuration, written as it grows.
+void error_sweep(const StudyOptions& opt, const std::vector<Level>& levels, const std::vector<Level>& quadratic_levels,
+                 const std::vector<double>& tolerances) {
+  char line[1024];  // one CSV row
+  const Level finest = levels.back();
+  std::fprintf(stderr, "reference: %dx%dx%d corotational 1e-5\n", finest.around, finest.along, finest.layers);
+  // (quasi-static: the end state hardly depends on the increments, so the reference takes five load steps)
+  const Outcome ref = run(squeeze_scene({finest, "tet4", "corotational", 1e-5}, kShutForce, 8, 5.0), false);
+  std::vector<Config> configs;
+  for (const Level& l : levels) {
+    configs.push_back({l, "tet4", "linear", 0.0});
+    if (6 * l.around * l.along * l.layers <= opt.max_corotational_tets)
+      for (double tol : tolerances) configs.push_back({l, "tet4", "corotational", tol});
+  }
+  for (const Level& l : quadratic_levels) configs.push_back({l, "tet10", "linear", 0.0});
+  std::string csv =
+      "around,along,layers,nodes,tets,inner_tris,element,model,tolerance,frames,total_median_ms,total_p99_ms,"
+      "physics_median_ms,physics_p99_ms,collision_median_ms,response_median_ms,render_median_ms,over_budget,"
+      "not_converged,fallbacks,failures,max_inverted,lame_error,probe_disp_mm,opening_mm,contact_area_mm2,"
+      "contact_force_n,err_probe_disp,err_opening,err_contact_area,err_contact_force,err_shape,err_contact,err_large,"
+      "compile_s\n";
+  for (const Config& c : configs) {
+    std::fprintf(stderr, "%dx%dx%d %s %s %g ...", c.level.around, c.level.along, c.level.layers, c.element.c_str(),
+                 c.model.c_str(), c.tolerance);
+    // Small deformation: Lame plane strain at this cross-section resolution.
+    physics::LameSetup lame;
+    lame.segments_around = c.level.around;
+    lame.segments_along = 2;
+    lame.layers = c.level.layers;
+    lame.material = {5000.0, 0.45};
+    lame.element = c.element == "tet10" ? physics::ElementOrder::kQuadratic : physics::ElementOrder::kLinear;
+    const double lame_err = physics::lame_error(lame).rel_l2_error;
+    // Large deformation with contact, timed with rendering.
+    const Outcome o = run(squeeze_scene(c, kShutForce, opt.frames, opt.fps), !opt.no_render);
+    const double e_probe = rel(o.probe_disp, ref.probe_disp);
+    const double e_open = std::abs(o.opening - ref.opening) / (2.0 * kInnerRadius);  // relative to the rest diameter
+    const double e_area = rel(o.contact_area, ref.contact_area);
+    const double e_force = rel(o.contact_force, ref.contact_force);
+    const double e_shape = std::max(e_probe, e_open), e_contact = std::max(e_area, e_force);
+    const double e_large = std::max(e_shape, e_contact);
+    std::snprintf(line, sizeof line,
+                  "%d,%d,%d,%d,%d,%d,%s,%s,%g,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld,%ld,"
+                  "%.6g,%.6g,%.6g,"
+                  "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.3f\n",
+                  c.level.around, c.level.along, c.level.layers, o.nodes, o.tets, o.inner_tris, c.element.c_str(),
+                  c.model.c_str(), c.tolerance, opt.frames, o.total.median_ms, o.total.p99_ms, o.physics.median_ms,
+                  o.physics.p99_ms, o.collision.median_ms, o.response.median_ms, o.render.median_ms, o.over_budget,
+                  o.not_converged, o.fallbacks, o.failures, o.max_inverted, lame_err, 1e3 * o.probe_disp,
+                  1e3 * o.opening, 1e6 * o.contact_area, o.contact_force, e_probe, e_open, e_area, e_force, e_shape,
+                  e_contact, e_large, o.compile_s);
+    csv += line;
+    engine::write_text_file(opt.out, csv);  // after every configuration, so a long sweep can be read while it runs
+    std::fprintf(stderr, " total %.2f / %.2f ms, lame %.4f, shape %.4f, contact %.4f\n", o.total.median_ms,
+                 o.total.p99_ms, lame_err, e_shape, e_contact);
+  }
+}
+
+// Load sweep on the paper mesh: the pinch, linear against corotational.
+void load_sweep(const StudyOptions& opt) {
+  char line[1024];
+  std::string lcsv = "force_n,linear_probe_disp_mm,corotational_probe_disp_mm,relative_difference,max_disp_over_wall\n";
+  const Level paper{20, 26, 3};
+  for (double f : {0.002, 0.005, 0.01, 0.02, 0.04, 0.06, 0.08}) {
+    const Outcome lin = run(squeeze_scene({paper, "tet4", "linear", 0.0}, f, 15, 10.0), false);
+    const Outcome cor = run(squeeze_scene({paper, "tet4", "corotational", 1e-6}, f, 15, 10.0), false);
+    std::snprintf(line, sizeof line, "%g,%.6g,%.6g,%.6g,%.6g\n", f, 1e3 * lin.probe_disp, 1e3 * cor.probe_disp,
+                  rel(lin.probe_disp, cor.probe_disp), cor.probe_disp / (kOuterRadius - kInnerRadius));
+    lcsv += line;
+    std::fprintf(stderr, "load %g N: linear %.3f mm, corotational %.3f mm\n", f, 1e3 * lin.probe_disp,
+                 1e3 * cor.probe_disp);
+  }
+  engine::write_text_file(opt.load_out, lcsv);
+}
+
+// A model family of the capacity sweep.
+struct Family {
+  const char* element;
+  const char* model;
+  double tolerance;
+  Level base;  // scale 1 (the paper's tube: 20 x 26 x 3 linear cells, 10 x 13 x 1 quadratic ones)
+  int min_layers;
+};
+
+// One family's meshes growing by about 1.4x in tets (linear scale steps of 2^(1/6)) until the frame's p99 exceeds
+// the budget; one CSV row per mesh appended to ccsv (written as it grows).
+void capacity_family(const StudyOptions& opt, const char* scenario, double load, const Family& fam, std::string& ccsv) {
+  char line[1024];
+  Level previous{0, 0, 0};
+  for (int step = -6; step <= 18; ++step) {
+    const double scale = std::pow(2.0, step / 6.0);
+    const Level l{std::max(6, static_cast<int>(std::lround(fam.base.around * scale))),
+                  std::max(6, static_cast<int>(std::lround(fam.base.along * scale))),
+                  std::max(fam.min_layers, static_cast<int>(std::lround(fam.base.layers * scale)))};
+    if (l.around == previous.around && l.along == previous.along && l.layers == previous.layers) continue;
+    previous = l;
+    const Config c{l, fam.element, fam.model, fam.tolerance};
+    std::fprintf(stderr, "capacity %s %s %s %dx%dx%d ...", scenario, fam.element, fam.model, l.around, l.along,
+                 l.layers);
+    Outcome o;
+    try {
+      o = run(squeeze_scene(c, load, opt.capacity_frames, kCapacityFps), true);
+    } catch (const std::exception& e) {
+      // (a mesh this family cannot build or load: reported, and the family ends here)
+      std::fprintf(stderr, " skipped: %s\n", e.what());
+      return;
+    }
+    const bool within = o.total.p99_ms <= 1000.0 / kCapacityFps;
+    std::snprintf(line, sizeof line, "%s,%g,%s,%s,%g,%d,%d,%d,%d,%d,%d,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%d\n",
+                  scenario, load, fam.element, fam.model, fam.tolerance, l.around, l.along, l.layers, o.nodes, o.tets,
+                  o.inner_tris, opt.capacity_frames, o.total.median_ms, o.total.p99_ms, o.physics.median_ms,
+                  o.physics.p99_ms, o.collision.median_ms, o.response.median_ms, o.render.median_ms, o.over_budget,
+                  within ? 1 : 0);
+    ccsv += line;
+    engine::write_text_file(opt.capacity_out, ccsv);
+    std::fprintf(stderr, " %d tets, total %.2f / p99 %.2f ms\n", o.tets, o.total.median_ms, o.total.p99_ms);
+    if (!within) return;
+  }
+}
+
+// Capacity: per model, the largest mesh within the budget, lumen open and shut.
+void capacity_sweep(const StudyOptions& opt) {
+  std::string ccsv =
+      "scenario,force_n,element,model,tolerance,around,along,layers,nodes,tets,inner_tris,frames,total_median_ms,"
+      "total_p99_ms,"
+      "physics_median_ms,physics_p99_ms,collision_median_ms,response_median_ms,render_median_ms,over_budget,"
+      "within_budget\n";
+  const Family families[] = {{"tet4", "linear", 0.0, {20, 26, 3}, 2},
+                             {"tet4", "corotational", 1e-3, {20, 26, 3}, 2},
+                             {"tet10", "linear", 0.0, {10, 13, 1}, 1}};
+  const std::pair<const char*, double> scenarios[] = {{"open", 0.02}, {"shut", kShutForce}};
+  for (const auto& [scenario, load] : scenarios)
+    for (const Family& fam : families) capacity_family(opt, scenario, load, fam, ccsv);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Lumen speed-against-error study"};
+  StudyOptions opt;
+  app.add_option("--out", opt.out, "CSV of the sweep");
+  app.add_option("--load-out", opt.load_out, "CSV of the load sweep (linear vs corotational), empty: skip");
+  app.add_option("--capacity-out", opt.capacity_out,
                  "CSV of the capacity sweep (largest mesh within the 25 ms budget at p99, per model), empty: skip");
-  app.add_option("--capacity-frames", capacity_frames, "frames per capacity session at 40 fps")
+  app.add_option("--capacity-frames", opt.capacity_frames, "frames per capacity session at 40 fps")
       ->check(CLI::Range(41, 100000));
-  app.add_flag("--capacity-only", capacity_only, "run only the capacity sweep");
-  app.add_option("--frames", frames, "frames per session (the squeeze ramps over 1 s)")->check(CLI::Range(2, 100000));
-  app.add_option("--fps", fps, "simulated frames per second (quasi-static: sets the load increment per frame)")
+  app.add_flag("--capacity-only", opt.capacity_only, "run only the capacity sweep");
+  app.add_option("--frames", opt.frames, "frames per session (the squeeze ramps over 1 s)")->check(CLI::Range(2, 100000));
+  app.add_option("--fps", opt.fps, "simulated frames per second (quasi-static: sets the load increment per frame)")
       ->check(CLI::Range(1.0, 1000.0));
-  app.add_option("--max-level", max_level, "finest mesh level index to run (0 = coarsest)")->check(CLI::Range(0, 99));
-  app.add_option("--max-corotational-tets", max_corotational_tets,
+  app.add_option("--max-level", opt.max_level, "finest mesh level index to run (0 = coarsest)")->check(CLI::Range(0, 99));
+  app.add_option("--max-corotational-tets", opt.max_corotational_tets,
                  "skip corotational configurations above this many tets (seconds per frame there)");
-  app.add_flag("--quick", quick, "coarse levels only and fewer configurations (a smoke run)");
-  app.add_flag("--no-render", no_render, "leave rendering out of the frame time");
+  app.add_flag("--quick", opt.quick, "coarse levels only and fewer configurations (a smoke run)");
+  app.add_flag("--no-render", opt.no_render, "leave rendering out of the frame time");
   CLI11_PARSE(app, argc, argv);
   // Output folders exist before any work (each CSV is then written atomically as it grows).
-  for (const std::string& path : {out, load_out, capacity_out})
+  for (const std::string& path : {opt.out, opt.load_out, opt.capacity_out})
     if (!path.empty() && fs::path(path).has_parent_path()) fs::create_directories(fs::path(path).parent_path());
 
-  // Mesh levels: coarser than the paper, the paper (9360 tets), then up to 8x its tets.
+  // Mesh levels: coarser than the paper, the paper (9360 tets), then up to 8x its tets. Quadratic levels: their
+  // walls collide and render at twice these counts along each edge (8 x 10 x 1 draws a 16 x 20 wall; 12 x 16 x 1
+  // about the paper's 20 x 26).
   std::vector<Level> levels = {{12, 16, 2}, {20, 26, 3}, {28, 36, 4}, {40, 52, 6}};
-  // Quadratic levels: their walls collide and render at twice these counts along each edge (8 x 10 x 1 draws a
-  // 16 x 20 wall; 12 x 16 x 1 about the paper's 20 x 26).
   std::vector<Level> quadratic_levels = {{8, 10, 1}, {12, 16, 1}, {16, 20, 2}, {20, 26, 2}};
-  if (quick) {
+  if (opt.quick) {
     levels = {{8, 10, 2}, {12, 16, 2}};
     quadratic_levels = {{8, 10, 1}};
   }
-  if (max_level + 1 < static_cast<int>(levels.size())) levels.resize(max_level + 1);
-  const std::vector<double> tolerances = quick ? std::vector<double>{1e-2} : std::vector<double>{1e-2, 1e-3, 1e-4};
-  // Two opposite probes at 1.25x the force that first shuts the lumen (0.08 N on the paper mesh, linear): the
-  // walls pressed together over an area.
-  const double force = 0.1;
+  if (opt.max_level + 1 < static_cast<int>(levels.size())) levels.resize(opt.max_level + 1);
+  const std::vector<double> tolerances = opt.quick ? std::vector<double>{1e-2} : std::vector<double>{1e-2, 1e-3, 1e-4};
 
-  char line[1024];  // one CSV row
-
-  // The error sweep and the load sweep (skipped by --capacity-only).
-  if (!capacity_only) {
-    // Reference: the finest level, corotational, tight tolerance.
-    const Level finest = levels.back();
-    std::fprintf(stderr, "reference: %dx%dx%d corotational 1e-5\n", finest.around, finest.along, finest.layers);
-    // (quasi-static: the end state hardly depends on the increments, so the reference takes five load steps)
-    const Outcome ref = run(squeeze_scene({finest, "tet4", "corotational", 1e-5}, force, 8, 5.0), false);
-
-    // The sweep.
-    std::vector<Config> configs;
-    for (const Level& l : levels) {
-      configs.push_back({l, "tet4", "linear", 0.0});
-      if (6 * l.around * l.along * l.layers <= max_corotational_tets)
-        for (double tol : tolerances) configs.push_back({l, "tet4", "corotational", tol});
-    }
-    for (const Level& l : quadratic_levels) configs.push_back({l, "tet10", "linear", 0.0});
-    std::string csv =
-        "around,along,layers,nodes,tets,inner_tris,element,model,tolerance,frames,total_median_ms,total_p99_ms,"
-        "physics_median_ms,physics_p99_ms,collision_median_ms,response_median_ms,render_median_ms,over_budget,"
-        "not_converged,fallbacks,failures,max_inverted,lame_error,probe_disp_mm,opening_mm,contact_area_mm2,"
-        "contact_force_n,err_probe_disp,err_opening,err_contact_area,err_contact_force,err_shape,err_contact,err_large,"
-        "compile_s\n";
-
-    for (const Config& c : configs) {
-      std::fprintf(stderr, "%dx%dx%d %s %s %g ...", c.level.around, c.level.along, c.level.layers, c.element.c_str(),
-                   c.model.c_str(), c.tolerance);
-      // Small deformation: Lame plane strain at this cross-section resolution.
-      physics::LameSetup lame;
-      lame.segments_around = c.level.around;
-      lame.segments_along = 2;
-      lame.layers = c.level.layers;
-      lame.material = {5000.0, 0.45};
-      lame.element = c.element == "tet10" ? physics::ElementOrder::kQuadratic : physics::ElementOrder::kLinear;
-      const double lame_err = physics::lame_error(lame).rel_l2_error;
-      // Large deformation with contact, timed with rendering.
-      const Outcome o = run(squeeze_scene(c, force, frames, fps), !no_render);
-      const double e_probe = rel(o.probe_disp, ref.probe_disp);
-      const double e_open = std::abs(o.opening - ref.opening) / (2.0 * kInnerRadius);  // relative to the rest diameter
-      const double e_area = rel(o.contact_area, ref.contact_area);
-      const double e_force = rel(o.contact_force, ref.contact_force);
-      const double e_shape = std::max(e_probe, e_open), e_contact = std::max(e_area, e_force);
-      const double e_large = std::max(e_shape, e_contact);
-      std::snprintf(line, sizeof line,
-                    "%d,%d,%d,%d,%d,%d,%s,%s,%g,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld,%ld,"
-                    "%.6g,%.6g,%.6g,"
-                    "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.3f\n",
-                    c.level.around, c.level.along, c.level.layers, o.nodes, o.tets, o.inner_tris, c.element.c_str(),
-                    c.model.c_str(), c.tolerance, frames, o.total.median_ms, o.total.p99_ms, o.physics.median_ms,
-                    o.physics.p99_ms, o.collision.median_ms, o.response.median_ms, o.render.median_ms, o.over_budget,
-                    o.not_converged, o.fallbacks, o.failures, o.max_inverted, lame_err, 1e3 * o.probe_disp,
-                    1e3 * o.opening, 1e6 * o.contact_area, o.contact_force, e_probe, e_open, e_area, e_force, e_shape,
-                    e_contact, e_large, o.compile_s);
-      csv += line;
-      engine::write_text_file(out, csv);  // after every configuration, so a long sweep can be read while it runs
-      std::fprintf(stderr, " total %.2f / %.2f ms, lame %.4f, shape %.4f, contact %.4f\n", o.total.median_ms,
-                   o.total.p99_ms, lame_err, e_shape, e_contact);
-    }
-
-    // Load sweep on the paper mesh: the pinch, linear against corotational.
-    if (!load_out.empty()) {
-      std::string lcsv =
-          "force_n,linear_probe_disp_mm,corotational_probe_disp_mm,relative_difference,max_disp_over_wall\n";
-      const Level paper{20, 26, 3};
-      for (double f : {0.002, 0.005, 0.01, 0.02, 0.04, 0.06, 0.08}) {
-        const Outcome lin = run(squeeze_scene({paper, "tet4", "linear", 0.0}, f, 15, 10.0), false);
-        const Outcome cor = run(squeeze_scene({paper, "tet4", "corotational", 1e-6}, f, 15, 10.0), false);
-        std::snprintf(line, sizeof line, "%g,%.6g,%.6g,%.6g,%.6g\n", f, 1e3 * lin.probe_disp, 1e3 * cor.probe_disp,
-                      rel(lin.probe_disp, cor.probe_disp), cor.probe_disp / (kOuterRadius - kInnerRadius));
-        lcsv += line;
-        std::fprintf(stderr, "load %g N: linear %.3f mm, corotational %.3f mm\n", f, 1e3 * lin.probe_disp,
-                     1e3 * cor.probe_disp);
-      }
-      engine::write_text_file(load_out, lcsv);
-    }
+  if (!opt.capacity_only) {
+    error_sweep(opt, levels, quadratic_levels, tolerances);
+    if (!opt.load_out.empty()) load_sweep(opt);
   }
-
-  // Capacity: per model, meshes growing by about 1.4x in tets until the frame's p99 exceeds the budget.
-  if (!capacity_out.empty()) {
-    std::string ccsv =
-        "scenario,force_n,element,model,tolerance,around,along,layers,nodes,tets,inner_tris,frames,total_median_ms,"
-        "total_p99_ms,"
-        "physics_median_ms,physics_p99_ms,collision_median_ms,response_median_ms,render_median_ms,over_budget,"
-        "within_budget\n";
-    struct Family {
-      const char* element;
-      const char* model;
-      double tolerance;
-      Level base;  // scale 1 (the paper's tube: 20 x 26 x 3 linear cells, 10 x 13 x 1 quadratic ones)
-      int min_layers;
-    };
-    const Family families[] = {{"tet4", "linear", 0.0, {20, 26, 3}, 2},
-                               {"tet4", "corotational", 1e-3, {20, 26, 3}, 2},
-                               {"tet10", "linear", 0.0, {10, 13, 1}, 1}};
-    const std::pair<const char*, double> scenarios[] = {{"open", 0.02}, {"shut", force}};
-    for (const auto& [scenario, load] : scenarios) {
-      for (const Family& fam : families) {
-        Level previous{0, 0, 0};
-        // Linear scale steps of 2^(1/6): tets grow by about 1.41x a step.
-        for (int step = -6; step <= 18; ++step) {
-          const double scale = std::pow(2.0, step / 6.0);
-          const Level l{std::max(6, static_cast<int>(std::lround(fam.base.around * scale))),
-                        std::max(6, static_cast<int>(std::lround(fam.base.along * scale))),
-                        std::max(fam.min_layers, static_cast<int>(std::lround(fam.base.layers * scale)))};
-          if (l.around == previous.around && l.along == previous.along && l.layers == previous.layers) continue;
-          previous = l;
-          const Config c{l, fam.element, fam.model, fam.tolerance};
-          std::fprintf(stderr, "capacity %s %s %s %dx%dx%d ...", scenario, fam.element, fam.model, l.around, l.along,
-                       l.layers);
-          Outcome o;
-          try {
-            o = run(squeeze_scene(c, load, capacity_frames, kCapacityFps), true);
-          } catch (const std::exception& e) {
-            // (a mesh this family cannot build or load: reported, and the family ends here)
-            std::fprintf(stderr, " skipped: %s\n", e.what());
-            break;
-          }
-          const bool within = o.total.p99_ms <= 1000.0 / kCapacityFps;
-          std::snprintf(line, sizeof line,
-                        "%s,%g,%s,%s,%g,%d,%d,%d,%d,%d,%d,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%d\n", scenario,
-                        load, fam.element, fam.model, fam.tolerance, l.around, l.along, l.layers, o.nodes, o.tets,
-                        o.inner_tris, capacity_frames, o.total.median_ms, o.total.p99_ms, o.physics.median_ms,
-                        o.physics.p99_ms, o.collision.median_ms, o.response.median_ms, o.render.median_ms,
-                        o.over_budget, within ? 1 : 0);
-          ccsv += line;
-          engine::write_text_file(capacity_out, ccsv);
-          std::fprintf(stderr, " %d tets, total %.2f / p99 %.2f ms\n", o.tets, o.total.median_ms, o.total.p99_ms);
-          if (!within) break;
-        }
-      }
-    }
-  }
+  if (!opt.capacity_out.empty()) capacity_sweep(opt);
   return 0;
 }
