@@ -492,6 +492,25 @@ TEST(Renderer, FrameOrganOfTheTubeIsItsFraming) {
   EXPECT_THROW(frame_organ(t.pos.data(), t.n_points(), bad.data(), 1), std::invalid_argument);
 }
 
+TEST(Renderer, FrameOrganWithoutALumen) {
+  // A solid (an instrument alone): framed on its box, a valid framing for every camera.
+  const BoxMesh box(Eigen::Vector3d(0.1, 0.2, -0.3), 0.01);
+  const Framing f = frame_organ(box.pos.data(), 8, nullptr, 0);
+  EXPECT_LT((f.center - Eigen::Vector3d(0.1, 0.2, -0.3)).norm(), 1e-12);
+  EXPECT_NEAR(f.radius, std::sqrt(3.0) * 0.01, 1e-12);
+  EXPECT_LT((f.lumen_center - f.center).norm(), 1e-12);
+  EXPECT_GT(f.lumen_radius, 0.0);
+  EXPECT_LT(f.lumen_radius, f.radius);
+  for (CameraPreset preset : {CameraPreset::Side, CameraPreset::Diagonal, CameraPreset::Endoscope})
+    EXPECT_NO_THROW(Renderer(kW, kH, preset, f));
+  // The box is drawn at the image centre by the side camera.
+  Renderer r(kW, kH, CameraPreset::Side, f);
+  FrameView v;
+  v.surfaces.push_back(box.surface());
+  const Image bg = background(r), im = draw(r, v);
+  EXPECT_TRUE(differs(im, bg, kW / 2, kH / 2));
+}
+
 TEST(Renderer, FramingFollowsATranslatedRotatedOrgan) {
   // Move and turn the tube: the framing computed from its points follows, the organ stays centred in the image
   // and the endoscope stays inside the lumen, looking along it.
@@ -529,7 +548,9 @@ TEST(Renderer, FramingFollowsATranslatedRotatedOrgan) {
     EXPECT_LT(organ.x1, kW - 1);
     EXPECT_LT(organ.y1, kH - 1);
     // The cut still shows the inner wall from the side.
-    if (preset == CameraPreset::Side) EXPECT_GT(pixel_box(im, [&](int x, int y) { return is_inner_colour(pixel(im, x, y)); }).count, kW * kH / 20);
+    if (preset == CameraPreset::Side) {
+      EXPECT_GT(pixel_box(im, [&](int x, int y) { return is_inner_colour(pixel(im, x, y)); }).count, kW * kH / 20);
+    }
   }
   {
     Renderer r(kW, kH, CameraPreset::Endoscope, f);
