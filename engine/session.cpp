@@ -20,15 +20,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// Camera framing from the rest geometry: the mesh's bounding box, and the lumen's axis, radius and length from
+// the inner-wall nodes (no scene fields: the same for generated tubes and imported organs).
 render::Framing framing_of(const Model& model) {
-  render::Framing f;
-  const Eigen::Vector3d lo = model.mesh.rest.colwise().minCoeff(), hi = model.mesh.rest.colwise().maxCoeff();
-  f.center = 0.5 * (lo + hi);
-  f.radius = 0.5 * (hi - lo).norm();
-  f.axis = Eigen::Vector3d::UnitZ();
-  f.lumen_radius = model.scene.mesh.inner_radius;
-  f.half_length = 0.5 * model.scene.mesh.length;
-  return f;
+  const auto& mesh = model.mesh;
+  return render::frame_organ(mesh.rest.data(), static_cast<int>(mesh.rest.rows()), mesh.inner.data(),
+                             static_cast<int>(mesh.inner.rows()));
 }
 
 // Remove outputs of an earlier run that this run would not overwrite (stale frames).
@@ -44,12 +41,17 @@ render::FrameView frame_view(const Model& model, const State& state) {
   render::FrameView view;
   view.positions = state.x.data();
   view.n_points = static_cast<int>(state.x.rows());
-  view.outer = model.mesh.outer.data();
-  view.n_outer = static_cast<int>(model.mesh.outer.rows());
-  view.inner = model.mesh.inner.data();
-  view.n_inner = static_cast<int>(model.mesh.inner.rows());
-  view.ends = model.mesh.ends.data();
-  view.n_ends = static_cast<int>(model.mesh.ends.rows());
+  // The organ's walls, outermost first, in today's styles.
+  auto wall = [&](const Tris& tris, const render::SurfaceStyle& style) {
+    render::Surface s;
+    s.triangles = tris.data();
+    s.n_triangles = static_cast<int>(tris.rows());
+    s.style = style;
+    view.surfaces.push_back(s);
+  };
+  wall(model.mesh.outer, render::SurfaceStyle::outer_wall());
+  wall(model.mesh.ends, render::SurfaceStyle::wall_ends());
+  wall(model.mesh.inner, render::SurfaceStyle::inner_wall());
   view.contact = state.in_contact.data();
   view.force_scale = model.scene.render.force_scale;
   for (size_t p = 0; p < state.samples.size(); ++p) {

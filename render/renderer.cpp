@@ -38,6 +38,11 @@ constexpr float kEndColor[3] = {0.84f, 0.50f, 0.48f};      // wall cross-section
 constexpr float kCutColor[4] = {0.42f, 0.10f, 0.12f, 1.f};  // back faces seen through the cut
 constexpr float kContactColor[3] = {0.70f, 1.00f, 0.10f};  // contact region, yellow-green
 constexpr float kProbeColor[3] = {0.15f, 0.40f, 1.00f};    // probe arrows, blue
+constexpr float kMetalColor[3] = {0.62f, 0.64f, 0.68f};    // instruments, steel grey
+constexpr float kTissueSpecular[4] = {0.30f, 0.30f, 0.30f, 1.f};
+constexpr float kTissueShininess = 40.f;
+constexpr float kMetalSpecular[4] = {0.85f, 0.85f, 0.85f, 1.f};
+constexpr float kMetalShininess = 90.f;
 constexpr float kGhostAlpha = 0.16f;                        // cut-away outer wall, drawn faintly
 constexpr float kBackgroundTop[3] = {0.20f, 0.22f, 0.26f};
 constexpr float kBackgroundBottom[3] = {0.05f, 0.05f, 0.07f};
@@ -88,16 +93,26 @@ std::string vec_text(const Vec3& v) {
   return s.str();
 }
 
-// Checks one index array of a FrameView; throws std::invalid_argument naming it.
-void check_tris(const char* name, const int* tris, int n_tris, int n_points) {
-  if (n_tris < 0) throw std::invalid_argument(std::string("FrameView.n_") + name + " must be >= 0 (value " + std::to_string(n_tris) + ")");
-  if (n_tris > 0 && tris == nullptr) throw std::invalid_argument(std::string("FrameView.") + name + " is null with " + std::to_string(n_tris) + " triangles");
+// Checks one index array; throws std::invalid_argument naming it (`name` is e.g. "FrameView.surfaces[1].triangles").
+void check_tris(const std::string& name, const int* tris, int n_tris, int n_points) {
+  if (n_tris < 0) throw std::invalid_argument(name + ": n_triangles must be >= 0 (value " + std::to_string(n_tris) + ")");
+  if (n_tris > 0 && tris == nullptr) throw std::invalid_argument(name + " is null with " + std::to_string(n_tris) + " triangles");
   for (int k = 0; k < 3 * n_tris; ++k) {
     if (tris[k] < 0 || tris[k] >= n_points) {
-      throw std::invalid_argument(std::string("FrameView.") + name + "[" + std::to_string(k) + "] out of range [0, " +
-                                  std::to_string(n_points) + ") (value " + std::to_string(tris[k]) + ")");
+      throw std::invalid_argument(name + "[" + std::to_string(k) + "] out of range [0, " + std::to_string(n_points) +
+                                  ") (value " + std::to_string(tris[k]) + ")");
     }
   }
+}
+
+const float* base_colour(Material m) {
+  switch (m) {
+    case Material::Serosa: return kOuterColor;
+    case Material::Mucosa: return kInnerColor;
+    case Material::WallSection: return kEndColor;
+    case Material::Metal: return kMetalColor;
+  }
+  return kOuterColor;
 }
 
 }  // namespace
@@ -126,18 +141,26 @@ struct Renderer::Impl {
   bool cut = false;
   double plane_a[4] = {0, 0, 0, 0}, plane_b[4] = {0, 0, 0, 0};
 
-  // Per-frame scratch: float copies, per-surface normals and colours (each n_points x 3).
+  // Per-frame scratch: float copy of the frame's points; per surface its own points' float copy (if any),
+  // normals and colours (each n_points x 3 of the surface's point array).
   std::vector<float> pos;
-  std::vector<float> normals[3];
-  std::vector<float> colors[3];
+  struct SurfaceScratch {
+    std::vector<float> pos, normals, colors;
+  };
+  std::vector<SurfaceScratch> surf;
   // Arrow triangles, interleaved per vertex: position (3) and normal (3), world units.
   std::vector<float> arrow;
 
   void setup_camera();
   void setup_gl_state();
   void make_current();
-  void build_surface(int group, const int* tris, int n_tris, const float base[3], const std::uint8_t* contact, int n_points);
-  void draw_surfaces(const FrameView& f, bool ghost);
+  void build_surface(SurfaceScratch& s, const float* points, const int* tris, int n_tris, const float base[3],
+                     const std::uint8_t* contact, int n_points);
+  const float* points_of(const FrameView& f, size_t i) const {
+    return f.surfaces[i].positions != nullptr ? surf[i].pos.data() : pos.data();
+  }
+  // Opaque pass over the surfaces whose cut-away is (or is not) Never; ghost pass over the Ghosted ones.
+  void draw_surfaces(const FrameView& f, bool ghost, bool uncut);
   void build_arrow(const ProbeGlyph& probe, double force_scale);
   void draw_background();
 };
@@ -151,6 +174,7 @@ Renderer::Renderer(int width, int height, CameraPreset camera, const Framing& fr
     throw std::invalid_argument("Framing.radius must be > 0 (value " + std::to_string(framing.radius) + ")");
   if (!finite3(framing.axis) || framing.axis.norm() < 1e-12)
     throw std::invalid_argument("Framing.axis must be a non-zero finite vector (value " + vec_text(framing.axis) + ")");
+  if (!finite3(framing.lumen_center)) throw std::invalid_argument("Framing.lumen_center must be finite (value " + vec_text(framing.lumen_center) + ")");
   if (!(framing.lumen_radius > 0) || !(framing.lumen_radius < framing.radius))
     throw std::invalid_argument("Framing.lumen_radius must be in (0, radius) (value " + std::to_string(framing.lumen_radius) + ")");
   if (!(framing.half_length >= 0) || !std::isfinite(framing.half_length))
@@ -211,7 +235,7 @@ void Renderer::Impl::setup_camera() {
   if (preset == CameraPreset::Endoscope) {
     // Inside the lumen on the axis near the start end, looking along the axis; wide field of view.
     const double fovy = kEndoscopeFovyDeg * kPi / 180.0;
-    eye = c - axis * (kEndoscopeDepth * half_length);
+    eye = framing.lumen_center - axis * (kEndoscopeDepth * half_length);
     view = look_at(eye, eye + axis, up);
     proj = perspective(fovy, aspect, 0.02 * r_lumen, 2.0 * half_length + 2.0 * R);
     cut = false;
@@ -231,7 +255,9 @@ void Renderer::Impl::setup_camera() {
   view = look_at(eye, c, up);
   proj = perspective(fovy, aspect, std::max(0.05 * dist, dist - 3.0 * R), dist + 3.0 * R);
 
-  // Cut-away wedge facing the side direction: removed where the angle from `side` is below half the opening.
+  // Cut-away wedge facing the side direction, its edge the lumen axis: removed where the angle from `side` is
+  // below half the opening.
+  const Vec3& l = framing.lumen_center;
   const double a = 0.5 * framing.cutaway_degrees * kPi / 180.0;
   cut = a > 0;
   const Vec3 n1 = std::sin(a) * side - std::cos(a) * up;  // n1.(p - c) > 0: angle below +a
@@ -241,8 +267,8 @@ void Renderer::Impl::setup_camera() {
     plane_a[k] = -n1[k];
     plane_b[k] = -n2[k];
   }
-  plane_a[3] = n1.dot(c);
-  plane_b[3] = n2.dot(c);
+  plane_a[3] = n1.dot(l);
+  plane_b[3] = n2.dot(l);
 }
 
 void Renderer::Impl::setup_gl_state() {
@@ -261,9 +287,8 @@ void Renderer::Impl::setup_gl_state() {
   glLightModelfv(GL_LIGHT_MODEL_AMBIENT, global_ambient);
   glEnable(GL_COLOR_MATERIAL);
   glColorMaterial(GL_FRONT, GL_AMBIENT_AND_DIFFUSE);
-  const float specular[4] = {0.30f, 0.30f, 0.30f, 1.f};
-  glMaterialfv(GL_FRONT, GL_SPECULAR, specular);
-  glMaterialf(GL_FRONT, GL_SHININESS, 40.f);
+  glMaterialfv(GL_FRONT, GL_SPECULAR, kTissueSpecular);
+  glMaterialf(GL_FRONT, GL_SHININESS, kTissueShininess);
   glMaterialfv(GL_BACK, GL_AMBIENT_AND_DIFFUSE, kCutColor);
   const float no_specular[4] = {0.f, 0.f, 0.f, 1.f};
   glMaterialfv(GL_BACK, GL_SPECULAR, no_specular);
@@ -324,10 +349,11 @@ Eigen::Vector2d Renderer::project(const Eigen::Vector3d& world) const {
 
 Eigen::Vector3d Renderer::eye() const { return impl_->eye; }
 
-void Renderer::Impl::build_surface(int group, const int* tris, int n_tris, const float base[3], const std::uint8_t* contact,
-                                   int n_points) {
+void Renderer::Impl::build_surface(SurfaceScratch& s, const float* points, const int* tris, int n_tris, const float base[3],
+                                   const std::uint8_t* contact, int n_points) {
   // Area-weighted vertex normals of this surface alone (so rims between surfaces stay crisp).
-  std::vector<float>& nrm = normals[group];
+  const float* pos = points;
+  std::vector<float>& nrm = s.normals;
   nrm.assign(static_cast<size_t>(n_points) * 3, 0.f);
   for (int t = 0; t < n_tris; ++t) {
     const int* v = tris + 3 * t;
@@ -354,7 +380,7 @@ void Renderer::Impl::build_surface(int group, const int* tris, int n_tris, const
     }
   }
   // Vertex colours: the surface colour, or the contact colour where flagged.
-  std::vector<float>& col = colors[group];
+  std::vector<float>& col = s.colors;
   col.resize(static_cast<size_t>(n_points) * 3);
   for (int i = 0; i < n_points; ++i) {
     const float* src = (contact != nullptr && contact[i] != 0) ? kContactColor : base;
@@ -364,30 +390,51 @@ void Renderer::Impl::build_surface(int group, const int* tris, int n_tris, const
   }
 }
 
-void Renderer::Impl::draw_surfaces(const FrameView& f, bool ghost) {
-  // Opaque: the three surfaces with per-vertex colours; ghost: the outer wall only, translucent.
+void Renderer::Impl::draw_surfaces(const FrameView& f, bool ghost, bool uncut) {
+  // Opaque: the surfaces with per-vertex colours (those cut by the wedge, or with `uncut` those never cut);
+  // ghost: the Ghosted surfaces only, translucent in their material colour.
   glEnableClientState(GL_VERTEX_ARRAY);
   glEnableClientState(GL_NORMAL_ARRAY);
-  glVertexPointer(3, GL_FLOAT, 0, pos.data());
-  const int* tris[3] = {f.outer, f.inner, f.ends};
-  const int counts[3] = {f.n_outer, f.n_inner, f.n_ends};
+  const size_t n = f.surfaces.size();
+  bool two_sided = true;  // the GL state set up in setup_gl_state()
+  auto set_style = [&](const SurfaceStyle& st) {
+    if (st.two_sided != two_sided) {
+      two_sided = st.two_sided;
+      glLightModeli(GL_LIGHT_MODEL_TWO_SIDE, two_sided ? GL_TRUE : GL_FALSE);
+    }
+    const bool metal = st.material == Material::Metal;
+    glMaterialfv(GL_FRONT, GL_SPECULAR, metal ? kMetalSpecular : kTissueSpecular);
+    glMaterialf(GL_FRONT, GL_SHININESS, metal ? kMetalShininess : kTissueShininess);
+  };
   if (ghost) {
-    glColor4f(kOuterColor[0], kOuterColor[1], kOuterColor[2], kGhostAlpha);
-    glNormalPointer(GL_FLOAT, 0, normals[0].data());
-    if (counts[0] > 0) glDrawElements(GL_TRIANGLES, 3 * counts[0], GL_UNSIGNED_INT, tris[0]);
+    for (size_t i = 0; i < n; ++i) {
+      const Surface& s = f.surfaces[i];
+      if (s.style.cutaway != CutAway::Ghosted || s.n_triangles == 0) continue;
+      set_style(s.style);
+      const float* c = base_colour(s.style.material);
+      glColor4f(c[0], c[1], c[2], kGhostAlpha);
+      glVertexPointer(3, GL_FLOAT, 0, points_of(f, i));
+      glNormalPointer(GL_FLOAT, 0, surf[i].normals.data());
+      glDrawElements(GL_TRIANGLES, 3 * s.n_triangles, GL_UNSIGNED_INT, s.triangles);
+    }
   } else {
     glEnableClientState(GL_COLOR_ARRAY);
-    // Nearest surfaces first so hidden fragments fail the depth test early: from outside the outer wall, from
-    // inside the lumen the inner wall.
-    const int outside_order[3] = {0, 2, 1}, inside_order[3] = {1, 2, 0};
-    for (int g : preset == CameraPreset::Endoscope ? inside_order : outside_order) {
-      if (counts[g] == 0) continue;
-      glNormalPointer(GL_FLOAT, 0, normals[g].data());
-      glColorPointer(3, GL_FLOAT, 0, colors[g].data());
-      glDrawElements(GL_TRIANGLES, 3 * counts[g], GL_UNSIGNED_INT, tris[g]);
+    const bool reverse = preset == CameraPreset::Endoscope;
+    for (size_t k = 0; k < n; ++k) {
+      const size_t i = reverse ? n - 1 - k : k;
+      const Surface& s = f.surfaces[i];
+      if (s.n_triangles == 0 || (s.style.cutaway == CutAway::Never) != uncut) continue;
+      set_style(s.style);
+      glVertexPointer(3, GL_FLOAT, 0, points_of(f, i));
+      glNormalPointer(GL_FLOAT, 0, surf[i].normals.data());
+      glColorPointer(3, GL_FLOAT, 0, surf[i].colors.data());
+      glDrawElements(GL_TRIANGLES, 3 * s.n_triangles, GL_UNSIGNED_INT, s.triangles);
     }
     glDisableClientState(GL_COLOR_ARRAY);
   }
+  if (!two_sided) glLightModeli(GL_LIGHT_MODEL_TWO_SIDE, GL_TRUE);
+  glMaterialfv(GL_FRONT, GL_SPECULAR, kTissueSpecular);
+  glMaterialf(GL_FRONT, GL_SHININESS, kTissueShininess);
   glDisableClientState(GL_NORMAL_ARRAY);
   glDisableClientState(GL_VERTEX_ARRAY);
 }
@@ -401,7 +448,7 @@ void Renderer::Impl::build_arrow(const ProbeGlyph& probe, double force_scale) {
   if (fmag > 1e-12) {
     dir = probe.force / fmag;
   } else {
-    const Vec3 rel = tip - framing.center;
+    const Vec3 rel = tip - framing.lumen_center;
     const Vec3 radial = rel - axis * axis.dot(rel);
     dir = radial.norm() > 1e-9 * R ? Vec3(-radial.normalized()) : Vec3(-up);
   }
@@ -475,9 +522,18 @@ void Renderer::draw(const FrameView& f, Image& out) {
   // Validate the frame at the boundary.
   if (f.n_points < 0) throw std::invalid_argument("FrameView.n_points must be >= 0 (value " + std::to_string(f.n_points) + ")");
   if (f.n_points > 0 && f.positions == nullptr) throw std::invalid_argument("FrameView.positions is null with n_points " + std::to_string(f.n_points));
-  check_tris("outer", f.outer, f.n_outer, f.n_points);
-  check_tris("inner", f.inner, f.n_inner, f.n_points);
-  check_tris("ends", f.ends, f.n_ends, f.n_points);
+  for (size_t i = 0; i < f.surfaces.size(); ++i) {
+    const Surface& s = f.surfaces[i];
+    const std::string name = "FrameView.surfaces[" + std::to_string(i) + "]";
+    int n_points = f.n_points;
+    if (s.positions != nullptr || s.n_points != 0) {
+      if (s.n_points < 0) throw std::invalid_argument(name + ".n_points must be >= 0 (value " + std::to_string(s.n_points) + ")");
+      if (s.n_points > 0 && s.positions == nullptr)
+        throw std::invalid_argument(name + ".positions is null with n_points " + std::to_string(s.n_points));
+      n_points = s.n_points;
+    }
+    check_tris(name + ".triangles", s.triangles, s.n_triangles, n_points);
+  }
   if (!(f.force_scale >= 0) || !std::isfinite(f.force_scale))
     throw std::invalid_argument("FrameView.force_scale must be finite and >= 0 (value " + std::to_string(f.force_scale) + ")");
   for (size_t i = 0; i < f.probes.size(); ++i) {
@@ -494,9 +550,20 @@ void Renderer::draw(const FrameView& f, Image& out) {
   // Geometry of this frame: float positions, then normals and colours per surface.
   m.pos.resize(static_cast<size_t>(f.n_points) * 3);
   for (size_t k = 0; k < m.pos.size(); ++k) m.pos[k] = static_cast<float>(f.positions[k]);
-  m.build_surface(0, f.outer, f.n_outer, kOuterColor, f.contact, f.n_points);
-  m.build_surface(1, f.inner, f.n_inner, kInnerColor, f.contact, f.n_points);
-  m.build_surface(2, f.ends, f.n_ends, kEndColor, f.contact, f.n_points);
+  m.surf.resize(f.surfaces.size());
+  for (size_t i = 0; i < f.surfaces.size(); ++i) {
+    const Surface& s = f.surfaces[i];
+    Impl::SurfaceScratch& sc = m.surf[i];
+    const bool own = s.positions != nullptr;
+    if (own) {
+      sc.pos.resize(static_cast<size_t>(s.n_points) * 3);
+      for (size_t k = 0; k < sc.pos.size(); ++k) sc.pos[k] = static_cast<float>(s.positions[k]);
+    }
+    // Contact flags are per frame point: a surface with its own points is never contact-coloured.
+    const std::uint8_t* contact = (s.style.contact_colouring && !own) ? f.contact : nullptr;
+    m.build_surface(sc, m.points_of(f, i), s.triangles, s.n_triangles, base_colour(s.style.material), contact,
+                    own ? s.n_points : f.n_points);
+  }
   m.arrow.clear();
   for (const ProbeGlyph& p : f.probes) m.build_arrow(p, f.force_scale);
 
@@ -505,21 +572,25 @@ void Renderer::draw(const FrameView& f, Image& out) {
   m.draw_background();
 
   // Opaque organ: with the cut, the union of the two kept half-spaces (two passes).
+  // Surfaces never cut (instruments) are drawn whole after the cut ones.
   if (m.cut) {
     glEnable(GL_CLIP_PLANE0);
-    m.draw_surfaces(f, false);
+    m.draw_surfaces(f, false, false);
     glDisable(GL_CLIP_PLANE0);
     glEnable(GL_CLIP_PLANE1);
-    m.draw_surfaces(f, false);
+    m.draw_surfaces(f, false, false);
     glDisable(GL_CLIP_PLANE1);
+    m.draw_surfaces(f, false, true);
   } else if (m.preset == CameraPreset::Endoscope) {
     // From inside the lumen every visible wall faces the eye: cull back faces (the outer wall, hidden anyway).
     glEnable(GL_CULL_FACE);
     glCullFace(GL_BACK);
-    m.draw_surfaces(f, false);
+    m.draw_surfaces(f, false, false);
+    m.draw_surfaces(f, false, true);
     glDisable(GL_CULL_FACE);
   } else {
-    m.draw_surfaces(f, false);
+    m.draw_surfaces(f, false, false);
+    m.draw_surfaces(f, false, true);
   }
 
   // Probe arrows, opaque, never clipped.
@@ -535,7 +606,10 @@ void Renderer::draw(const FrameView& f, Image& out) {
   }
 
   // Ghost of the cut-away outer wall: front faces only, blended, no depth writes.
-  if (m.cut && f.n_outer > 0) {
+  const bool any_ghost = std::any_of(f.surfaces.begin(), f.surfaces.end(), [](const Surface& s) {
+    return s.style.cutaway == CutAway::Ghosted && s.n_triangles > 0;
+  });
+  if (m.cut && any_ghost) {
     glEnable(GL_CLIP_PLANE2);
     glEnable(GL_CLIP_PLANE3);
     glEnable(GL_CULL_FACE);
@@ -543,7 +617,7 @@ void Renderer::draw(const FrameView& f, Image& out) {
     glEnable(GL_BLEND);
     glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
     glDepthMask(GL_FALSE);
-    m.draw_surfaces(f, true);
+    m.draw_surfaces(f, true, false);
     glDepthMask(GL_TRUE);
     glDisable(GL_BLEND);
     glDisable(GL_CULL_FACE);

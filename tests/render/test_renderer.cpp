@@ -8,6 +8,8 @@
 #include <thread>
 #include <vector>
 
+#include <Eigen/Geometry>
+
 #include "render/renderer.hpp"
 
 namespace lumen::render {
@@ -58,6 +60,7 @@ struct Tube {
     f.center = Eigen::Vector3d(0, 0, length / 2);
     f.radius = std::hypot(length / 2, outer_radius);
     f.axis = Eigen::Vector3d::UnitZ();
+    f.lumen_center = f.center;
     f.lumen_radius = inner_radius;
     f.half_length = length / 2;
     f.cutaway_degrees = cutaway_degrees;
@@ -68,12 +71,10 @@ struct Tube {
     FrameView v;
     v.positions = pos.data();
     v.n_points = n_points();
-    v.outer = outer.data();
-    v.n_outer = static_cast<int>(outer.size() / 3);
-    v.inner = inner.data();
-    v.n_inner = static_cast<int>(inner.size() / 3);
-    v.ends = ends.data();
-    v.n_ends = static_cast<int>(ends.size() / 3);
+    // Outermost first, in the organ walls' styles.
+    v.surfaces.push_back({outer.data(), static_cast<int>(outer.size() / 3), SurfaceStyle::outer_wall()});
+    v.surfaces.push_back({ends.data(), static_cast<int>(ends.size() / 3), SurfaceStyle::wall_ends()});
+    v.surfaces.push_back({inner.data(), static_cast<int>(inner.size() / 3), SurfaceStyle::inner_wall()});
     return v;
   }
 };
@@ -151,13 +152,21 @@ TEST(Renderer, RejectsBadParameters) {
   std::vector<int> bad = t.outer;
   bad[7] = t.n_points();
   FrameView v = t.view();
-  v.outer = bad.data();
+  v.surfaces[0].triangles = bad.data();  // the outer wall
   try {
     r.draw(v, im);
     FAIL() << "index out of range accepted";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("outer[7]"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("surfaces[0].triangles[7]"), std::string::npos) << e.what();
   }
+  // A surface with its own points is checked against those, not the frame's.
+  const std::vector<double> three = {0, 0, 0, 0.001, 0, 0, 0, 0.001, 0};
+  const std::vector<int> tri = {0, 1, 3};
+  v = t.view();
+  v.surfaces.push_back({tri.data(), 1, SurfaceStyle::metal(), three.data(), 3});
+  EXPECT_THROW(r.draw(v, im), std::invalid_argument);
+  v.surfaces.back().positions = nullptr;  // n_points 3 without an array
+  EXPECT_THROW(r.draw(v, im), std::invalid_argument);
   v = t.view();
   v.positions = nullptr;
   EXPECT_THROW(r.draw(v, im), std::invalid_argument);
@@ -409,6 +418,155 @@ TEST(Renderer, DrawsOnAnotherThreadThanItWasBuiltOn) {
   worker.join();
   const Image here = draw(r, t.view());
   EXPECT_EQ(there.rgb, here.rgb);
+}
+
+// A closed box (8 corners, 12 outward-facing triangles) centred at `c`, half size `h`: an instrument's own points.
+struct BoxMesh {
+  std::vector<double> pos;
+  std::vector<int> tris;
+  BoxMesh(const Eigen::Vector3d& c, double h) {
+    for (int k = 0; k < 8; ++k)
+      pos.insert(pos.end(), {c.x() + ((k & 1) ? h : -h), c.y() + ((k & 2) ? h : -h), c.z() + ((k & 4) ? h : -h)});
+    // Faces as corner quads (counter-clockwise seen from outside).
+    const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+    for (const auto& q : quads) tris.insert(tris.end(), {q[0], q[1], q[2], q[0], q[2], q[3]});
+  }
+  Surface surface() const { return {tris.data(), static_cast<int>(tris.size() / 3), SurfaceStyle::metal(), pos.data(), 8}; }
+};
+
+TEST(Renderer, ExtraSurfaceWithItsOwnPointsIsDrawnAsMetal) {
+  // A metal box between the side camera and the organ, inside the cut-away wedge: instruments are never cut.
+  const Tube t;
+  const Framing f = t.framing(100);
+  Renderer r(kW, kH, CameraPreset::Side, f);
+  const Eigen::Vector3d to_eye = (r.eye() - f.center).normalized();
+  const BoxMesh box(f.center + 0.025 * to_eye + Eigen::Vector3d(0, 0, 0.02), 0.005);
+  const Image without = draw(r, t.view());
+  FrameView v = t.view();
+  v.surfaces.push_back(box.surface());
+  const Image with = draw(r, v);
+  Box projected;
+  for (int k = 0; k < 8; ++k) {
+    const Eigen::Vector2d p = r.project(Eigen::Vector3d(box.pos[3 * k], box.pos[3 * k + 1], box.pos[3 * k + 2]));
+    projected.add(p.x(), p.y());
+  }
+  const Box changed = pixel_box(with, [&](int x, int y) { return differs(with, without, x, y); });
+  // Pixels change where the box projects, and only there.
+  const long area = static_cast<long>(projected.x1 - projected.x0 + 1) * (projected.y1 - projected.y0 + 1);
+  EXPECT_GT(changed.count, area / 2);
+  EXPECT_GE(changed.x0, projected.x0 - 2);
+  EXPECT_LE(changed.x1, projected.x1 + 2);
+  EXPECT_GE(changed.y0, projected.y0 - 2);
+  EXPECT_LE(changed.y1, projected.y1 + 2);
+  // It is grey metal, not tissue: at its projected centre red, green and blue are close.
+  const Eigen::Vector2d mid = r.project(f.center + 0.025 * to_eye + Eigen::Vector3d(0, 0, 0.02));
+  const Rgb c = pixel(with, static_cast<int>(mid.x()), static_cast<int>(mid.y()));
+  EXPECT_LT(std::abs(c.r - c.g), 20) << c.r << " " << c.g << " " << c.b;
+  EXPECT_LT(std::abs(c.g - c.b), 20) << c.r << " " << c.g << " " << c.b;
+  EXPECT_GT(luminance(c), 40);
+  // Styled as a cut wall instead, the box (wholly inside the wedge) is removed with it.
+  v.surfaces.back().style.cutaway = CutAway::Removed;
+  EXPECT_EQ(draw(r, v).rgb, without.rgb);
+}
+
+TEST(Renderer, FrameOrganOfTheTubeIsItsFraming) {
+  // From the rest points and the inner-wall triangles alone: the tube's box, axis, lumen radius and length.
+  const Tube t;
+  Framing want = t.framing(100);
+  want.radius = 0.5 * std::sqrt(t.length * t.length + 8 * t.outer_radius * t.outer_radius);  // half the box diagonal
+  const Framing f = frame_organ(t.pos.data(), t.n_points(), t.inner.data(), static_cast<int>(t.inner.size() / 3));
+  EXPECT_LT((f.center - want.center).norm(), 1e-12);
+  EXPECT_NEAR(f.radius, want.radius, 1e-12);
+  EXPECT_LT((f.axis - want.axis).norm(), 1e-9);
+  EXPECT_LT((f.lumen_center - want.lumen_center).norm(), 1e-12);
+  EXPECT_NEAR(f.lumen_radius, want.lumen_radius, 1e-12);
+  EXPECT_NEAR(f.half_length, want.half_length, 1e-12);
+  EXPECT_EQ(f.cutaway_degrees, 100.0);
+  // Same images as the hand-made framing.
+  for (CameraPreset preset : {CameraPreset::Side, CameraPreset::Diagonal, CameraPreset::Endoscope}) {
+    Renderer a(kW, kH, preset, want), b(kW, kH, preset, f);
+    EXPECT_EQ(draw(a, t.view()).rgb, draw(b, t.view()).rgb);
+  }
+  EXPECT_THROW(frame_organ(nullptr, 3, nullptr, 0), std::invalid_argument);
+  const std::vector<int> bad = {0, 1, t.n_points()};
+  EXPECT_THROW(frame_organ(t.pos.data(), t.n_points(), bad.data(), 1), std::invalid_argument);
+}
+
+TEST(Renderer, FrameOrganWithoutALumen) {
+  // A solid (an instrument alone): framed on its box, a valid framing for every camera.
+  const BoxMesh box(Eigen::Vector3d(0.1, 0.2, -0.3), 0.01);
+  const Framing f = frame_organ(box.pos.data(), 8, nullptr, 0);
+  EXPECT_LT((f.center - Eigen::Vector3d(0.1, 0.2, -0.3)).norm(), 1e-12);
+  EXPECT_NEAR(f.radius, std::sqrt(3.0) * 0.01, 1e-12);
+  EXPECT_LT((f.lumen_center - f.center).norm(), 1e-12);
+  EXPECT_GT(f.lumen_radius, 0.0);
+  EXPECT_LT(f.lumen_radius, f.radius);
+  for (CameraPreset preset : {CameraPreset::Side, CameraPreset::Diagonal, CameraPreset::Endoscope})
+    EXPECT_NO_THROW(Renderer(kW, kH, preset, f));
+  // The box is drawn at the image centre by the side camera.
+  Renderer r(kW, kH, CameraPreset::Side, f);
+  FrameView v;
+  v.surfaces.push_back(box.surface());
+  const Image bg = background(r), im = draw(r, v);
+  EXPECT_TRUE(differs(im, bg, kW / 2, kH / 2));
+}
+
+TEST(Renderer, FramingFollowsATranslatedRotatedOrgan) {
+  // Move and turn the tube: the framing computed from its points follows, the organ stays centred in the image
+  // and the endoscope stays inside the lumen, looking along it.
+  const Tube t;
+  const Eigen::Matrix3d rot =
+      (Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 0.5).normalized()) * Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitY()))
+          .toRotationMatrix();
+  const Eigen::Vector3d shift(0.3, -0.2, 0.15);
+  Tube moved = t;
+  for (int k = 0; k < t.n_points(); ++k) {
+    const Eigen::Vector3d p = rot * Eigen::Vector3d(t.pos[3 * k], t.pos[3 * k + 1], t.pos[3 * k + 2]) + shift;
+    for (int d = 0; d < 3; ++d) moved.pos[3 * k + d] = p[d];
+  }
+  const Framing f = frame_organ(moved.pos.data(), moved.n_points(), moved.inner.data(), static_cast<int>(moved.inner.size() / 3));
+  const Eigen::Vector3d axis = rot * Eigen::Vector3d::UnitZ(), mid = rot * Eigen::Vector3d(0, 0, t.length / 2) + shift;
+  EXPECT_NEAR(std::abs(f.axis.dot(axis)), 1.0, 1e-9);
+  EXPECT_LT((f.lumen_center - mid).norm(), 1e-9);
+  EXPECT_NEAR(f.lumen_radius, t.inner_radius, 1e-9);
+  EXPECT_NEAR(f.half_length, t.length / 2, 1e-9);
+  for (CameraPreset preset : {CameraPreset::Side, CameraPreset::Diagonal}) {
+    SCOPED_TRACE(preset == CameraPreset::Side ? "side" : "diagonal");
+    Renderer r(kW, kH, preset, f);
+    // The organ's centre projects to the image centre, and its silhouette is centred and wholly in view.
+    const Eigen::Vector2d c = r.project(mid);
+    EXPECT_NEAR(c.x(), kW / 2.0, 1.0);
+    EXPECT_NEAR(c.y(), kH / 2.0, 1.0);
+    const Image bg = background(r);
+    const Image im = draw(r, moved.view());
+    const Box organ = pixel_box(im, [&](int x, int y) { return differs(im, bg, x, y); });
+    EXPECT_GT(static_cast<double>(organ.count) / (kW * kH), 0.10);
+    EXPECT_NEAR(0.5 * (organ.x0 + organ.x1), kW / 2.0, 0.1 * kW);
+    EXPECT_NEAR(0.5 * (organ.y0 + organ.y1), kH / 2.0, 0.1 * kH);
+    EXPECT_GT(organ.x0, 0);
+    EXPECT_GT(organ.y0, 0);
+    EXPECT_LT(organ.x1, kW - 1);
+    EXPECT_LT(organ.y1, kH - 1);
+    // The cut still shows the inner wall from the side.
+    if (preset == CameraPreset::Side) {
+      EXPECT_GT(pixel_box(im, [&](int x, int y) { return is_inner_colour(pixel(im, x, y)); }).count, kW * kH / 20);
+    }
+  }
+  {
+    Renderer r(kW, kH, CameraPreset::Endoscope, f);
+    const Eigen::Vector3d rel = r.eye() - mid;
+    EXPECT_LT((rel - axis * axis.dot(rel)).norm(), 1e-9);  // on the lumen axis
+    EXPECT_GT(std::abs(axis.dot(rel)), 0.25 * t.length);   // near one end
+    // The far lumen is at the image centre.
+    const Eigen::Vector2d far = r.project(mid + (mid - r.eye()));
+    EXPECT_NEAR(far.x(), kW / 2.0, 1.0);
+    EXPECT_NEAR(far.y(), kH / 2.0, 1.0);
+    const Image bg = background(r);
+    const Image im = draw(r, moved.view());
+    long wall = 0;
+    for (int x = 0; x < kW; ++x) wall += differs(im, bg, x, 0) && is_inner_colour(pixel(im, x, 0));
+    EXPECT_EQ(wall, kW);
+  }
 }
 
 }  // namespace
