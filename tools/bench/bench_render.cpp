@@ -36,11 +36,8 @@ struct Organ {
     mesh = lumen::physics::make_hollow_cylinder(spec);
     positions.assign(mesh.rest.data(), mesh.rest.data() + mesh.rest.size());
     contact.assign(mesh.n_nodes(), 0);
-    framing.center = Eigen::Vector3d(0, 0, spec.length / 2);
-    framing.radius = std::hypot(spec.length / 2, spec.outer_radius);
-    framing.axis = Eigen::Vector3d::UnitZ();
-    framing.lumen_radius = spec.inner_radius;
-    framing.half_length = spec.length / 2;
+    framing = lumen::render::frame_organ(mesh.rest.data(), mesh.n_nodes(), mesh.inner.data(),
+                                         static_cast<int>(mesh.inner.rows()));
   }
 
   // Pinch the tube from above at an axial station that moves with the frame; flag the pinched nodes.
@@ -55,12 +52,10 @@ struct Organ {
     FrameView v;
     v.positions = positions.data();
     v.n_points = mesh.n_nodes();
-    v.outer = mesh.outer.data();
-    v.n_outer = static_cast<int>(mesh.outer.rows());
-    v.inner = mesh.inner.data();
-    v.n_inner = static_cast<int>(mesh.inner.rows());
-    v.ends = mesh.ends.data();
-    v.n_ends = static_cast<int>(mesh.ends.rows());
+    using lumen::render::SurfaceStyle;
+    v.surfaces.push_back({mesh.outer.data(), static_cast<int>(mesh.outer.rows()), SurfaceStyle::outer_wall()});
+    v.surfaces.push_back({mesh.ends.data(), static_cast<int>(mesh.ends.rows()), SurfaceStyle::wall_ends()});
+    v.surfaces.push_back({mesh.inner.data(), static_cast<int>(mesh.inner.rows()), SurfaceStyle::inner_wall()});
     v.contact = contact.data();
     v.force_scale = 0.02;
     v.probes.push_back({Eigen::Vector3d(0, spec.outer_radius - 0.009, zc), Eigen::Vector3d(0, -1.0, 0)});
