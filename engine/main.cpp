@@ -182,7 +182,7 @@ int main(int argc, char** argv) {
   bench->add_flag("--classify-overlaps", classify, "count bounding-volume overlaps with and without contact");
 
   CLI::App* ccd = app.add_subcommand("ccd", "run every CCD query of a file; print positives, misses, timings");
-  ccd->add_option("file", ccd_file, "query file (CSV, see shared/data/ccd/README.md)")->required();
+  ccd->add_option("file", ccd_file, "query file (CSV, see tests/data/ccd/README.md)")->required();
   ccd->add_flag("--json", json, "print one JSON object");
 
   // Command-line errors read like the scene loader's: "lumen: error: what: problem (value V)".

@@ -2,7 +2,7 @@
 """CCD dev-set results: runs `lumen ccd FILE --json` R times per file and writes the median of each number.
 
 usage: tools/ccd_devset.py [--runs 5] [--out docs/ccd_devset.csv] [--lumen build/lumen] [FILE.csv ...]
-(default files: ../shared/data/ccd/handcrafted.csv and simulation.csv)
+(default files: tests/data/ccd/handcrafted.csv and simulation.csv)
 """
 import argparse
 import json
@@ -11,7 +11,7 @@ import statistics
 import subprocess
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-DATA = os.path.normpath(os.path.join(HERE, "..", "..", "shared", "data", "ccd"))
+DATA = os.path.normpath(os.path.join(HERE, "..", "tests", "data", "ccd"))
 FIELDS = ["queries", "positives", "false_negatives", "false_positives", "mean_ns", "max_ns"]
 
 

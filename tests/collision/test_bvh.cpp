@@ -15,34 +15,14 @@
 
 #include "collision/kdop.hpp"
 #include "collision/self_collision.hpp"
+#include "support/tube.hpp"
 
 namespace lumen::collision {
 namespace {
 
 using Points = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using Tris = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
-
-constexpr double kPi = 3.14159265358979323846;
-
-// Open tube of nz x nth quads (2 triangles each) along z: radius r, length len (metres).
-void make_tube(int nz, int nth, double r, double len, Points& x, Tris& tris) {
-  x.resize((nz + 1) * nth, 3);
-  for (int k = 0; k <= nz; ++k) {
-    for (int j = 0; j < nth; ++j) {
-      const double th = 2.0 * kPi * j / nth;
-      x.row(k * nth + j) << r * std::cos(th), r * std::sin(th), len * k / nz;
-    }
-  }
-  tris.resize(2 * nz * nth, 3);
-  for (int k = 0; k < nz; ++k) {
-    for (int j = 0; j < nth; ++j) {
-      const int v00 = k * nth + j, v01 = k * nth + (j + 1) % nth;
-      const int v10 = (k + 1) * nth + j, v11 = (k + 1) * nth + (j + 1) % nth;
-      tris.row(2 * (k * nth + j)) << v00, v01, v11;
-      tris.row(2 * (k * nth + j) + 1) << v00, v11, v10;
-    }
-  }
-}
+using test::make_tube;  // open tube along z (tests/support/tube.hpp)
 
 // A random smooth deformation of a tube of radius r, length len (metres): a pinch at a random place
 // plus a sideways bend.
@@ -52,7 +32,7 @@ struct Shape {
 Shape random_shape(double r, double len, std::mt19937& rng) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   return Shape{len * (0.5 + 0.2 * u(rng)), len * (0.15 + 0.05 * u(rng)), 0.1 * r * u(rng), 0.1 * r * u(rng),
-               2.0 + u(rng), 2.0 + u(rng), kPi * u(rng), kPi * u(rng)};
+               2.0 + u(rng), 2.0 + u(rng), double(EIGEN_PI) * u(rng), double(EIGEN_PI) * u(rng)};
 }
 // The shape with pinch amplitude `pinch` (1 = the walls meet) and uniform noise of `noise` metres.
 Points deform(const Points& rest, const Shape& s, double len, double pinch, double noise, std::mt19937& rng) {
@@ -62,8 +42,8 @@ Points deform(const Points& rest, const Shape& s, double len, double pinch, doub
     const double z = rest(i, 2);
     const double g = std::exp(-((z - s.zc) / s.w) * ((z - s.zc) / s.w));
     x(i, 1) *= 1.0 - pinch * g;
-    x(i, 0) += s.ax * std::sin(s.fx * kPi * z / len + s.px) + noise * u(rng);
-    x(i, 1) += s.ay * std::sin(s.fy * kPi * z / len + s.py) + noise * u(rng);
+    x(i, 0) += s.ax * std::sin(s.fx * EIGEN_PI * z / len + s.px) + noise * u(rng);
+    x(i, 1) += s.ay * std::sin(s.fy * EIGEN_PI * z / len + s.py) + noise * u(rng);
     x(i, 2) += noise * u(rng);
   }
   return x;

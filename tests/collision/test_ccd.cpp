@@ -16,7 +16,7 @@
 namespace lumen::collision {
 namespace {
 
-const std::string kDataDir = std::string(LUMEN_SHARED_DIR) + "/data/ccd/";
+const std::string kDataDir = std::string(LUMEN_TEST_DATA_DIR) + "/ccd/";
 
 // ---------------------------------------------------------------------------------------------------------
 // Independent geometry (Ericson, Real-Time Collision Detection, 5.1.5 and 5.1.9): exact closest distances.

@@ -12,15 +12,15 @@
 #include <vector>
 
 #include "collision/intersect.hpp"
+#include "support/tube.hpp"
 
 namespace lumen::collision {
 namespace {
 
 using Points = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using Tris = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
+using test::make_tube;  // open tube along z (tests/support/tube.hpp)
 using P3 = std::array<double, 3>;
-
-constexpr double kPi = 3.14159265358979323846;
 
 int sign128(__int128 v) { return v > 0 ? 1 : (v < 0 ? -1 : 0); }
 
@@ -265,25 +265,6 @@ TEST(TriTri, SharedVertexBeyondTheVertexOnly) {
 
 // ---------------------------------------------------------------------------------------------------
 // Counting over meshes.
-
-void make_tube(int nz, int nth, double r, double len, Points& x, Tris& tris) {
-  x.resize((nz + 1) * nth, 3);
-  for (int k = 0; k <= nz; ++k) {
-    for (int j = 0; j < nth; ++j) {
-      const double th = 2.0 * kPi * j / nth;
-      x.row(k * nth + j) << r * std::cos(th), r * std::sin(th), len * k / nz;
-    }
-  }
-  tris.resize(2 * nz * nth, 3);
-  for (int k = 0; k < nz; ++k) {
-    for (int j = 0; j < nth; ++j) {
-      const int v00 = k * nth + j, v01 = k * nth + (j + 1) % nth;
-      const int v10 = (k + 1) * nth + j, v11 = (k + 1) * nth + (j + 1) % nth;
-      tris.row(2 * (k * nth + j)) << v00, v01, v11;
-      tris.row(2 * (k * nth + j) + 1) << v00, v11, v10;
-    }
-  }
-}
 
 // All pairs, the same per-pair test, no pruning.
 long count_brute(const Points& x, const Tris& tris) {

@@ -25,8 +25,6 @@ physics::LinearMaterial material_of(const engine::Model& m) {
   return mat;
 }
 
-constexpr double kPi = 3.14159265358979323846;
-
 // Optimised builds run the finer meshes and every model; the Debug + sanitizer build coarse meshes (quickly).
 #ifdef NDEBUG
 constexpr bool kOptimised = true;
@@ -162,7 +160,7 @@ TEST(Twist, TurnedRingIsAtItsRigidRotationInEveryModel) {
     const bool stop = v.end == "stop";
     const auto& ring = stop ? m->mesh.end_nodes_stop : m->mesh.end_nodes_start;
     const auto& other = stop ? m->mesh.end_nodes_start : m->mesh.end_nodes_stop;
-    EXPECT_LT(ring_error(*m, s.x, ring, stop, 40.0 * kPi / 180.0), 1e-12) << what;
+    EXPECT_LT(ring_error(*m, s.x, ring, stop, 40.0 * EIGEN_PI / 180.0), 1e-12) << what;
     // Not trivially: the ring really turned (by 40 degrees at radius >= 1 cm: > 6 mm).
     EXPECT_GT(ring_error(*m, s.x, ring, stop, 0.0), 6e-3) << what;
     for (int node : other) EXPECT_EQ(s.sim.u.segment<3>(3 * node).norm(), 0.0) << what;
@@ -197,7 +195,7 @@ TEST(Twist, LinearMatchesCorotationalInTheSmallAngleLimit) {
     }
     previous = rel;
   }
-  EXPECT_LT(previous, 0.5 * kPi / 180.0);  // relative difference below the angle (radians) itself
+  EXPECT_LT(previous, 0.5 * EIGEN_PI / 180.0);  // relative difference below the angle (radians) itself
 }
 
 // A half turn: the corotational tube keeps its volume (total within 5 %, every tet within 25 %, none inverted),
@@ -216,7 +214,7 @@ TEST(Twist, HalfTurnKeepsCorotationalVolumeAndCrushesLinear) {
   c.model = "corotational";
   const auto cor = compile(c);
   const engine::State sc = run(*cor, frames);
-  EXPECT_LT(ring_error(*cor, sc.x, cor->mesh.end_nodes_stop, true, kPi), 1e-12);
+  EXPECT_LT(ring_error(*cor, sc.x, cor->mesh.end_nodes_stop, true, EIGEN_PI), 1e-12);
   const VolumeChange vc = volume_change(*cor, sc.x);
   c.model = "linear";
   const auto lin = compile(c);
@@ -283,7 +281,7 @@ TEST(Twist, DampedDynamicTwistSettlesOnTheQuasiStaticTwist) {
   // must converge.)
   const engine::State sd = run(*dyn, 140);
   EXPECT_LT((sd.sim.u - uq).norm(), 1e-6 * uq.norm());
-  EXPECT_LT(ring_error(*dyn, sd.x, dyn->mesh.end_nodes_stop, true, 30.0 * kPi / 180.0), 1e-12);
+  EXPECT_LT(ring_error(*dyn, sd.x, dyn->mesh.end_nodes_stop, true, 30.0 * EIGEN_PI / 180.0), 1e-12);
 }
 
 // Twist, probe loads and self-collision together through step(): a coarse tube squeezed shut by two probes while
@@ -321,7 +319,7 @@ TEST(Twist, TwistWithProbesAndCollisionRunsCleanly) {
       EXPECT_DOUBLE_EQ(rec.twist_degrees, std::min(30.0, 30.0 * rec.t / 0.5));
       solved += rec.response_iterations > 0 && !rec.fallback;
       if (!rec.fallback) {
-        EXPECT_LT(ring_error(*m, s.x, m->mesh.end_nodes_stop, true, rec.twist_degrees * kPi / 180.0), 1e-12)
+        EXPECT_LT(ring_error(*m, s.x, m->mesh.end_nodes_stop, true, rec.twist_degrees * EIGEN_PI / 180.0), 1e-12)
             << variant << " frame " << rec.frame;
       }
     }

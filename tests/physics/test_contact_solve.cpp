@@ -14,6 +14,7 @@
 #include "physics/contact_solve.hpp"
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
+#include "support/lcp.hpp"
 #include "tests/physics/compliance_model.hpp"
 
 namespace lumen::physics {
@@ -182,34 +183,11 @@ TEST(Contact, EqualityHoldsNodesExactlyAndMatchesConstrainedSolve) {
   EXPECT_LE((res.lambda - sol.tail(mr)).norm(), 1e-7 * res.lambda.norm());
 }
 
-// Brute-force twin: every active set S; A_SS z_S = -q_S, z_S >= 0, (A z + q) >= 0 off S. Returns whether one
+// Brute-force twin (tests/support/lcp.hpp, every active set), tolerances relative to max |q|: whether a solution
 // was found and the first such z.
 bool brute_force_lcp(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, Eigen::VectorXd& z_out) {
-  const int m = static_cast<int>(q.size());
-  const double scale = q.cwiseAbs().maxCoeff();
-  for (int mask = 0; mask < (1 << m); ++mask) {
-    std::vector<int> S;
-    for (int i = 0; i < m; ++i)
-      if (mask & (1 << i)) S.push_back(i);
-    Eigen::VectorXd z = Eigen::VectorXd::Zero(m);
-    if (!S.empty()) {
-      Eigen::MatrixXd Ass(S.size(), S.size());
-      Eigen::VectorXd qs(S.size());
-      for (size_t a = 0; a < S.size(); ++a) {
-        qs[a] = -q[S[a]];
-        for (size_t b = 0; b < S.size(); ++b) Ass(a, b) = A(S[a], S[b]);
-      }
-      const Eigen::VectorXd zs = Ass.completeOrthogonalDecomposition().solve(qs);
-      if ((Ass * zs - qs).norm() > 1e-9 * scale) continue;  // inconsistent
-      for (size_t a = 0; a < S.size(); ++a) z[S[a]] = zs[a];
-    }
-    const Eigen::VectorXd w = A * z + q;
-    if (z.minCoeff() >= -1e-12 * (1 + z.cwiseAbs().maxCoeff()) && w.minCoeff() >= -1e-9 * scale) {
-      z_out = z;
-      return true;
-    }
-  }
-  return false;
+  Eigen::VectorXd w;
+  return test::brute_force_lcp(A, q, q.cwiseAbs().maxCoeff(), z_out, w);
 }
 
 TEST(Contact, LcpMatchesBruteForceActiveSets) {

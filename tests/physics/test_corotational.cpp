@@ -22,7 +22,6 @@ namespace {
 
 using Mat43 = Eigen::Matrix<double, 4, 3>;
 using Mat12 = Eigen::Matrix<double, 12, 12>;
-constexpr double kPi = 3.14159265358979323846;
 const LinearMaterial kMaterial{5000.0, 0.45};
 
 // A small tube (8 x 4 x 1 by default).
@@ -194,7 +193,7 @@ TEST(CorotationalElements, RigidRotationOfFreeMeshGivesZeroForceUnlikeLinear) {
   const CorotationalElements el(m, kMaterial);
   const Eigen::SparseMatrix<double> K = assemble_stiffness(m, kMaterial);
   // 90 degrees about a tilted axis, plus a translation.
-  const Eigen::Matrix3d Q = Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d(1.0, 2.0, -0.5).normalized()).toRotationMatrix();
+  const Eigen::Matrix3d Q = Eigen::AngleAxisd(EIGEN_PI / 2, Eigen::Vector3d(1.0, 2.0, -0.5).normalized()).toRotationMatrix();
   const Eigen::VectorXd u = rigid_displacement(m, Q, Eigen::Vector3d(0.003, 0.0, -0.01));
   std::vector<Eigen::Matrix3d> R;
   EXPECT_EQ(el.rotations(u, R), 0);
@@ -338,12 +337,12 @@ TEST(CorotationalSolve, TwistOfOneEndBy180DegreesKeepsVolumeUnlikeLinear) {
   const Eigen::VectorXd no_load = Eigen::VectorXd::Zero(n);
   int outer = 0, cg = 0;
   for (int k = 1; k <= 4; ++k) {
-    const CorotationalResult r = solve_corotational(model, no_load, state, opt, twist(k * kPi / 4));
+    const CorotationalResult r = solve_corotational(model, no_load, state, opt, twist(k * EIGEN_PI / 4));
     ASSERT_TRUE(r.converged) << "increment " << k << " residual " << r.residual;
     EXPECT_EQ(r.n_inverted, 0);
     outer += r.iterations, cg += r.cg_iterations;
   }
-  const Eigen::VectorXd u_end = twist(kPi);
+  const Eigen::VectorXd u_end = twist(EIGEN_PI);
   for (int v : m.end_nodes_stop) EXPECT_EQ(state.u.segment<3>(3 * v), u_end.segment<3>(3 * v));
   // Linear: u = u_p + K_ff^-1 (-K u_p) on the free DOFs.
   Eigen::VectorXd du;
@@ -386,7 +385,7 @@ TEST(CorotationalSolve, LaggedWarpedPreconditionerReachesTheSameEquilibriumInFew
     opt.refactor_in_background = background;
     Run out;
     for (int k = 1; k <= 6; ++k) {
-      const CorotationalResult r = solve_corotational(model, no_load, state, opt, twist(k * kPi / 6));
+      const CorotationalResult r = solve_corotational(model, no_load, state, opt, twist(k * EIGEN_PI / 6));
       EXPECT_TRUE(r.converged) << "increment " << k << " residual " << r.residual;
       if (k > 3) out.late_cg += r.cg_iterations;
       out.refactorisations += r.refactorisations;

@@ -18,7 +18,6 @@
 namespace lumen::physics {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 const LinearMaterial kMaterial{5000.0, 0.45};
 
 TetMesh small_tube(int around, int along, int layers, double length, HollowCylinderSpec* spec_out = nullptr) {
@@ -59,7 +58,7 @@ TEST(DynamicModel, LumpedMassTotalsThePolygonalTubeVolume) {
   const DynamicModel model(m, kMaterial, both_ends(m), p);
   // Every cross-section is the annulus between two regular N-gons: area N/2 sin(2 pi/N) (b^2 - a^2).
   const int N = spec.segments_around;
-  const double area = 0.5 * N * std::sin(2 * kPi / N) *
+  const double area = 0.5 * N * std::sin(2 * EIGEN_PI / N) *
                       (spec.outer_radius * spec.outer_radius - spec.inner_radius * spec.inner_radius);
   const double expected = p.density * area * spec.length;
   const Eigen::VectorXd& M = model.mass();

@@ -11,39 +11,16 @@
 #include <vector>
 
 #include "physics/lcp.hpp"
+#include "support/lcp.hpp"
 
 namespace lumen::physics {
 namespace {
 
-// Brute-force twin: every active set S with A_SS z_S = -q_S solvable (least squares, consistent), z >= 0 and
-// w = A z + q >= 0. For a positive semidefinite A, w is the same for every solution; returns the first.
+// Brute-force twin (tests/support/lcp.hpp, every active set), tolerances relative to 1 + max |q|: w of the first
+// solution found. For a positive semidefinite A, w is the same for every solution.
 bool brute_force_w(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, Eigen::VectorXd& w_out) {
-  const int m = static_cast<int>(q.size());
-  const double scale = 1.0 + q.cwiseAbs().maxCoeff();
-  for (int mask = 0; mask < (1 << m); ++mask) {
-    std::vector<int> S;
-    for (int i = 0; i < m; ++i)
-      if (mask & (1 << i)) S.push_back(i);
-    Eigen::VectorXd z = Eigen::VectorXd::Zero(m);
-    if (!S.empty()) {
-      const int s = static_cast<int>(S.size());
-      Eigen::MatrixXd Ass(s, s);
-      Eigen::VectorXd qs(s);
-      for (int a = 0; a < s; ++a) {
-        qs[a] = -q[S[a]];
-        for (int b = 0; b < s; ++b) Ass(a, b) = A(S[a], S[b]);
-      }
-      const Eigen::VectorXd zs = Ass.completeOrthogonalDecomposition().solve(qs);
-      if ((Ass * zs - qs).norm() > 1e-9 * scale) continue;
-      for (int a = 0; a < s; ++a) z[S[a]] = zs[a];
-    }
-    const Eigen::VectorXd w = A * z + q;
-    if (z.minCoeff() >= -1e-12 * (1.0 + z.cwiseAbs().maxCoeff()) && w.minCoeff() >= -1e-9 * scale) {
-      w_out = w;
-      return true;
-    }
-  }
-  return false;
+  Eigen::VectorXd z;
+  return test::brute_force_lcp(A, q, 1.0 + q.cwiseAbs().maxCoeff(), z, w_out);
 }
 
 // The conditions of a solution: z >= 0, w = A z + q >= 0, complementary.

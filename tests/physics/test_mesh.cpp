@@ -14,7 +14,6 @@
 namespace lumen::physics {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 using Tri = std::array<int, 3>;
 
 // Triangle with its cyclic order kept and the smallest index first (same orientation <=> same key).
@@ -194,7 +193,7 @@ TEST(HollowCylinder, VolumeOfStraightMeshIsThePolygonalAnnulusPrism) {
   for (int t = 0; t < m.tets.rows(); ++t) v += tet_volume(m.rest, m.tets, t);
   const int A = s.segments_around;
   const double area =
-      0.5 * A * std::sin(2 * kPi / A) * (s.outer_radius * s.outer_radius - s.inner_radius * s.inner_radius);
+      0.5 * A * std::sin(2 * EIGEN_PI / A) * (s.outer_radius * s.outer_radius - s.inner_radius * s.inner_radius);
   EXPECT_NEAR(v, area * s.length, 1e-12 * area * s.length);
 }
 
@@ -228,7 +227,7 @@ TEST(HollowCylinder, NodeNumberingAsDocumented) {
     for (int k = 0; k <= 2; ++k)
       for (int i = 0; i < 7; ++i) {
         const int v = (j * 3 + k) * 7 + i;
-        const double r = s.inner_radius + (s.outer_radius - s.inner_radius) * k / 2, th = 2 * kPi * i / 7;
+        const double r = s.inner_radius + (s.outer_radius - s.inner_radius) * k / 2, th = 2 * EIGEN_PI * i / 7;
         EXPECT_LE((point(m, v) - Eigen::Vector3d(r * std::cos(th), r * std::sin(th), 0.02 * j)).norm(), 1e-15);
         if (j == 0) {
           EXPECT_EQ(m.end_nodes_start[k * 7 + i], v);

@@ -22,8 +22,6 @@ namespace lumen::physics {
 namespace {
 
 using Mat10x3 = Eigen::Matrix<double, 10, 3>;
-constexpr double kPi = 3.14159265358979323846;
-
 double factorial(int n) { return n <= 1 ? 1.0 : n * factorial(n - 1); }
 
 // Reference coordinates of the 10 nodes: corners, then the midpoints of kTet10Edges.
@@ -353,7 +351,7 @@ void check_isoparametric(const HollowCylinderSpec& spec) {
     const int i = v % na, k = (v / na) % (nr + 1), j = v / (na * (nr + 1));
     const Eigen::Vector3d p = hollow_cylinder_point(
         spec, spec.length * j / spec.segments_along,
-        spec.inner_radius + (spec.outer_radius - spec.inner_radius) * k / nr, 2 * kPi * i / na);
+        spec.inner_radius + (spec.outer_radius - spec.inner_radius) * k / nr, 2 * EIGEN_PI * i / na);
     EXPECT_LT((p - lin.rest.row(v).transpose()).norm(), 1e-15);
   }
   // Edge nodes: local radius = mean of the corners' (so exactly a on the inner wall and b on the outer), and
@@ -399,7 +397,7 @@ TEST(Quadratic, IsoparametricVolumeConvergesAtFourthOrder) {
       const HollowCylinderSpec spec{0.01, 0.013, 0.02, na, na / 4, 1, bend};
       const TetMesh lin = make_hollow_cylinder(spec);
       const QuadraticMesh q = make_quadratic_cylinder(lin, spec);
-      const double exact = kPi * (0.013 * 0.013 - 0.01 * 0.01) * 0.02;
+      const double exact = EIGEN_PI * (0.013 * 0.013 - 0.01 * 0.01) * 0.02;
       double v_lin = 0.0, v_quad = 0.0;
       for (int t = 0; t < lin.tets.rows(); ++t) v_lin += tet_volume(lin.rest, lin.tets, t);
       for (int t = 0; t < q.tets.rows(); ++t) {
@@ -607,7 +605,6 @@ TEST(Quadratic, SurfaceViewSplitsTheWallsIntoTheInscribedPolygonTube) {
   ASSERT_EQ(v.outer.rows(), 4 * lin.outer.rows());
   ASSERT_EQ(v.n_nodes(), q.n_nodes());
   const int n_sides = 2 * spec.segments_around;
-  const double pi = 3.14159265358979323846;
   double area = 0.0;
   std::map<std::pair<int, int>, int> edge_count;
   for (int t = 0; t < v.inner.rows(); ++t) {
@@ -622,7 +619,7 @@ TEST(Quadratic, SurfaceViewSplitsTheWallsIntoTheInscribedPolygonTube) {
       ++edge_count[{std::min(p, r), std::max(p, r)}];
     }
   }
-  EXPECT_NEAR(area, spec.length * 2.0 * n_sides * spec.inner_radius * std::sin(pi / n_sides), 1e-12);
+  EXPECT_NEAR(area, spec.length * 2.0 * n_sides * spec.inner_radius * std::sin(EIGEN_PI / n_sides), 1e-12);
   for (const auto& [e, count] : edge_count) {
     const bool on_end = std::abs(v.rest(e.first, 2) - v.rest(e.second, 2)) < 1e-12 &&
                         (std::abs(v.rest(e.first, 2)) < 1e-12 || std::abs(v.rest(e.first, 2) - spec.length) < 1e-12);

@@ -15,8 +15,6 @@
 namespace lumen::render {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 // Hollow tube along +z from z = 0 to z = length: outer ring nodes, then inner ring nodes; surface triangles
 // wound so their normals point out of the wall (outer: away from the axis, inner: toward it, ends: along -z / +z).
 struct Tube {
@@ -35,7 +33,7 @@ struct Tube {
     for (double r : {outer_radius, inner_radius})
       for (int j = 0; j <= along; ++j)
         for (int i = 0; i < around; ++i) {
-          const double th = 2 * kPi * i / around;
+          const double th = 2 * EIGEN_PI * i / around;
           pos.insert(pos.end(), {r * std::cos(th), r * std::sin(th), length * j / along});
         }
     // Walls: two triangles per quad.
@@ -237,7 +235,7 @@ TEST(Renderer, SideLooksAcrossTheAxisDiagonalFromAbove) {
     // Diagonal: elevation 35..45 degrees above the axis plane, and not square to the axis.
     Renderer r(kW, kH, CameraPreset::Diagonal, f);
     const Eigen::Vector3d to_eye = (r.eye() - f.center).normalized();
-    const double elevation = std::asin(to_eye.y()) * 180 / kPi;
+    const double elevation = std::asin(to_eye.y()) * 180 / EIGEN_PI;
     EXPECT_GE(elevation, 35.0);
     EXPECT_LE(elevation, 45.0);
     EXPECT_GT(std::abs(to_eye.dot(f.axis)), 0.2);

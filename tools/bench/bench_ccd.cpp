@@ -1,4 +1,4 @@
-// Elementary CCD tests over the dev-set query files (data/ccd), per file and kind: the time per query
+// Elementary CCD tests over the dev-set query files (tests/data/ccd), per file and kind: the time per query
 // (items/s = queries/s) at gap 0 and at a gap of 1e-4 (the response's use), and the slowest query.
 #include <benchmark/benchmark.h>
 
@@ -16,8 +16,8 @@ namespace {
 using lumen::collision::CcdHit;
 using lumen::collision::CcdQuery;
 
-// The shared data next to the repository (LUMEN_SOURCE_DIR comes from lumen_options).
-const std::string kDataDir = std::string(LUMEN_SOURCE_DIR) + "/../shared/data/ccd/";
+// The dev-set data in the repository (LUMEN_TEST_DATA_DIR = tests/data, set in tools/bench/CMakeLists.txt).
+const std::string kDataDir = std::string(LUMEN_TEST_DATA_DIR) + "/ccd/";
 
 // The queries of one kind in one file, read once.
 const std::vector<CcdQuery>& queries(const std::string& file, bool edge_edge) {

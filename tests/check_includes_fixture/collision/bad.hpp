@@ -1,0 +1,4 @@
+// Planted violation: engine through angle brackets.
+#pragma once
+#include "collision/ccd.hpp"
+#include <engine/session.hpp>
