@@ -758,145 +758,147 @@ bool box_excluded(const Problem& pb, const Box& b, const Corners& cs, Direction*
   return direction_excludes(cs, dirs, nd);
 }
 
-bool solve(const Problem& pb, int max_boxes, CcdHit* hit) {
+// The running state of one solve: the work spent, the whole-domain box and the upper bound of the time
+// of contact found by the fast path (t_hi > 1: none yet), with the contact parameters there and the time
+// t_stop before which the search still has to look.
+struct SolveState {
   Corners cs;
   int boxes = 1;
-  auto no_contact = [&]() {
-    if (hit != nullptr) {
-      *hit = CcdHit{};
-      hit->boxes = boxes;
-    }
-    return false;
-  };
-  // Whole domain: the swept bounding box of F, then the coplanarity cubic over [0, 1].
   Box root{0.0, 1.0, 0.0, 1.0, 0.0, 1.0, {}, {}, 0.0, 0.0, 0.0, 0};
-  evaluate(pb, root, false, cs);
-  if (axis_excludes(pb, root)) return no_contact();
-  double D[2][3], E[2][3], F[2][3];
-  at_time(pb, 0.0, D[0], E[0], F[0]);
-  at_time(pb, 1.0, D[1], E[1], F[1]);
-  if (cubic_excludes(pb, D, E, F) || precond_excludes(pb, cs)) return no_contact();
-  // Fast path: an upper bound t_hi of the time of contact (a contact within tolerance at or before it)
-  // from a transversal crossing certified by Miranda at a root of the cubic, or (gap > 0) from a
-  // witness point within gap + tolerance / 2 found by sampling and regula falsi; then only [0, t_stop]
-  // is left to search, t_stop = t_hi - rt (each coordinate of F moves by at most tolerance / 2 in rt),
-  // and t_stop is the toi if that is clean. Roots where the contact lies on the boundary of the domain
-  // or is tangential cannot be certified by Miranda: there a witness point within gap (up to rounding:
-  // 8 max eps) at the root time bounds the toi instead.
+  double D[2][3], E[2][3], F[2][3];  // d, e, f at t = 0 and t = 1
   double t_hi = 2.0, hit_u = 0.0, hit_v = 0.0, t_stop = 1.0;
+  double rt = 0.0;  // time step over which each coordinate of F moves by at most tolerance / 2
+};
+
+// Phase 1, set-up and bounds: true when the whole domain is excluded by the swept bounding box of F,
+// the coplanarity cubic over [0, 1] or the preconditioned range; otherwise leaves rt set.
+bool whole_domain_excluded(const Problem& pb, SolveState& st) {
+  evaluate(pb, st.root, false, st.cs);
+  if (axis_excludes(pb, st.root)) return true;
+  at_time(pb, 0.0, st.D[0], st.E[0], st.F[0]);
+  at_time(pb, 1.0, st.D[1], st.E[1], st.F[1]);
+  if (cubic_excludes(pb, st.D, st.E, st.F) || precond_excludes(pb, st.cs)) return true;
+  st.rt = std::max(kMinWidth, std::min(1.0, 0.5 * pb.tolerance / std::max(st.root.ct, 1e-300)));
+  return false;
+}
+
+// Phase 2a, fast path at the roots of the cubic: an upper bound t_hi of the time of contact (a contact
+// within tolerance at or before it) from a transversal crossing certified by Miranda at a root of the
+// cubic; then only [0, t_stop] is left to search, t_stop = t_hi - rt (each coordinate of F moves by at
+// most tolerance / 2 in rt), and t_stop is the toi if that is clean. Roots where the contact lies on the
+// boundary of the domain or is tangential cannot be certified by Miranda: there a witness point within
+// gap (up to rounding: 8 max eps) at the root time bounds the toi instead.
+void bound_from_cubic_roots(const Problem& pb, SolveState& st) {
   const double exact_allowance = 8.0 * std::max({pb.eps[0], pb.eps[1], pb.eps[2]});
-  const double rt = std::max(kMinWidth, std::min(1.0, 0.5 * pb.tolerance / std::max(root.ct, 1e-300)));
-  {
-    double bern[4], roots[3];
-    cubic_bernstein(D, E, F, bern);
-    const int nr = cubic_roots(bern, roots);
-    Box cert{};
-    for (int i = 0; i < nr && t_hi > 1.0; ++i) {
-      boxes += 2;
-      if (certify_near(pb, roots[i], cert, hit_u, hit_v)) {
-        t_hi = cert.t1;
-        t_stop = cert.t0;
-        break;
-      }
-      const double t = std::min(1.0, grid_up(roots[i]));
-      double u, v;
-      closest_in_domain(pb, t, u, v);
-      if (witness(pb, t, u, v, exact_allowance)) {
-        t_hi = t;
-        t_stop = std::max(0.0, grid_down(t - rt));
-        hit_u = u;
-        hit_v = v;
-      }
+  double bern[4], roots[3];
+  cubic_bernstein(st.D, st.E, st.F, bern);
+  const int nr = cubic_roots(bern, roots);
+  Box cert{};
+  for (int i = 0; i < nr && st.t_hi > 1.0; ++i) {
+    st.boxes += 2;
+    if (certify_near(pb, roots[i], cert, st.hit_u, st.hit_v)) {
+      st.t_hi = cert.t1;
+      st.t_stop = cert.t0;
+      break;
+    }
+    const double t = std::min(1.0, grid_up(roots[i]));
+    double u, v;
+    closest_in_domain(pb, t, u, v);
+    if (witness(pb, t, u, v, exact_allowance)) {
+      st.t_hi = t;
+      st.t_stop = std::max(0.0, grid_down(t - st.rt));
+      st.hit_u = u;
+      st.hit_v = v;
     }
   }
-  if (pb.gap > 0.0) {
-    // Earliest sample time with a witness, then regula falsi (Illinois) on the distance towards the
-    // first one: t_lo never has a witness, t_hi always bounds a contact.
-    const double allowance = 0.5 * pb.tolerance;
-    auto excess = [&](double t, double& u, double& v) {  // distance estimate - gap - allowance
-      closest_in_domain(pb, t, u, v);
-      double D3[3], E3[3], F3[3], r2 = 0.0;
-      at_time(pb, t, D3, E3, F3);
-      for (int j = 0; j < 3; ++j) {
-        const double x = D3[j] + u * E3[j] + v * F3[j];
-        r2 += x * x;
-      }
-      return std::sqrt(r2) - pb.gap - allowance;
-    };
-    constexpr int kSamples = 8;
-    double t_lo = -1.0, f_lo = 0.0, f_hi = 0.0;
-    for (int k = 0; k <= kSamples; ++k) {
-      const double t = static_cast<double>(k) / kSamples;
-      if (t >= t_hi) break;
-      double u, v;
-      ++boxes;
-      const double f = excess(t, u, v);
-      if (witness(pb, t, u, v, allowance)) {
-        t_hi = t;
-        f_hi = f;
-        hit_u = u;
-        hit_v = v;
-        break;
-      }
-      t_lo = t;
-      f_lo = f;
+}
+
+// Phase 2b, fast path within the gap (gap > 0): the earliest sample time with a witness point within
+// gap + tolerance / 2, then regula falsi (Illinois) on the distance towards the first one: t_lo never
+// has a witness, t_hi always bounds a contact. True when the contact is at t = 0 (nothing to search).
+bool bound_from_gap_witness(const Problem& pb, SolveState& st) {
+  const double allowance = 0.5 * pb.tolerance;
+  auto excess = [&](double t, double& u, double& v) {  // distance estimate - gap - allowance
+    closest_in_domain(pb, t, u, v);
+    double D3[3], E3[3], F3[3], r2 = 0.0;
+    at_time(pb, t, D3, E3, F3);
+    for (int j = 0; j < 3; ++j) {
+      const double x = D3[j] + u * E3[j] + v * F3[j];
+      r2 += x * x;
     }
-    if (t_hi == 0.0) {
-      report(pb, 0.0, hit_u, hit_v, false, boxes, hit);
-      return true;
+    return std::sqrt(r2) - pb.gap - allowance;
+  };
+  constexpr int kSamples = 8;
+  double t_lo = -1.0, f_lo = 0.0, f_hi = 0.0;
+  for (int k = 0; k <= kSamples; ++k) {
+    const double t = static_cast<double>(k) / kSamples;
+    if (t >= st.t_hi) break;
+    double u, v;
+    ++st.boxes;
+    const double f = excess(t, u, v);
+    if (witness(pb, t, u, v, allowance)) {
+      st.t_hi = t;
+      f_hi = f;
+      st.hit_u = u;
+      st.hit_v = v;
+      break;
     }
-    if (t_hi <= 1.0) {
-      if (t_lo >= 0.0 && f_hi == 0.0) {
-        double u, v;
-        f_hi = std::min(0.0, excess(t_hi, u, v));
-      }
-      int kept = 0;  // +1 / -1: how many times in a row t_lo / t_hi was kept
-      for (int it = 0; it < 64 && t_hi - t_lo > rt; ++it) {
-        const double w = t_hi - std::max(t_lo, 0.0);
-        double m = t_lo >= 0.0 && f_lo > f_hi ? t_lo + w * f_lo / (f_lo - f_hi) : t_hi - 0.5 * w;
-        m = std::min(t_hi - 0.0625 * rt, std::max(std::max(t_lo, 0.0) + 0.0625 * rt, m));
-        m = grid_down(m);
-        if (!(std::max(t_lo, 0.0) < m && m < t_hi)) m = grid_mid(std::max(t_lo, 0.0), t_hi);
-        if (!(std::max(t_lo, 0.0) < m && m < t_hi)) break;
-        double u, v;
-        ++boxes;
-        const double f = excess(m, u, v);
-        if (witness(pb, m, u, v, allowance)) {
-          t_hi = m;
-          f_hi = std::min(f, 0.0);
-          hit_u = u;
-          hit_v = v;
-          kept = kept > 0 ? kept + 1 : 1;
-          if (kept >= 2) f_lo *= 0.5;
-        } else {
-          t_lo = m;
-          f_lo = std::max(f, 0.0);
-          kept = kept < 0 ? kept - 1 : -1;
-          if (kept <= -2) f_hi *= 0.5;
-        }
-      }
-      t_stop = std::max(0.0, grid_down(t_hi - rt));
+    t_lo = t;
+    f_lo = f;
+  }
+  if (st.t_hi == 0.0) return true;
+  if (st.t_hi > 1.0) return false;
+  if (t_lo >= 0.0 && f_hi == 0.0) {
+    double u, v;
+    f_hi = std::min(0.0, excess(st.t_hi, u, v));
+  }
+  int kept = 0;  // +1 / -1: how many times in a row t_lo / t_hi was kept
+  for (int it = 0; it < 64 && st.t_hi - t_lo > st.rt; ++it) {
+    const double w = st.t_hi - std::max(t_lo, 0.0);
+    double m = t_lo >= 0.0 && f_lo > f_hi ? t_lo + w * f_lo / (f_lo - f_hi) : st.t_hi - 0.5 * w;
+    m = std::min(st.t_hi - 0.0625 * st.rt, std::max(std::max(t_lo, 0.0) + 0.0625 * st.rt, m));
+    m = grid_down(m);
+    if (!(std::max(t_lo, 0.0) < m && m < st.t_hi)) m = grid_mid(std::max(t_lo, 0.0), st.t_hi);
+    if (!(std::max(t_lo, 0.0) < m && m < st.t_hi)) break;
+    double u, v;
+    ++st.boxes;
+    const double f = excess(m, u, v);
+    if (witness(pb, m, u, v, allowance)) {
+      st.t_hi = m;
+      f_hi = std::min(f, 0.0);
+      st.hit_u = u;
+      st.hit_v = v;
+      kept = kept > 0 ? kept + 1 : 1;
+      if (kept >= 2) f_lo *= 0.5;
+    } else {
+      t_lo = m;
+      f_lo = std::max(f, 0.0);
+      kept = kept < 0 ? kept - 1 : -1;
+      if (kept <= -2) f_hi *= 0.5;
     }
   }
-  const bool bounded_above = t_hi <= 1.0;
-  if (bounded_above) {
-    if (t_stop <= 0.0) {
-      report(pb, 0.0, hit_u, hit_v, false, boxes, hit);
-      return true;
-    }
-    root.t1 = t_stop;
-    ++boxes;
-    Direction dirs[6];
-    int nd = 0;
-    if (!evaluate(pb, root, true, cs) || box_excluded(pb, root, cs, dirs, nd)) {
-      report(pb, t_stop, hit_u, hit_v, false, boxes, hit);
-      return true;
-    }
-  }
-  // Earliest-t-first bisection of [0, t_stop] x domain.
+  st.t_stop = std::max(0.0, grid_down(st.t_hi - st.rt));
+  return false;
+}
+
+// Phase 3, the exclusion test of what is left (with an upper bound t_hi and t_stop > 0): true when
+// [0, t_stop] x domain is provably free of contact, so that t_stop is the toi; otherwise the root box is
+// narrowed to it for the subdivision.
+bool nothing_before_stop(const Problem& pb, SolveState& st) {
+  st.root.t1 = st.t_stop;
+  ++st.boxes;
+  Direction dirs[6];
+  int nd = 0;
+  return !evaluate(pb, st.root, true, st.cs) || box_excluded(pb, st.root, st.cs, dirs, nd);
+}
+
+// Phase 4, root finding by subdivision: earliest-t-first bisection of the root box, each child dropped
+// when excluded and narrowed in t otherwise. True (and the contact reported) when a box is accepted, a
+// witness within the gap is found or the work bound is reached; false when every box was excluded.
+bool bisect(const Problem& pb, int max_boxes, SolveState& st, CcdHit* hit) {
   thread_local std::vector<Box> heap;
   heap.clear();
-  heap.push_back(root);
+  heap.push_back(st.root);
   double witness_t = -1.0;  // end time of the last witness tried
   while (!heap.empty()) {
     std::pop_heap(heap.begin(), heap.end(), Later{});
@@ -906,7 +908,7 @@ bool solve(const Problem& pb, int max_boxes, CcdHit* hit) {
     const bool t_min = b.t1 - b.t0 <= kMinWidth, u_min = b.u1 - b.u0 <= kMinWidth,
                v_min = b.v1 - b.v0 <= kMinWidth;
     if (accepted(pb, b) || (t_min && u_min && v_min)) {
-      report(pb, b.t0, 0.5 * (b.u0 + b.u1), 0.5 * (b.v0 + b.v1), false, boxes, hit);
+      report(pb, b.t0, 0.5 * (b.u0 + b.u1), 0.5 * (b.v0 + b.v1), false, st.boxes, hit);
       return true;
     }
     // gap > 0: when each coordinate of F moves by at most tolerance / 2 over the box's times, a domain
@@ -915,15 +917,15 @@ bool solve(const Problem& pb, int max_boxes, CcdHit* hit) {
     if (pb.gap > 0.0 && b.ct <= 0.5 * pb.tolerance && b.t1 != witness_t) {
       witness_t = b.t1;
       double u, v;
-      ++boxes;
+      ++st.boxes;
       closest_in_domain(pb, b.t1, u, v);
       if (witness(pb, b.t1, u, v, 0.5 * pb.tolerance)) {
-        report(pb, b.t0, u, v, false, boxes, hit);
+        report(pb, b.t0, u, v, false, st.boxes, hit);
         return true;
       }
     }
-    if (boxes >= max_boxes) {
-      report(pb, b.t0, 0.5 * (b.u0 + b.u1), 0.5 * (b.v0 + b.v1), true, boxes, hit);
+    if (st.boxes >= max_boxes) {
+      report(pb, b.t0, 0.5 * (b.u0 + b.u1), 0.5 * (b.v0 + b.v1), true, st.boxes, hit);
       return true;
     }
     // Split the parameter that widens the range most.
@@ -945,21 +947,51 @@ bool solve(const Problem& pb, int max_boxes, CcdHit* hit) {
       c[1].v0 = m;
     }
     for (Box& child : c) {
-      ++boxes;
+      ++st.boxes;
       Direction dirs[6];
       int nd = 0;
-      if (!evaluate(pb, child, split_t, cs) || box_excluded(pb, child, cs, dirs, nd)) continue;
-      narrow_t(pb, child, cs, dirs, nd, true, boxes);
+      if (!evaluate(pb, child, split_t, st.cs) || box_excluded(pb, child, st.cs, dirs, nd)) continue;
+      narrow_t(pb, child, st.cs, dirs, nd, true, st.boxes);
       heap.push_back(child);
       std::push_heap(heap.begin(), heap.end(), Later{});
     }
   }
-  // Nothing before t_stop: the contact bounded by t_hi is the first one.
-  if (bounded_above) {
-    report(pb, t_stop, hit_u, hit_v, false, boxes, hit);
+  return false;
+}
+
+// Phase 5, the result when no box was accepted: the contact bounded by the fast path (at t_stop, nothing
+// being before it), or no contact.
+bool final_result(const Problem& pb, const SolveState& st, CcdHit* hit) {
+  if (st.t_hi <= 1.0) {
+    report(pb, st.t_stop, st.hit_u, st.hit_v, false, st.boxes, hit);
     return true;
   }
-  return no_contact();
+  if (hit != nullptr) {
+    *hit = CcdHit{};
+    hit->boxes = st.boxes;
+  }
+  return false;
+}
+
+// The elementary test of one problem: set-up and whole-domain bounds, the fast-path upper bound of the
+// time of contact, the exclusion of what is before it, the root-finding subdivision, the result.
+bool solve(const Problem& pb, int max_boxes, CcdHit* hit) {
+  SolveState st;
+  if (whole_domain_excluded(pb, st)) return final_result(pb, st, hit);
+  bound_from_cubic_roots(pb, st);
+  if (pb.gap > 0.0 && bound_from_gap_witness(pb, st)) {
+    report(pb, 0.0, st.hit_u, st.hit_v, false, st.boxes, hit);
+    return true;
+  }
+  if (st.t_hi <= 1.0) {
+    if (st.t_stop <= 0.0) {
+      report(pb, 0.0, st.hit_u, st.hit_v, false, st.boxes, hit);
+      return true;
+    }
+    if (nothing_before_stop(pb, st)) return final_result(pb, st, hit);
+  }
+  if (bisect(pb, max_boxes, st, hit)) return true;
+  return final_result(pb, st, hit);
 }
 
 void check_point(const Vec3& x, const char* name) {

@@ -4,7 +4,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "collision/self_collision.hpp"
+#include "collision/surface.hpp"
 
 namespace lumen::collision {
 

@@ -123,12 +123,17 @@ struct Kdop {
   double extent() const { return (hi[0] - lo[0]) + (hi[1] - lo[1]) + (hi[2] - lo[2]); }
 };
 
-// Binary BVH over n primitives, one primitive per leaf. The topology is built once (median split of the
-// primitive centres); the caller writes the leaf k-DOPs and refits the internal nodes bottom-up.
-template <int K>
-class KdopBvh {
+// Topology of a binary BVH over n primitives, one primitive per leaf: built once (median split of the
+// primitive centres), immutable afterwards, independent of k. The boxes live in BvhBoxes<K>, so that one
+// topology can be shared by several refit workspaces.
+class BvhTopology {
  public:
-  // Build the topology from primitive centres (n x 3 row-major, metres); previous boxes are discarded.
+  struct Node {
+    int left = -1, right = -1;  // children (internal nodes)
+    int prim = -1;              // primitive (leaves), -1 for internal nodes
+  };
+
+  // Build from primitive centres (n x 3 row-major, metres); the previous topology is discarded.
   void build(const double* centres, int n) {
     nodes_.clear();
     leaf_of_prim_.assign(static_cast<std::size_t>(n), -1);
@@ -138,75 +143,15 @@ class KdopBvh {
       for (int i = 0; i < n; ++i) prims[static_cast<std::size_t>(i)] = i;
       build_range(centres, prims.data(), 0, n);
     }
-    boxes_.resize(nodes_.size());
-    for (auto& b : boxes_) b.clear();
-    extent_.assign(nodes_.size(), 0.0);
   }
   int num_prims() const { return static_cast<int>(leaf_of_prim_.size()); }
   int num_nodes() const { return static_cast<int>(nodes_.size()); }
-  // The leaf k-DOP of primitive i, to be written before refit().
-  Kdop<K>& leaf_box(int prim) { return boxes_[static_cast<std::size_t>(leaf_of_prim_[static_cast<std::size_t>(prim)])]; }
-  const Kdop<K>& leaf_box(int prim) const {
-    return boxes_[static_cast<std::size_t>(leaf_of_prim_[static_cast<std::size_t>(prim)])];
-  }
-  // k-DOP of node i (0 is the root).
-  const Kdop<K>& node_box(int i) const { return boxes_[static_cast<std::size_t>(i)]; }
-
-  // Recompute internal nodes from the leaves (children always follow their parent in the node array),
-  // and each node's size for the traversal order.
-  void refit() {
-    extent_.resize(nodes_.size());
-    for (int i = num_nodes() - 1; i >= 0; --i) {
-      const Node& nd = nodes_[static_cast<std::size_t>(i)];
-      Kdop<K>& b = boxes_[static_cast<std::size_t>(i)];
-      if (nd.prim < 0) {
-        b = boxes_[static_cast<std::size_t>(nd.left)];
-        b.merge(boxes_[static_cast<std::size_t>(nd.right)]);
-      }
-      extent_[static_cast<std::size_t>(i)] = b.extent();
-    }
-  }
-
-  // Self-traversal (after refit): calls f(i, j) (i != j) once for every unordered pair of primitives whose
-  // leaf k-DOPs overlap. Each internal node against itself means its two children against each other
-  // (each pair of leaves meets at one lowest common ancestor); a pair of overlapping nodes descends the
-  // larger one, pushing only child pairs that overlap.
-  template <class F>
-  void self_pairs(F&& f) const {
-    for (int i = 0; i < num_nodes(); ++i) {
-      const Node& nd = nodes_[static_cast<std::size_t>(i)];
-      if (nd.prim >= 0) continue;
-      stack_.clear();
-      if (box(nd.left).overlaps(box(nd.right))) stack_.push_back({nd.left, nd.right});
-      while (!stack_.empty()) {
-        const Pair pr = stack_.back();
-        stack_.pop_back();
-        const Node& na = nodes_[static_cast<std::size_t>(pr.a)];
-        const Node& nb = nodes_[static_cast<std::size_t>(pr.b)];
-        if (na.prim >= 0 && nb.prim >= 0) {
-          f(na.prim, nb.prim);
-        } else if (nb.prim >= 0 || (na.prim < 0 && extent_[static_cast<std::size_t>(pr.a)] >= extent_[static_cast<std::size_t>(pr.b)])) {
-          const Kdop<K>& bb = box(pr.b);
-          if (box(na.right).overlaps(bb)) stack_.push_back({na.right, pr.b});
-          if (box(na.left).overlaps(bb)) stack_.push_back({na.left, pr.b});
-        } else {
-          const Kdop<K>& ba = box(pr.a);
-          if (ba.overlaps(box(nb.right))) stack_.push_back({pr.a, nb.right});
-          if (ba.overlaps(box(nb.left))) stack_.push_back({pr.a, nb.left});
-        }
-      }
-    }
-  }
+  // Node i (0 is the root; children always follow their parent).
+  const Node& node(int i) const { return nodes_[static_cast<std::size_t>(i)]; }
+  // Node index of primitive i's leaf.
+  int leaf_of(int prim) const { return leaf_of_prim_[static_cast<std::size_t>(prim)]; }
 
  private:
-  struct Node {
-    int left = -1, right = -1;  // children (internal nodes)
-    int prim = -1;              // primitive (leaves), -1 for internal nodes
-  };
-  struct Pair {
-    int a, b;
-  };
-
   // Top-down median split of prims[begin, end) along the longest axis of their centres' bounds.
   int build_range(const double* c, int* prims, int begin, int end) {
     const int id = static_cast<int>(nodes_.size());
@@ -240,13 +185,143 @@ class KdopBvh {
     return id;
   }
 
+  std::vector<Node> nodes_;        // tree, root at 0, children after parents
+  std::vector<int> leaf_of_prim_;  // node index of each primitive's leaf
+};
+
+// The mutable half of a BVH: one k-DOP per node of a BvhTopology, refitted per frame, and the traversal
+// scratch. Every call takes the topology the boxes belong to; reset() sizes them for it.
+template <int K>
+class BvhBoxes {
+ public:
+  // Size for topology `topo`, all boxes empty.
+  void reset(const BvhTopology& topo) {
+    boxes_.resize(static_cast<std::size_t>(topo.num_nodes()));
+    for (auto& b : boxes_) b.clear();
+    extent_.assign(boxes_.size(), 0.0);
+  }
+  // reset() unless already sized for topo.
+  void fit(const BvhTopology& topo) {
+    if (boxes_.size() != static_cast<std::size_t>(topo.num_nodes())) reset(topo);
+  }
+  // The leaf k-DOP of primitive i, to be written before refit().
+  Kdop<K>& leaf_box(const BvhTopology& topo, int prim) { return boxes_[static_cast<std::size_t>(topo.leaf_of(prim))]; }
+  const Kdop<K>& leaf_box(const BvhTopology& topo, int prim) const {
+    return boxes_[static_cast<std::size_t>(topo.leaf_of(prim))];
+  }
+  // k-DOP of node i (0 is the root).
+  const Kdop<K>& node_box(int i) const { return boxes_[static_cast<std::size_t>(i)]; }
+
+  // Recompute internal nodes from the leaves (children always follow their parent in the node array),
+  // and each node's size for the traversal order.
+  void refit(const BvhTopology& topo) {
+    extent_.resize(boxes_.size());
+    for (int i = topo.num_nodes() - 1; i >= 0; --i) {
+      const BvhTopology::Node& nd = topo.node(i);
+      Kdop<K>& b = boxes_[static_cast<std::size_t>(i)];
+      if (nd.prim < 0) {
+        b = boxes_[static_cast<std::size_t>(nd.left)];
+        b.merge(boxes_[static_cast<std::size_t>(nd.right)]);
+      }
+      extent_[static_cast<std::size_t>(i)] = b.extent();
+    }
+  }
+
+  // Self-traversal (after refit): calls f(i, j) (i != j) once for every unordered pair of primitives whose
+  // leaf k-DOPs overlap. Each internal node against itself means its two children against each other
+  // (each pair of leaves meets at one lowest common ancestor); a pair of overlapping nodes descends the
+  // larger one, pushing only child pairs that overlap.
+  template <class F>
+  void self_pairs(const BvhTopology& topo, F&& f) const {
+    for (int i = 0; i < topo.num_nodes(); ++i) {
+      const BvhTopology::Node& nd = topo.node(i);
+      if (nd.prim >= 0) continue;
+      stack_.clear();
+      if (box(nd.left).overlaps(box(nd.right))) stack_.push_back({nd.left, nd.right});
+      descend(topo, *this, topo, f);
+    }
+  }
+
+  // Traversal of two different trees (after both refits): calls f(i, j) once for every pair of a
+  // primitive i of this tree (topology topo) and a primitive j of the other (boxes other, topology
+  // other_topo) whose leaf k-DOPs overlap; same descent rule as self_pairs.
+  template <class F>
+  void cross_pairs(const BvhTopology& topo, const BvhBoxes& other, const BvhTopology& other_topo, F&& f) const {
+    stack_.clear();
+    if (topo.num_nodes() == 0 || other_topo.num_nodes() == 0) return;
+    if (box(0).overlaps(other.box(0))) stack_.push_back({0, 0});
+    descend(topo, other, other_topo, f);
+  }
+
+ private:
+  struct Pair {
+    int a, b;  // node of this tree (topology ta), node of the other (tb)
+  };
+
+  // Pop node pairs off stack_ until empty: a leaf pair is reported, otherwise the larger node (or the
+  // one that is not a leaf) is descended, pushing only the child pairs that overlap.
+  template <class F>
+  void descend(const BvhTopology& ta, const BvhBoxes& ob, const BvhTopology& tb, F& f) const {
+    while (!stack_.empty()) {
+      const Pair pr = stack_.back();
+      stack_.pop_back();
+      const BvhTopology::Node& na = ta.node(pr.a);
+      const BvhTopology::Node& nb = tb.node(pr.b);
+      if (na.prim >= 0 && nb.prim >= 0) {
+        f(na.prim, nb.prim);
+      } else if (nb.prim >= 0 || (na.prim < 0 && extent_[static_cast<std::size_t>(pr.a)] >= ob.extent_[static_cast<std::size_t>(pr.b)])) {
+        const Kdop<K>& bb = ob.box(pr.b);
+        if (box(na.right).overlaps(bb)) stack_.push_back({na.right, pr.b});
+        if (box(na.left).overlaps(bb)) stack_.push_back({na.left, pr.b});
+      } else {
+        const Kdop<K>& ba = box(pr.a);
+        if (ba.overlaps(ob.box(nb.right))) stack_.push_back({pr.a, nb.right});
+        if (ba.overlaps(ob.box(nb.left))) stack_.push_back({pr.a, nb.left});
+      }
+    }
+  }
+
   const Kdop<K>& box(int i) const { return boxes_[static_cast<std::size_t>(i)]; }
 
-  std::vector<Node> nodes_;        // tree, root at 0, children after parents
-  std::vector<Kdop<K>> boxes_;     // one k-DOP per node
-  std::vector<double> extent_;     // node sizes (Kdop::extent) from the last refit, metres
-  std::vector<int> leaf_of_prim_;  // node index of each primitive's leaf
+  std::vector<Kdop<K>> boxes_;       // one k-DOP per node
+  std::vector<double> extent_;       // node sizes (Kdop::extent) from the last refit, metres
   mutable std::vector<Pair> stack_;  // traversal scratch
+};
+
+// A BVH with its own topology and boxes (BvhTopology + BvhBoxes<K>), for single-owner use: the caller
+// builds the topology, writes the leaf k-DOPs and refits the internal nodes bottom-up.
+template <int K>
+class KdopBvh {
+ public:
+  // Build the topology from primitive centres (n x 3 row-major, metres); previous boxes are discarded.
+  void build(const double* centres, int n) {
+    topo_.build(centres, n);
+    boxes_.reset(topo_);
+  }
+  int num_prims() const { return topo_.num_prims(); }
+  int num_nodes() const { return topo_.num_nodes(); }
+  // The leaf k-DOP of primitive i, to be written before refit().
+  Kdop<K>& leaf_box(int prim) { return boxes_.leaf_box(topo_, prim); }
+  const Kdop<K>& leaf_box(int prim) const { return boxes_.leaf_box(topo_, prim); }
+  // k-DOP of node i (0 is the root).
+  const Kdop<K>& node_box(int i) const { return boxes_.node_box(i); }
+  // Recompute internal nodes from the leaves.
+  void refit() { boxes_.refit(topo_); }
+  // See BvhBoxes::self_pairs.
+  template <class F>
+  void self_pairs(F&& f) const {
+    boxes_.self_pairs(topo_, f);
+  }
+  // See BvhBoxes::cross_pairs: f(i, j) for primitive i of this tree and j of `other`.
+  template <class F>
+  void cross_pairs(const KdopBvh& other, F&& f) const {
+    boxes_.cross_pairs(topo_, other.boxes_, other.topo_, f);
+  }
+  const BvhTopology& topology() const { return topo_; }
+
+ private:
+  BvhTopology topo_;
+  BvhBoxes<K> boxes_;
 };
 
 }  // namespace lumen::collision
