@@ -6,29 +6,16 @@
 #include <sstream>
 
 namespace lumen::engine {
-namespace {
-
-// Index i such that times[i] <= t < times[i+1], and the blend weight; clamps outside the range.
-void bracket(const std::vector<double>& times, double t, size_t& i, double& w) {
-  if (t <= times.front()) { i = 0; w = 0.0; return; }
-  if (t >= times.back()) { i = times.size() - 1; w = 0.0; return; }
-  i = static_cast<size_t>(std::upper_bound(times.begin(), times.end(), t) - times.begin()) - 1;
-  w = (t - times[i]) / (times[i + 1] - times[i]);
-}
-
-}  // namespace
-
 TrackSource::TrackSource(const Eigen::Vector3d& point, std::vector<TrackKey> keys, ProbeDrive drive)
     : point_(point), keys_(std::move(keys)), drive_(drive) {
   if (keys_.empty()) throw InputError("track: must not be empty");
-  for (const TrackKey& k : keys_) times_.push_back(k.t);
 }
 
 ProbeSample TrackSource::sample(double t) {
   // Interpolate the force linearly between the surrounding keys.
   size_t i;
   double w;
-  bracket(times_, t, i, w);
+  bracket_keys(keys_, t, i, w);
   ProbeSample s;
   s.point = point_;
   const Eigen::Vector3d value = (w == 0.0) ? keys_[i].value : ((1.0 - w) * keys_[i].value + w * keys_[i + 1].value);
@@ -86,7 +73,7 @@ ReplaySource::ReplaySource(const std::string& csv_path) {
 ProbeSample ReplaySource::sample(double t) {
   size_t i;
   double w;
-  bracket(t_, t, i, w);
+  bracket_times(t_, t, i, w);
   ProbeSample s;
   s.point = (w == 0.0) ? x_[i] : ((1 - w) * x_[i] + w * x_[i + 1]);
   s.force = (w == 0.0) ? f_[i] : ((1 - w) * f_[i] + w * f_[i + 1]);

@@ -6,6 +6,7 @@
 // reaction force at that point (what a haptic device displays). A device source runs its own polling thread at
 // the device's rate (e.g. 1 kHz): `sample` returns its latest reading without waiting, and `feedback` stores the
 // force for the device thread to send. The engine never blocks on a source.
+#include <algorithm>
 #include <memory>
 #include <string>
 #include <vector>
@@ -36,6 +37,35 @@ class InputSource {
   virtual bool point_is_fixed() const { return true; }
 };
 
+// Key frames with times strictly increasing (time_of(key), seconds): the key i and blend weight w of time t,
+// value(t) = (1 - w) value_i + w value_{i+1}; held (w = 0) at the first key before it and at the last after it.
+// The one key-frame interpolator of tracks, twists and replays.
+template <class Key, class TimeOf>
+void bracket_by(const std::vector<Key>& keys, double t, TimeOf time_of, size_t& i, double& w) {
+  if (t <= time_of(keys.front())) {
+    i = 0;
+    w = 0.0;
+    return;
+  }
+  if (t >= time_of(keys.back())) {
+    i = keys.size() - 1;
+    w = 0.0;
+    return;
+  }
+  i = static_cast<size_t>(std::upper_bound(keys.begin(), keys.end(), t,
+                                           [&](double v, const Key& k) { return v < time_of(k); }) - keys.begin()) - 1;
+  w = (t - time_of(keys[i])) / (time_of(keys[i + 1]) - time_of(keys[i]));
+}
+// Keys with a member t (TrackKey, TwistKey).
+template <class Key>
+void bracket_keys(const std::vector<Key>& keys, double t, size_t& i, double& w) {
+  bracket_by(keys, t, [](const Key& k) { return k.t; }, i, w);
+}
+// Plain times.
+inline void bracket_times(const std::vector<double>& times, double t, size_t& i, double& w) {
+  bracket_by(times, t, [](double v) { return v; }, i, w);
+}
+
 // Scripted key frames at a fixed point; linear interpolation between keys, held before the first / after the last.
 class TrackSource final : public InputSource {
  public:
@@ -46,7 +76,6 @@ class TrackSource final : public InputSource {
  private:
   Eigen::Vector3d point_;
   std::vector<TrackKey> keys_;
-  std::vector<double> times_;  // n_keys, seconds (keys_[k].t)
   ProbeDrive drive_;
 };
 

@@ -166,7 +166,7 @@ void add_contact_to_probe_forces(const Model& model, State& state, const Respons
 // construction); u follows. Returns whether a contact was found.
 bool stop_before_contact(const Model& model, State& state, Points& x1, Eigen::VectorXd& u) {
   std::vector<collision::Contact> hits;
-  state.detector->detect(state.x, x1, 0.0, hits, nullptr);
+  collision::detect_self(*model.collision_surface, *state.detector, state.x, x1, 0.0, hits, nullptr);
   double toi_min = 1.0;
   for (const auto& c : hits) toi_min = std::min(toi_min, c.toi);
   const double tau = hits.empty() ? 1.0 : kFallbackTimeFraction * toi_min;
@@ -210,7 +210,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   // First detection on the predicted motion.
   auto clock = Clock::now();
   collision::CollisionStats stats;
-  state.detector->detect(x0, x1, cs.gap, state.contacts, &stats);
+  collision::detect_self(*model.collision_surface, *state.detector, x0, x1, cs.gap, state.contacts, &stats);
   rec.bv_overlaps = stats.bv_overlaps;
   rec.feature_tests = stats.feature_tests;
   rec.contacts = stats.contacts;
@@ -244,7 +244,8 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     // Re-check the corrected motion with one CCD pass at a fraction of the gap (the rows ask for the full gap, so
     // a held contact is done when this is clear); what it finds joins the active set for the next round.
     clock = Clock::now();
-    state.detector->detect(x0, x1, kRecheckGapFraction * cs.gap, found, nullptr);
+    collision::detect_self(*model.collision_surface, *state.detector, x0, x1, kRecheckGapFraction * cs.gap, found,
+                           nullptr);
     resolved = found.empty();
     rec.ms[kCollision] += ms_since(clock);
     clock = Clock::now();

@@ -39,15 +39,10 @@ void add_point_load(const SurfacePoint& sp, const Eigen::Vector3d& force, Eigen:
 
 double twist_degrees(const TwistSpec& twist, double t) {
   if (!twist.enabled() || twist.track.empty()) return 0.0;
-  const std::vector<TwistKey>& k = twist.track;
-  // Held before the first key and after the last; linear in between.
-  if (t <= k.front().t) return k.front().degrees;
-  if (t >= k.back().t) return k.back().degrees;
-  const auto next = std::upper_bound(k.begin(), k.end(), t, [](double v, const TwistKey& key) { return v < key.t; });
-  const TwistKey& a = *(next - 1);
-  const TwistKey& b = *next;
-  const double w = (t - a.t) / (b.t - a.t);
-  return (1.0 - w) * a.degrees + w * b.degrees;
+  size_t i;
+  double w;
+  bracket_keys(twist.track, t, i, w);
+  return w == 0.0 ? twist.track[i].degrees : (1.0 - w) * twist.track[i].degrees + w * twist.track[i + 1].degrees;
 }
 
 Eigen::VectorXd twist_coefficients(const Model& model, double degrees) {
@@ -166,6 +161,8 @@ void build_collision_topology(const Scene& scene, Model& m) {
   }
   m.collision_nodes.assign(m.collision_tris.data(), m.collision_tris.data() + m.collision_tris.size());
   sort_unique(m.collision_nodes);
+  if (scene.collision.self)
+    m.collision_surface = std::make_shared<const collision::CollisionSurface>(m.collision_tris, m.mesh.rest);
 }
 
 // The corotational solve's options from the scene: warm start extrapolated from the last two frames; a twist
@@ -238,7 +235,7 @@ State make_state(const Model& model) {
   s.samples.resize(model.scene.probes.size());
   s.in_contact.assign(n, 0);
   if (model.scene.collision.self) {
-    s.detector = std::make_unique<collision::SelfCollision>(model.collision_tris, n, model.scene.collision.kdop);
+    s.detector = std::make_unique<collision::CollisionWorkspace>(model.scene.collision.kdop);
     s.compliance = std::make_unique<physics::SurfaceCompliance>(model.contact_solver(), model.collision_nodes);
     // Whole-mesh columns of the probe nodes too, so a contact correction that changes probe forces stays cheap.
     std::vector<int> probe_nodes;

@@ -7,7 +7,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
-#include "collision/self_collision.hpp"
+#include "collision/surface.hpp"
 #include "engine/input.hpp"
 #include "engine/report.hpp"
 #include "engine/scene.hpp"
@@ -50,6 +50,9 @@ struct Model {
   std::unique_ptr<physics::Integrator> integrator;  // chosen once from material.model and solver.type
   std::vector<int> inner_nodes;                    // node ids on the inner wall (sorted)
   Tris collision_tris;                             // walls that self-collide: inner (+ outer), n x 3 node ids
+  // Their collision surface (edges, adjacency, BVH topology over the rest positions), shared by every state;
+  // null when self-collision is off.
+  std::shared_ptr<const collision::CollisionSurface> collision_surface;
   std::vector<int> collision_nodes;                // their node ids (sorted): the contact compliance's nodes
   double time_step = 0.025;                        // 1 / fps, seconds
   double budget_ms = 25.0;                         // 1000 / fps
@@ -82,7 +85,7 @@ struct State {
   std::vector<std::unique_ptr<InputSource>> sources;  // one per probe
   std::vector<ProbeSample> samples;                   // this frame's probe loads, one per probe
   std::vector<std::uint8_t> in_contact;               // per node, 1 when part of a contact this frame
-  std::unique_ptr<collision::SelfCollision> detector; // refit workspace (topology from the model)
+  std::unique_ptr<collision::CollisionWorkspace> detector;  // BVH refit workspace (the surface is the model's)
   std::vector<collision::Contact> contacts;           // this frame's contacts (first detection)
   std::unique_ptr<physics::SurfaceCompliance> compliance;  // contact compliance on the colliding walls
   std::vector<collision::Contact> active;             // contacts held at the end of the last frame (warm start)

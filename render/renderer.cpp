@@ -28,7 +28,7 @@ namespace lumen::render {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+constexpr double kPi = static_cast<double>(EIGEN_PI);  // Eigen's constant, a long double, as a double
 static_assert(sizeof(int) == sizeof(GLuint), "index arrays are passed to GL as GL_UNSIGNED_INT");
 
 // Colours, linear RGB in [0, 1].

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "physics/contact_rows.hpp"
-#include "tests/physics/compliance_model.hpp"
+#include "compliance_model.hpp"
 
 namespace lumen::physics {
 namespace {

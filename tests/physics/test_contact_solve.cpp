@@ -15,7 +15,7 @@
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
 #include "support/lcp.hpp"
-#include "tests/physics/compliance_model.hpp"
+#include "compliance_model.hpp"
 
 namespace lumen::physics {
 namespace {

@@ -256,8 +256,11 @@ TEST(StaticSolver, ScaledViewSolvesTheScaledMatrixOnTheSameFactor) {
   Eigen::VectorXd u;
   scaled.solve(f, u);
   for (size_t i = 0; i < free.size(); ++i) EXPECT_NEAR(u[free[i]], uf[i], 1e-10 * uf.cwiseAbs().maxCoeff());
-  for (int dd = 0; dd < 3 * n; ++dd)
-    if (fixed[dd]) EXPECT_EQ(u[dd], 0.0);
+  for (int dd = 0; dd < 3 * n; ++dd) {
+    if (fixed[dd]) {
+      EXPECT_EQ(u[dd], 0.0);
+    }
+  }
   const Eigen::MatrixXd U = scaled.solve_many(f);
   EXPECT_LE((U.col(0) - u).norm(), 1e-12 * u.norm());
   Eigen::VectorXd u2;

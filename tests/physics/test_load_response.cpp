@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "physics/load_response.hpp"
-#include "tests/physics/compliance_model.hpp"
+#include "compliance_model.hpp"
 
 namespace lumen::physics {
 namespace {

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "physics/surface_compliance.hpp"
-#include "tests/physics/compliance_model.hpp"
+#include "compliance_model.hpp"
 
 namespace lumen::physics {
 namespace {

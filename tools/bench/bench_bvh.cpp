@@ -16,7 +16,7 @@ using lumen::collision::CollisionStats;
 using lumen::collision::Contact;
 using lumen::collision::SelfCollision;
 
-constexpr double kPi = 3.14159265358979323846;
+constexpr double kPi = static_cast<double>(EIGEN_PI);  // Eigen's constant, a long double, as a double
 constexpr double kRadius = 0.015;  // inner radius, metres
 constexpr double kLength = 0.1;    // metres
 constexpr double kGap = 1e-4;      // contact distance, metres

@@ -50,7 +50,8 @@ struct FrozenFrame {
     dynamic_cast<const physics::LinearQuasiStatic&>(*model->integrator).load_response().displacement(forces, u_free);
     const Points x1 = model->mesh.rest + Eigen::Map<const Points>(u_free.data(), n, 3);
     std::vector<collision::Contact> found;
-    state.detector->detect(state.x, x1, model->scene.collision.gap, found, nullptr);
+    collision::detect_self(*model->collision_surface, *state.detector, state.x, x1, model->scene.collision.gap, found,
+                           nullptr);
     std::map<FeatureKey, collision::Contact> active;
     std::set<FeatureKey> pushing;
     for (const auto& c : state.active) active.emplace(key_of(c), c), pushing.insert(key_of(c));

@@ -74,7 +74,7 @@ constexpr double kOuterRadius = 0.013;  // metres
 constexpr double kCapacityFps = 40.0;   // the capacity sweep's frame rate: its budget is 1000 / fps ms
 constexpr double kProbeZ = 0.05;        // metres, mid-length
 constexpr double kPatchRadius = 0.003;  // metres: the probe tip's radius; its displacement is averaged over it
-constexpr double kPi = 3.14159265358979323846;
+constexpr double kPi = static_cast<double>(EIGEN_PI);  // Eigen's constant, a long double, as a double
 
 // The configuration's solver settings on a scene (the tolerance only matters to the corotational solve).
 void apply_solver(engine::Scene& s, const Config& c) {
