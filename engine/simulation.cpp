@@ -130,15 +130,23 @@ void add_twist(const Scene& scene, Model& m) {
   m.fixed_nodes.insert(m.fixed_nodes.end(), pm.nodes.begin(), pm.nodes.end());
 }
 
+// Position of a surface point at positions x.
+Eigen::Vector3d point_of(const Points& x, const SurfacePoint& sp) {
+  Eigen::Vector3d q = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) q += sp.weight[k] * x.row(sp.node[k]).transpose();
+  return q;
+}
+
 // Probe attachment points on the outer wall; a point far from the wall is refused (the one check that needs the
 // mesh, so it is made here, at the boundary, before anything is factorised).
 void attach_probes(const Scene& scene, Model& m) {
-  const double tolerance = kProbeSnapWallFraction * (scene.mesh.outer_radius - scene.mesh.inner_radius) + 1e-9;
   for (size_t i = 0; i < scene.probes.size(); ++i) {
     const ProbeSpec& p = scene.probes[i];
     const SurfacePoint sp = snap_to_surface(m.mesh.rest, m.mesh.outer, p.point);
-    Eigen::Vector3d q = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) q += sp.weight[k] * m.mesh.rest.row(sp.node[k]).transpose();
+    const Eigen::Vector3d q = point_of(m.mesh.rest, sp);
+    // The wall's own thickness there (the distance to the nearest inner-wall point), not the scene's radii.
+    const double thickness = (point_of(m.mesh.rest, snap_to_surface(m.mesh.rest, m.mesh.inner, q)) - q).norm();
+    const double tolerance = kProbeSnapWallFraction * thickness + 1e-9;
     if ((q - p.point).norm() > tolerance)
       throw InputError(scene.path + ": probes[" + std::to_string(i) + "].point: not on the organ's outer wall (" +
                        std::to_string((q - p.point).norm()) + " m away; value [" + std::to_string(p.point.x()) + ", " +
@@ -357,6 +365,7 @@ void step(const Model& model, State& state, FrameRecord& rec) {
   for (int p : model.held_probes) state.samples[p].force = loads.points[p].force;
   rec.physics_iterations = pred.iterations;
   rec.physics_converged = pred.converged;
+  rec.refactorisations = pred.refactorisations;
   rec.preconditioner_failures = pred.preconditioner_failures;
   rec.ms[kPhysics] = ms_since(clock);
 

@@ -22,7 +22,8 @@ namespace lumen::engine {
 using SurfacePoint = physics::LoadPoint;
 
 // Behavioural constants of the frame (named, not bare literals).
-// A fixed probe point further than this fraction of the wall thickness from the outer wall is refused.
+// A fixed probe point further than this fraction of the local wall thickness (the distance from its outer-wall
+// point to the nearest inner-wall point) from the outer wall is refused.
 constexpr double kProbeSnapWallFraction = 0.25;
 // Large deformation: a corotational linear solve that takes more PCG iterations than this refactorises the
 // warped stiffness (on the second core) for the following solves.

@@ -126,6 +126,7 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
   Prediction p;
   p.iterations = r.iterations;
   p.converged = r.converged;
+  p.refactorisations = r.refactorisations;
   p.preconditioner_failures = r.refactor_failures;
   return p;
 }

@@ -57,6 +57,7 @@ struct Prediction {
   int iterations = 0;     // nonlinear (outer) iterations; 0 for a direct linear solve
   bool converged = true;  // the solve reached its tolerance
   bool finite = true;     // false: the solve failed (non-finite values); the frame must be rejected
+  int refactorisations = 0;         // lagged factorisations started (corotational quasi-static)
   int preconditioner_failures = 0;  // lagged factorisations that failed (the solve kept the previous one)
 };
 

@@ -163,6 +163,16 @@ struct Renderer::Impl {
   void draw_surfaces(const FrameView& f, bool ghost, bool uncut);
   void build_arrow(const ProbeGlyph& probe, double force_scale);
   void draw_background();
+  // Per-frame float geometry of every surface and the probe arrows.
+  void build_frame(const FrameView& f);
+  // The opaque organ (with the cut: the union of the two kept half-spaces), then uncut surfaces (instruments).
+  void draw_opaque(const FrameView& f);
+  // Probe arrows, opaque, never clipped.
+  void draw_arrows();
+  // Ghost of the cut-away outer wall: front faces only, blended, no depth writes.
+  void draw_ghost(const FrameView& f);
+  // Read the colour buffer back into an RGB image, row 0 the top.
+  void read_back(Image& out);
 };
 
 Renderer::Renderer(int width, int height, CameraPreset camera, const Framing& framing) : impl_(std::make_unique<Impl>()) {
@@ -517,9 +527,10 @@ void Renderer::Impl::draw_background() {
   glEnable(GL_DEPTH_TEST);
 }
 
-void Renderer::draw(const FrameView& f, Image& out) {
-  Impl& m = *impl_;
-  // Validate the frame at the boundary.
+namespace {
+
+// Validate a frame at the renderer's boundary, naming the field and the value.
+void validate_frame(const FrameView& f) {
   if (f.n_points < 0) throw std::invalid_argument("FrameView.n_points must be >= 0 (value " + std::to_string(f.n_points) + ")");
   if (f.n_points > 0 && f.positions == nullptr) throw std::invalid_argument("FrameView.positions is null with n_points " + std::to_string(f.n_points));
   for (size_t i = 0; i < f.surfaces.size(); ++i) {
@@ -541,19 +552,17 @@ void Renderer::draw(const FrameView& f, Image& out) {
       throw std::invalid_argument("FrameView.probes[" + std::to_string(i) + "] must be finite (point " + vec_text(f.probes[i].point) +
                                   ", force " + vec_text(f.probes[i].force) + ")");
   }
-  // Bind the context on this thread for the duration of the call.
-  m.make_current();
-  struct Release {
-    ~Release() { OSMesaMakeCurrent(nullptr, nullptr, 0, 0, 0); }
-  } release;
+}
 
-  // Geometry of this frame: float positions, then normals and colours per surface.
-  m.pos.resize(static_cast<size_t>(f.n_points) * 3);
-  for (size_t k = 0; k < m.pos.size(); ++k) m.pos[k] = static_cast<float>(f.positions[k]);
-  m.surf.resize(f.surfaces.size());
+}  // namespace
+
+void Renderer::Impl::build_frame(const FrameView& f) {
+  pos.resize(static_cast<size_t>(f.n_points) * 3);
+  for (size_t k = 0; k < pos.size(); ++k) pos[k] = static_cast<float>(f.positions[k]);
+  surf.resize(f.surfaces.size());
   for (size_t i = 0; i < f.surfaces.size(); ++i) {
     const Surface& s = f.surfaces[i];
-    Impl::SurfaceScratch& sc = m.surf[i];
+    SurfaceScratch& sc = surf[i];
     const bool own = s.positions != nullptr;
     if (own) {
       sc.pos.resize(static_cast<size_t>(s.n_points) * 3);
@@ -561,79 +570,77 @@ void Renderer::draw(const FrameView& f, Image& out) {
     }
     // Contact flags are per frame point: a surface with its own points is never contact-coloured.
     const std::uint8_t* contact = (s.style.contact_colouring && !own) ? f.contact : nullptr;
-    m.build_surface(sc, m.points_of(f, i), s.triangles, s.n_triangles, base_colour(s.style.material), contact,
-                    own ? s.n_points : f.n_points);
+    build_surface(sc, points_of(f, i), s.triangles, s.n_triangles, base_colour(s.style.material), contact,
+                  own ? s.n_points : f.n_points);
   }
-  m.arrow.clear();
-  for (const ProbeGlyph& p : f.probes) m.build_arrow(p, f.force_scale);
+  arrow.clear();
+  for (const ProbeGlyph& p : f.probes) build_arrow(p, f.force_scale);
+}
 
-  // Background.
-  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  m.draw_background();
-
-  // Opaque organ: with the cut, the union of the two kept half-spaces (two passes).
-  // Surfaces never cut (instruments) are drawn whole after the cut ones.
-  if (m.cut) {
+void Renderer::Impl::draw_opaque(const FrameView& f) {
+  if (cut) {
     glEnable(GL_CLIP_PLANE0);
-    m.draw_surfaces(f, false, false);
+    draw_surfaces(f, false, false);
     glDisable(GL_CLIP_PLANE0);
     glEnable(GL_CLIP_PLANE1);
-    m.draw_surfaces(f, false, false);
+    draw_surfaces(f, false, false);
     glDisable(GL_CLIP_PLANE1);
-    m.draw_surfaces(f, false, true);
-  } else if (m.preset == CameraPreset::Endoscope) {
+    draw_surfaces(f, false, true);
+  } else if (preset == CameraPreset::Endoscope) {
     // From inside the lumen every visible wall faces the eye: cull back faces (the outer wall, hidden anyway).
     glEnable(GL_CULL_FACE);
     glCullFace(GL_BACK);
-    m.draw_surfaces(f, false, false);
-    m.draw_surfaces(f, false, true);
+    draw_surfaces(f, false, false);
+    draw_surfaces(f, false, true);
     glDisable(GL_CULL_FACE);
   } else {
-    m.draw_surfaces(f, false, false);
-    m.draw_surfaces(f, false, true);
+    draw_surfaces(f, false, false);
+    draw_surfaces(f, false, true);
   }
+}
 
-  // Probe arrows, opaque, never clipped.
-  if (!m.arrow.empty()) {
-    glColor3fv(kProbeColor);
-    glEnableClientState(GL_VERTEX_ARRAY);
-    glEnableClientState(GL_NORMAL_ARRAY);
-    glVertexPointer(3, GL_FLOAT, 6 * sizeof(float), m.arrow.data());
-    glNormalPointer(GL_FLOAT, 6 * sizeof(float), m.arrow.data() + 3);
-    glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(m.arrow.size() / 6));
-    glDisableClientState(GL_NORMAL_ARRAY);
-    glDisableClientState(GL_VERTEX_ARRAY);
-  }
+void Renderer::Impl::draw_arrows() {
+  if (arrow.empty()) return;
+  glColor3fv(kProbeColor);
+  glEnableClientState(GL_VERTEX_ARRAY);
+  glEnableClientState(GL_NORMAL_ARRAY);
+  glVertexPointer(3, GL_FLOAT, 6 * sizeof(float), arrow.data());
+  glNormalPointer(GL_FLOAT, 6 * sizeof(float), arrow.data() + 3);
+  glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(arrow.size() / 6));
+  glDisableClientState(GL_NORMAL_ARRAY);
+  glDisableClientState(GL_VERTEX_ARRAY);
+}
 
-  // Ghost of the cut-away outer wall: front faces only, blended, no depth writes.
+void Renderer::Impl::draw_ghost(const FrameView& f) {
   const bool any_ghost = std::any_of(f.surfaces.begin(), f.surfaces.end(), [](const Surface& s) {
     return s.style.cutaway == CutAway::Ghosted && s.n_triangles > 0;
   });
-  if (m.cut && any_ghost) {
-    glEnable(GL_CLIP_PLANE2);
-    glEnable(GL_CLIP_PLANE3);
-    glEnable(GL_CULL_FACE);
-    glCullFace(GL_BACK);
-    glEnable(GL_BLEND);
-    glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
-    glDepthMask(GL_FALSE);
-    m.draw_surfaces(f, true, false);
-    glDepthMask(GL_TRUE);
-    glDisable(GL_BLEND);
-    glDisable(GL_CULL_FACE);
-    glDisable(GL_CLIP_PLANE3);
-    glDisable(GL_CLIP_PLANE2);
-  }
+  if (!cut || !any_ghost) return;
+  glEnable(GL_CLIP_PLANE2);
+  glEnable(GL_CLIP_PLANE3);
+  glEnable(GL_CULL_FACE);
+  glCullFace(GL_BACK);
+  glEnable(GL_BLEND);
+  glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+  glDepthMask(GL_FALSE);
+  draw_surfaces(f, true, false);
+  glDepthMask(GL_TRUE);
+  glDisable(GL_BLEND);
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_CLIP_PLANE3);
+  glDisable(GL_CLIP_PLANE2);
+}
 
+void Renderer::Impl::read_back(Image& out) {
   // Read back (bottom row first) and flip so row 0 is the top of the image.
   glFinish();
-  glReadPixels(0, 0, m.width, m.height, GL_RGBA, GL_UNSIGNED_BYTE, m.readback.data());
-  const size_t w = static_cast<size_t>(m.width), h = static_cast<size_t>(m.height);
-  out.width = m.width;
-  out.height = m.height;
+  glReadPixels(0, 0, width, height, GL_RGBA, GL_UNSIGNED_BYTE, readback.data());
+  const size_t w = static_cast<size_t>(width), h = static_cast<size_t>(height);
+  out.width = width;
+  out.height = height;
   out.rgb.resize(w * h * 3);
   for (size_t y = 0; y < h; ++y) {
-    const unsigned char* src = m.readback.data() + (h - 1 - y) * w * 4;
+    const unsigned char* src = readback.data() + (h - 1 - y) * w * 4;
     unsigned char* dst = out.rgb.data() + y * w * 3;
     for (size_t x = 0; x < w; ++x, src += 4, dst += 3) {
       dst[0] = src[0];
@@ -641,6 +648,23 @@ void Renderer::draw(const FrameView& f, Image& out) {
       dst[2] = src[2];
     }
   }
+}
+
+void Renderer::draw(const FrameView& f, Image& out) {
+  validate_frame(f);
+  Impl& m = *impl_;
+  // Bind the context on this thread for the duration of the call.
+  m.make_current();
+  struct Release {
+    ~Release() { OSMesaMakeCurrent(nullptr, nullptr, 0, 0, 0); }
+  } release;
+  m.build_frame(f);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  m.draw_background();
+  m.draw_opaque(f);
+  m.draw_arrows();
+  m.draw_ghost(f);
+  m.read_back(out);
 }
 
 }  // namespace lumen::render

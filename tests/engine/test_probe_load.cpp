@@ -129,3 +129,27 @@ TEST(ProbeLoad, HeldProbeReactionIncludesTheContact) {
   EXPECT_GT(held.last.reactions[0].y(), 0.0);
   EXPECT_LT(held.last.reactions[1].y(), 0.0);
 }
+
+// A probe point must lie on the outer wall, within a quarter of the wall's local thickness (3 mm here: the
+// distance from its outer-wall point to the inner wall, found on the mesh): 0.5 mm off is snapped, 1 mm off is
+// refused naming the probe, the distance and the value.
+TEST(ProbeLoad, PointOffTheWallIsRefusedByTheLocalWallThickness) {
+  auto scene_with = [](const std::string& point) {
+    return engine::parse_scene(R"({"name": "off",
+      "mesh": {"type": "hollow_cylinder", "inner_radius": 0.01, "outer_radius": 0.013, "length": 0.1,
+               "segments_around": 12, "segments_along": 10, "layers": 2},
+      "material": {"model": "linear", "young_modulus": 5000.0, "poisson_ratio": 0.45},
+      "fixed": ["ends"],
+      "probes": [{"point": )" + point + R"(, "track": [{"t": 0, "force": [0, 0, 0]}]}],
+      "frames": 2, "fps": 40})", "off.json");
+  };
+  // (0, 0.013, 0.05) is a ring node of the outer wall: straight out from it is straight off the wall.
+  EXPECT_NO_THROW(engine::compile_model(scene_with("[0.0, 0.0135, 0.05]")));
+  try {
+    engine::compile_model(scene_with("[0.0, 0.014, 0.05]"));
+    FAIL() << "a point 1 mm off the wall was accepted";
+  } catch (const engine::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("off.json: probes[0].point: not on the organ's outer wall (0.001"),
+              std::string::npos) << e.what();
+  }
+}
