@@ -54,12 +54,6 @@ std::string check_command(int argc, char** argv) {
   return "unknown command \"" + first + "\": must be one of " + list + " (lumen --help for more)";
 }
 
-// A file argument must be a readable regular file (a folder would otherwise read as empty input).
-void require_file(const std::string& path, const std::string& what) {
-  std::error_code ec;
-  if (fs::is_directory(path, ec)) throw engine::InputError(path + ": is a folder, not a " + what);
-  if (!fs::exists(path, ec)) throw engine::InputError(path + ": no such " + what);
-}
 
 // Create the output folder and prove it is writable before any work; InputError otherwise.
 void prepare_output_dir(const std::string& dir) {
@@ -140,7 +134,7 @@ int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_rend
 }
 
 int cmd_ccd(const std::string& file, bool json) {
-  require_file(file, "CCD query file");
+  engine::require_file(file, "CCD query file");
   collision::CcdFileStats r;
   try {
     r = collision::run_ccd_file(file);

@@ -345,10 +345,14 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   return s;
 }
 
-Scene load_scene(const std::string& path) {
+void require_file(const std::string& path, const std::string& what) {
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw InputError(path + ": is a folder, not a scene file");
-  if (!std::filesystem::exists(path, ec)) throw InputError(path + ": no such scene file");
+  if (std::filesystem::is_directory(path, ec)) throw InputError(path + ": is a folder, not a " + what);
+  if (!std::filesystem::exists(path, ec)) throw InputError(path + ": no such " + what);
+}
+
+Scene load_scene(const std::string& path) {
+  require_file(path, "scene file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot read scene file");
   std::stringstream ss;

@@ -124,6 +124,10 @@ struct Scene {
   TwistSpec twist;
 };
 
+// Refuse a path that is a folder or does not exist, as an InputError "PATH: is a folder, not a WHAT" / "PATH: no
+// such WHAT" (a folder would otherwise read as empty input).
+void require_file(const std::string& path, const std::string& what);
+
 // Read and validate a scene file; throws InputError with "FILE: KEY.PATH: problem (value V)". Every check that
 // involves several keys is made here too, so that compiling a parsed scene fails only on numerical grounds.
 Scene load_scene(const std::string& path);

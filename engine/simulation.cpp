@@ -21,18 +21,6 @@ double ms_since(Clock::time_point t0) {
 
 }  // namespace
 
-// The probes' forces as a nodal force vector (3n); a moving point is attached where it is this frame.
-Eigen::VectorXd nodal_loads(const Model& model, const State& state) {
-  Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * model.mesh.n_nodes());
-  for (size_t i = 0; i < state.samples.size(); ++i) {
-    const SurfacePoint sp = state.sources[i]->point_is_fixed()
-                                ? model.probe_points[i]
-                                : snap_to_surface(model.mesh.rest, model.mesh.outer, state.samples[i].point);
-    add_point_load(sp, state.samples[i].force, f);
-  }
-  return f;
-}
-
 void add_point_load(const SurfacePoint& sp, const Eigen::Vector3d& force, Eigen::VectorXd& f) {
   for (int k = 0; k < 3; ++k) f.segment<3>(3 * sp.node[k]) += sp.weight[k] * force;
 }
@@ -341,6 +329,11 @@ void feed_back(State& state, double t1, FrameRecord& rec) {
 }
 
 }  // namespace
+
+// The probes' forces as a nodal force vector (3n); a moving point is attached where it is this frame.
+Eigen::VectorXd nodal_loads(const Model& model, const State& state) {
+  return physics::nodal_forces(frame_loads(model, state, true), 3 * model.mesh.n_nodes());
+}
 
 void step(const Model& model, State& state, FrameRecord& rec) {
   // Every field of the record is this frame's (callers may reuse one record across frames).

@@ -12,7 +12,6 @@ Eigen::VectorXd combine_columns(const Eigen::MatrixXd& basis, const Eigen::Vecto
     throw std::invalid_argument("combine_columns: " + std::to_string(basis.cols()) + " coefficients expected, got " +
                                 std::to_string(c.size()));
   if (basis.cols() == 0) return Eigen::VectorXd::Zero(basis.rows());
-  if (basis.cols() == 2) return c[0] * basis.col(0) + c[1] * basis.col(1);  // one pass (the twist's two columns)
   Eigen::VectorXd u = c[0] * basis.col(0);
   for (Eigen::Index j = 1; j < basis.cols(); ++j) u += c[j] * basis.col(j);
   return u;
