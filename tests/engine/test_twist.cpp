@@ -329,7 +329,7 @@ TEST(Twist, TwistWithProbesAndCollisionRunsCleanly) {
 
 // Without the background thread the lagged factorisation lands at a fixed iteration, so a corotational session
 // that refactorises (a half turn in 30-degree steps: the rest factorisation is a poor preconditioner there) gives
-// bit-identical results run to run; and the same equilibrium as with the thread (within the solve tolerance).
+// bit-identical results run to run.
 TEST(Twist, CorotationalSessionIsReproducibleWithoutTheBackgroundFactorisation) {
   TwistCase c;
   c.model = "corotational";
@@ -350,7 +350,6 @@ TEST(Twist, CorotationalSessionIsReproducibleWithoutTheBackgroundFactorisation) 
   }
   EXPECT_GT(refactorisations, 0);
   EXPECT_LT(ring_error(*m, a.x, m->mesh.end_nodes_stop, true, EIGEN_PI), 1e-12);
-  c.solver = R"({"tolerance": 1e-5, "max_iterations": 60})";
-  const engine::State t = run(*compile(c), 8);
-  EXPECT_LT((t.sim.u - a.sim.u).norm(), 1e-3 * a.sim.u.norm());
+  // (That the background thread reaches the same equilibrium is timing-dependent per frame here; the physics
+  // test CorotationalSolve.LaggedWarpedPreconditionerReachesTheSameEquilibriumInFewerIterations covers it.)
 }
