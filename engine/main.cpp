@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <utility>
 
 #include <CLI/CLI.hpp>
 
@@ -76,8 +77,7 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
   if (!video.empty() && fs::path(video).extension() != ".mp4")
     throw engine::InputError("--video: must name an .mp4 file (value \"" + video + "\")");
   if (video.empty() && scene.render.video && !no_render) video = (fs::path(out_dir) / "video.mp4").string();
-  for (const auto& probe : scene.probes)
-    if (!probe.replay.empty()) engine::ReplaySource check_replay(probe.replay);  // refuse a bad replay file now
+  engine::Inputs inputs = engine::make_inputs(scene);  // reads (and refuses a bad) replay file now
   auto model = engine::compile_model(scene);
   engine::SessionOptions opt;
   opt.frames = frames;
@@ -97,7 +97,7 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
       final_positions = state.x;
     };
 
-  engine::SessionResult result = engine::run_session(*model, opt);
+  engine::SessionResult result = engine::run_session(*model, std::move(inputs), opt);
   engine::write_json_file((fs::path(out_dir) / "report.json").string(), result.report);
   if (!positions_path.empty()) engine::write_text_file(positions_path, engine::positions_csv(final_positions));
   std::cout << engine::format_stage_table(result.frames, model->budget_ms);
@@ -119,14 +119,14 @@ int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_rend
   opt.classify_overlaps = classify;
   opt.render = !no_render;
   opt.write_frames = false;
-  engine::SessionResult result = engine::run_session(*model, opt);
+  engine::SessionResult result = engine::run_session(*model, engine::make_inputs(scene), opt);
   if (json) {
     nlohmann::json j = result.report;
     j.erase("per_frame");
     std::cout << j.dump(1) << "\n";
   } else {
     std::printf("scene %s: %d nodes, %ld tets, %ld inner triangles, compile %.3f s\n", scene.name.c_str(),
-                model->mesh.n_nodes(), static_cast<long>(model->mesh.tets.rows()), static_cast<long>(model->mesh.inner.rows()),
+                model->mesh.n_nodes(), static_cast<long>(model->n_elements), static_cast<long>(model->inner_wall().rows()),
                 model->compile_seconds);
     std::cout << engine::format_stage_table(result.frames, model->budget_ms);
   }

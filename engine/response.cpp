@@ -134,7 +134,7 @@ void solve_constraint(const Model& model, State& state, const Points& x1, const 
   std::vector<int> warm;
   for (const auto& [key, c] : rr.active) {
     if (rr.pushing.count(key)) warm.push_back(static_cast<int>(rr.rows.size()));
-    rr.rows.push_back(contact_row(c, model.mesh.rest, state.x, x1, model.scene.collision.gap));
+    rr.rows.push_back(contact_row(c, model.mesh.rest, state.x, x1, model.collision.gap));
   }
   rr.solved = physics::solve_contacts(*state.compliance, rr.rows, u_free, warm, {}, false,
                                       model.integrator->held_points());
@@ -148,7 +148,7 @@ void solve_constraint(const Model& model, State& state, const Points& x1, const 
 // force so that contacts do not move them; in the paper's response every probe is held, and the holding forces at
 // its nodes add to its force.
 void add_contact_to_probe_forces(const Model& model, State& state, const ResponseRounds& rr) {
-  const bool constraint = model.scene.collision.response == ResponseKind::kConstraint;
+  const bool constraint = model.collision.response == ResponseKind::kConstraint;
   if (constraint && rr.solved.held_force.size() > 0) {
     for (size_t a = 0; a < model.held_probes.size(); ++a)
       state.samples[model.held_probes[a]].force += rr.solved.held_force.segment<3>(3 * a);
@@ -183,7 +183,7 @@ void keep_for_next_frame(const Model& model, State& state, const ResponseRounds&
   state.active.clear();
   int r = 0;
   for (const auto& [key, c] : rr.active) {
-    const bool carries = model.scene.collision.response == ResponseKind::kPaper ||
+    const bool carries = model.collision.response == ResponseKind::kPaper ||
                          (r < rr.solved.lambda.size() && rr.solved.lambda[r] > 0.0);
     if (carries) state.active.push_back(c);
     ++r;
@@ -196,7 +196,7 @@ void keep_for_next_frame(const Model& model, State& state, const ResponseRounds&
 
 void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, FrameRecord& rec) {
   const int n = model.mesh.n_nodes();
-  const CollisionSpec& cs = model.scene.collision;
+  const CollisionSpec& cs = model.collision;
   const bool paper = cs.response == ResponseKind::kPaper;
   const Points& x0 = state.x;
   const Eigen::VectorXd u_free = u;

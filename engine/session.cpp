@@ -23,9 +23,9 @@ using Clock = std::chrono::steady_clock;
 // Camera framing from the rest geometry: the mesh's bounding box, and the lumen's axis, radius and length from
 // the inner-wall nodes (no scene fields: the same for generated tubes and imported organs).
 render::Framing framing_of(const Model& model) {
-  const auto& mesh = model.mesh;
-  return render::frame_organ(mesh.rest.data(), static_cast<int>(mesh.rest.rows()), mesh.inner.data(),
-                             static_cast<int>(mesh.inner.rows()));
+  const auto& rest = model.mesh.rest;
+  return render::frame_organ(rest.data(), static_cast<int>(rest.rows()), model.inner_wall().data(),
+                             static_cast<int>(model.inner_wall().rows()));
 }
 
 // Remove outputs of an earlier run that this run would not overwrite (stale frames).
@@ -41,19 +41,17 @@ render::FrameView frame_view(const Model& model, const State& state) {
   render::FrameView view;
   view.positions = state.x.data();
   view.n_points = static_cast<int>(state.x.rows());
-  // The organ's walls, outermost first, in today's styles.
-  auto wall = [&](const Tris& tris, const render::SurfaceStyle& style) {
+  // The organ's drawn surfaces, outermost first.
+  for (const DrawnSurface& d : model.drawn) {
+    const Tris& tris = model.mesh.surfaces[d.surface].tris;
     render::Surface s;
     s.triangles = tris.data();
     s.n_triangles = static_cast<int>(tris.rows());
-    s.style = style;
+    s.style = d.style;
     view.surfaces.push_back(s);
-  };
-  wall(model.mesh.outer, render::SurfaceStyle::outer_wall());
-  wall(model.mesh.ends, render::SurfaceStyle::wall_ends());
-  wall(model.mesh.inner, render::SurfaceStyle::inner_wall());
+  }
   view.contact = state.in_contact.data();
-  view.force_scale = model.scene.render.force_scale;
+  view.force_scale = model.render.force_scale;
   for (size_t p = 0; p < state.samples.size(); ++p) {
     render::ProbeGlyph g;
     const SurfacePoint& sp = model.probe_points[p];
@@ -130,7 +128,7 @@ struct SessionOutputs {
 // Output folders (validated by the caller; stale numbered outputs of earlier runs are removed), renderer, writers.
 SessionOutputs open_outputs(const Model& model, const SessionOptions& opt) {
   SessionOutputs o;
-  const RenderSpec& rs = model.scene.render;
+  const RenderSpec& rs = model.render;
   o.out = fs::path(opt.out_dir);
   o.write_frames = opt.render && opt.write_frames && !opt.out_dir.empty();
   o.export_surface = opt.export_surface && !opt.out_dir.empty();
@@ -147,16 +145,17 @@ SessionOutputs open_outputs(const Model& model, const SessionOptions& opt) {
   if (o.write_frames || !opt.video_path.empty())
     o.writer = std::make_unique<render::FrameWriter>(o.write_frames ? (o.out / "frames").string() : std::string(),
                                                      opt.video_path, rs.width, rs.height,
-                                                     static_cast<int>(std::lround(model.scene.fps)));
+                                                     static_cast<int>(std::lround(model.fps)));
   return o;
 }
 
 // One frame: step, the optional exact check, render and hand the image to the writer, export, observe. The total
 // is the simulation thread's work for the frame without the check, the export and the observer.
-FrameRecord run_frame(const Model& model, const SessionOptions& opt, SessionOutputs& io, State& state) {
+FrameRecord run_frame(const Model& model, const SessionOptions& opt, SessionOutputs& io, Inputs& inputs,
+                      State& state) {
   FrameRecord rec;
   const auto frame_start = Clock::now();
-  step(model, state, rec);
+  step(model, inputs, state, rec);
   // Optional exact intersection count (not part of the frame's budget).
   double check_ms = 0.0;
   if (opt.check) {
@@ -176,7 +175,7 @@ FrameRecord run_frame(const Model& model, const SessionOptions& opt, SessionOutp
   rec.over_budget = rec.ms[kTotal] > model.budget_ms;
   // Surface export and observer (off the budget, like the writers).
   if (io.export_surface)
-    export_surface_obj(numbered(io.out / "surface", "inner_", rec.frame, ".obj"), state.x, model.mesh.inner);
+    export_surface_obj(numbered(io.out / "surface", "inner_", rec.frame, ".obj"), state.x, model.inner_wall());
   if (opt.on_frame) opt.on_frame(model, state, rec);
   return rec;
 }
@@ -206,29 +205,29 @@ SessionTotals totals_of(const std::vector<FrameRecord>& frames) {
 // The session report (report.json), built in one place.
 nlohmann::json session_report(const Model& model, const SessionOptions& opt, const SessionResult& result,
                               const State& state) {
-  const RenderSpec& rs = model.scene.render;
+  const RenderSpec& rs = model.render;
   const SessionTotals t = totals_of(result.frames);
   nlohmann::json r;
-  r["scene"] = model.scene.name;
-  r["scene_file"] = model.scene.path;
+  r["scene"] = model.name;
+  r["scene_file"] = model.scene_path;
   r["frames"] = static_cast<long>(result.frames.size());
-  r["fps"] = model.scene.fps;
+  r["fps"] = model.fps;
   r["budget_ms"] = model.budget_ms;
   r["over_budget_frames"] = t.over_budget;
   r["mesh"] = {{"nodes", model.mesh.n_nodes()},
-               {"tets", model.mesh.tets.rows()},
-               {"inner_triangles", model.mesh.inner.rows()},
-               {"outer_triangles", model.mesh.outer.rows()}};
-  r["model"] = {{"material", name_of(model.scene.material.model)}, {"element", name_of(model.scene.element)},
-                {"solver", name_of(model.scene.solver.type)}, {"compile_seconds", model.compile_seconds}};
-  r["collision"] = {{"self", model.scene.collision.self}, {"kdop", model.scene.collision.kdop},
-                    {"response", name_of(model.scene.collision.response)}, {"gap_m", model.scene.collision.gap},
-                    {"surfaces", model.scene.collision.outer_wall ? nlohmann::json{"inner", "outer"} : nlohmann::json{"inner"}}};
+               {"tets", model.n_elements},
+               {"inner_triangles", model.inner_wall().rows()},
+               {"outer_triangles", model.outer_wall().rows()}};
+  r["model"] = {{"material", name_of(model.material)}, {"element", name_of(model.element)},
+                {"solver", name_of(model.solver)}, {"compile_seconds", model.compile_seconds}};
+  r["collision"] = {{"self", model.collision.self}, {"kdop", model.collision.kdop},
+                    {"response", name_of(model.collision.response)}, {"gap_m", model.collision.gap},
+                    {"surfaces", model.collision.outer_wall ? nlohmann::json{"inner", "outer"} : nlohmann::json{"inner"}}};
   r["render"] = {{"enabled", opt.render}, {"width", rs.width}, {"height", rs.height}, {"camera", name_of(rs.camera)}};
   r["stages"] = stages_json(result.frames);
   r["writer"] = {{"frames", result.writer.frames}, {"busy_seconds", result.writer.busy_seconds},
                  {"frames_per_second", result.writer.frames_per_second()},
-                 {"keeps_up", result.writer.frames == 0 || result.writer.frames_per_second() >= model.scene.fps}};
+                 {"keeps_up", result.writer.frames == 0 || result.writer.frames_per_second() >= model.fps}};
   r["collision_totals"] = {{"bv_overlaps", t.bv_overlaps}, {"feature_tests", t.feature_tests}, {"contacts", t.contacts},
                            {"response_iterations", t.iterations}};
   if (opt.classify_overlaps && state.detector) {
@@ -252,9 +251,9 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
 
 }  // namespace
 
-SessionResult run_session(const Model& model, const SessionOptions& opt) {
+SessionResult run_session(const Model& model, Inputs inputs, const SessionOptions& opt) {
   SessionResult result;
-  const int frames = opt.frames > 0 ? opt.frames : model.scene.frames;
+  const int frames = opt.frames > 0 ? opt.frames : model.frames;
   SessionOutputs io = open_outputs(model, opt);
   State state = make_state(model);
   // Warm-up draw of the rest state: the GL driver's one-time set-up (shader compilation) happens at load time,
@@ -271,7 +270,7 @@ SessionResult run_session(const Model& model, const SessionOptions& opt) {
   long over_budget = 0;
   const auto session_start = Clock::now();
   for (int i = 0; i < frames; ++i) {
-    result.frames.push_back(run_frame(model, opt, io, state));
+    result.frames.push_back(run_frame(model, opt, io, inputs, state));
     over_budget += result.frames.back().over_budget;
     if (tty && (i % 10 == 9 || i + 1 == frames)) {
       const double wall = std::chrono::duration<double>(Clock::now() - session_start).count();

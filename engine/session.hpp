@@ -33,8 +33,9 @@ struct SessionResult {
   nlohmann::json report;        // what report.json holds
 };
 
-// Runs the scene's frames. Outputs are written under temporary names and renamed when complete.
-SessionResult run_session(const Model& model, const SessionOptions& options);
+// Runs the model's frames with its input sources (make_inputs of the scene it compiled, one per probe; a caller
+// may swap in a device). Outputs are written under temporary names and renamed when complete.
+SessionResult run_session(const Model& model, Inputs inputs, const SessionOptions& options);
 
 // Writes the inner wall at positions x as a Wavefront OBJ through assimp, atomically.
 void export_surface_obj(const std::string& path, const Points& x, const Tris& tris);

@@ -5,6 +5,7 @@
 #include "physics/quadratic.hpp"
 
 #include <algorithm>
+#include <cassert>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -20,10 +21,6 @@ double ms_since(Clock::time_point t0) {
 }
 
 }  // namespace
-
-void add_point_load(const SurfacePoint& sp, const Eigen::Vector3d& force, Eigen::VectorXd& f) {
-  for (int k = 0; k < 3; ++k) f.segment<3>(3 * sp.node[k]) += sp.weight[k] * force;
-}
 
 double twist_degrees(const TwistSpec& twist, double t) {
   if (!twist.enabled() || twist.track.empty()) return 0.0;
@@ -70,12 +67,30 @@ namespace {
 // Compile stages
 
 // The volume mesh the engine works on, and (tet10) the quadratic mesh its stiffness comes from: the engine's mesh
-// is then the quadratic mesh's linear view (all nodes, walls split over the edge nodes).
-physics::TetMesh build_mesh(const Scene& scene, std::unique_ptr<physics::QuadraticMesh>& quadratic) {
-  const physics::TetMesh linear = physics::make_hollow_cylinder(scene.mesh);
+// is then the quadratic mesh's linear view (all nodes, each element split into 8 tets, walls split over the edge
+// nodes). n_elements: the volume elements.
+physics::TetMesh build_mesh(const Scene& scene, std::unique_ptr<physics::QuadraticMesh>& quadratic, int& n_elements) {
+  physics::TetMesh linear = physics::make_hollow_cylinder(scene.mesh);
+  n_elements = static_cast<int>(linear.tets.rows());
   if (scene.element != ElementType::kTet10) return linear;
   quadratic = std::make_unique<physics::QuadraticMesh>(physics::make_quadratic_cylinder(linear, scene.mesh));
-  return physics::surface_view(*quadratic, linear);
+  return physics::linear_view(*quadratic);
+}
+
+// Index of the mesh's surface of that name (the generator's names; a missing one is a bug, not a user's mistake).
+int surface_index(const physics::TetMesh& mesh, const char* name) {
+  for (size_t i = 0; i < mesh.surfaces.size(); ++i)
+    if (mesh.surfaces[i].name == name) return static_cast<int>(i);
+  throw std::logic_error(std::string("compile_model: the mesh has no surface \"") + name + "\"");
+}
+
+// The walls by role, and what is drawn of the mesh (outermost first: outer wall, end caps, lumen wall).
+void resolve_walls(Model& m) {
+  m.inner_surface = surface_index(m.mesh, physics::kInnerWall);
+  m.outer_surface = surface_index(m.mesh, physics::kOuterWall);
+  m.drawn = {{m.outer_surface, render::SurfaceStyle::outer_wall()},
+             {surface_index(m.mesh, physics::kEndCaps), render::SurfaceStyle::wall_ends()},
+             {m.inner_surface, render::SurfaceStyle::inner_wall()}};
 }
 
 void sort_unique(std::vector<int>& ids) {
@@ -83,13 +98,15 @@ void sort_unique(std::vector<int>& ids) {
   ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
 }
 
-// Named node sets held still.
+// Named node sets held still ("ends": both end sets).
 void add_fixed_sets(const Scene& scene, Model& m) {
+  auto hold = [&](const char* set) {
+    const std::vector<int>& nodes = m.mesh.node_set(set);
+    m.fixed_nodes.insert(m.fixed_nodes.end(), nodes.begin(), nodes.end());
+  };
   for (NodeSetName name : scene.fixed) {
-    if (name == NodeSetName::kEnds || name == NodeSetName::kStart)
-      m.fixed_nodes.insert(m.fixed_nodes.end(), m.mesh.end_nodes_start.begin(), m.mesh.end_nodes_start.end());
-    if (name == NodeSetName::kEnds || name == NodeSetName::kStop)
-      m.fixed_nodes.insert(m.fixed_nodes.end(), m.mesh.end_nodes_stop.begin(), m.mesh.end_nodes_stop.end());
+    if (name == NodeSetName::kEnds || name == NodeSetName::kStart) hold(physics::kStartEnd);
+    if (name == NodeSetName::kEnds || name == NodeSetName::kStop) hold(physics::kStopEnd);
   }
 }
 
@@ -99,7 +116,7 @@ void add_twist(const Scene& scene, Model& m) {
   if (!scene.twist.enabled()) return;
   const bool start = scene.twist.end == TwistEnd::kStart;
   physics::PrescribedMotion& pm = m.prescribed;
-  pm.nodes = start ? m.mesh.end_nodes_start : m.mesh.end_nodes_stop;
+  pm.nodes = start ? m.mesh.node_set(physics::kStartEnd) : m.mesh.node_set(physics::kStopEnd);
   const physics::CentrelineFrame frame = physics::hollow_cylinder_frame(scene.mesh, start ? 0.0 : scene.mesh.length);
   m.twist_center = frame.point;
   m.twist_axis = frame.tangent;
@@ -130,10 +147,10 @@ Eigen::Vector3d point_of(const Points& x, const SurfacePoint& sp) {
 void attach_probes(const Scene& scene, Model& m) {
   for (size_t i = 0; i < scene.probes.size(); ++i) {
     const ProbeSpec& p = scene.probes[i];
-    const SurfacePoint sp = snap_to_surface(m.mesh.rest, m.mesh.outer, p.point);
+    const SurfacePoint sp = snap_to_surface(m.mesh.rest, m.outer_wall(), p.point);
     const Eigen::Vector3d q = point_of(m.mesh.rest, sp);
     // The wall's own thickness there (the distance to the nearest inner-wall point), not the scene's radii.
-    const double thickness = (point_of(m.mesh.rest, snap_to_surface(m.mesh.rest, m.mesh.inner, q)) - q).norm();
+    const double thickness = (point_of(m.mesh.rest, snap_to_surface(m.mesh.rest, m.inner_wall(), q)) - q).norm();
     const double tolerance = kProbeSnapWallFraction * thickness + 1e-9;
     if ((q - p.point).norm() > tolerance)
       throw InputError(scene.path + ": probes[" + std::to_string(i) + "].point: not on the organ's outer wall (" +
@@ -147,13 +164,14 @@ void attach_probes(const Scene& scene, Model& m) {
 
 // The colliding walls: the inner wall, and the outer wall when the scene asks; their nodes.
 void build_collision_topology(const Scene& scene, Model& m) {
-  for (int t = 0; t < m.mesh.inner.rows(); ++t)
-    for (int k = 0; k < 3; ++k) m.inner_nodes.push_back(m.mesh.inner(t, k));
+  const Tris& inner = m.inner_wall();
+  const Tris& outer = m.outer_wall();
+  m.inner_nodes.assign(inner.data(), inner.data() + inner.size());
   sort_unique(m.inner_nodes);
-  m.collision_tris = m.mesh.inner;
+  m.collision_tris = inner;
   if (scene.collision.outer_wall) {
-    m.collision_tris.conservativeResize(m.mesh.inner.rows() + m.mesh.outer.rows(), 3);
-    m.collision_tris.bottomRows(m.mesh.outer.rows()) = m.mesh.outer;
+    m.collision_tris.conservativeResize(inner.rows() + outer.rows(), 3);
+    m.collision_tris.bottomRows(outer.rows()) = outer;
   }
   m.collision_nodes.assign(m.collision_tris.data(), m.collision_tris.data() + m.collision_tris.size());
   sort_unique(m.collision_nodes);
@@ -206,11 +224,21 @@ std::unique_ptr<physics::Integrator> make_integrator(const Scene& scene, const M
 std::unique_ptr<Model> compile_model(const Scene& scene) {
   const auto t0 = Clock::now();
   auto m = std::make_unique<Model>();
-  m->scene = scene;
+  m->name = scene.name;
+  m->scene_path = scene.path;
+  m->frames = scene.frames;
+  m->fps = scene.fps;
+  m->material = scene.material.model;
+  m->element = scene.element;
+  m->solver = scene.solver.type;
+  m->collision = scene.collision;
+  m->render = scene.render;
+  m->twist = scene.twist;
   m->budget_ms = 1000.0 / scene.fps;
   m->time_step = 1.0 / scene.fps;
   std::unique_ptr<physics::QuadraticMesh> quadratic;
-  m->mesh = build_mesh(scene, quadratic);
+  m->mesh = build_mesh(scene, quadratic, m->n_elements);
+  resolve_walls(*m);
   add_fixed_sets(scene, *m);
   add_twist(scene, *m);
   sort_unique(m->fixed_nodes);
@@ -221,17 +249,23 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   return m;
 }
 
+Inputs make_inputs(const Scene& scene) {
+  Inputs in;
+  for (const ProbeSpec& p : scene.probes) in.sources.push_back(make_source(p));
+  return in;
+}
+
 State make_state(const Model& model) {
   State s;
   const int n = model.mesh.n_nodes();
   s.x = model.mesh.rest;
   s.sim.u = Eigen::VectorXd::Zero(3 * n);
   s.sim.v = Eigen::VectorXd::Zero(3 * n);
-  for (const ProbeSpec& p : model.scene.probes) s.sources.push_back(make_source(p));
-  s.samples.resize(model.scene.probes.size());
+  s.samples.resize(model.probe_points.size());
+  s.load_points = model.probe_points;
   s.in_contact.assign(n, 0);
-  if (model.scene.collision.self) {
-    s.detector = std::make_unique<collision::CollisionWorkspace>(model.scene.collision.kdop);
+  if (model.collision_surface) {
+    s.detector = std::make_unique<collision::CollisionWorkspace>(model.collision.kdop);
     s.compliance = std::make_unique<physics::SurfaceCompliance>(model.contact_solver(), model.collision_nodes);
     // Whole-mesh columns of the probe nodes too, so a contact correction that changes probe forces stays cheap.
     std::vector<int> probe_nodes;
@@ -253,30 +287,35 @@ struct InputHealth {
   bool bad_input = false;  // a source gave a non-finite value (its last good sample stands)
 };
 
-// Sample every probe source at the end-of-frame time. A source that yields a non-finite value (a faulty device)
-// is not believed: its last good sample stands.
-InputHealth sample_inputs(State& state, double t1) {
+// Sample every probe source at the end-of-frame time, and attach each probe: a fixed point where it was
+// compiled, a moving one at the outer-wall point nearest to where it is this frame. A source that yields a
+// non-finite value (a faulty device) is not believed: its last good sample stands.
+InputHealth sample_inputs(const Model& model, Inputs& inputs, State& state, double t1) {
+  assert(inputs.sources.size() == model.probe_points.size());
   InputHealth h;
-  for (size_t i = 0; i < state.sources.size(); ++i) {
-    const ProbeSample s = state.sources[i]->sample(t1);
+  for (size_t i = 0; i < inputs.sources.size(); ++i) {
+    InputSource& source = *inputs.sources[i];
+    const ProbeSample s = source.sample(t1);
     if (s.point.allFinite() && s.force.allFinite() && s.displacement.allFinite())
       state.samples[i] = s;
     else
       h.bad_input = true;
-    h.all_fixed = h.all_fixed && state.sources[i]->point_is_fixed();
+    const bool fixed = source.point_is_fixed();
+    state.load_points[i] = fixed ? model.probe_points[i]
+                                 : snap_to_surface(model.mesh.rest, model.outer_wall(), state.samples[i].point);
+    h.all_fixed = h.all_fixed && fixed;
   }
   return h;
 }
 
-// The frame's point loads: a fixed point attaches where it was compiled, a moving one where it is this frame.
+// The frame's point loads at the probes' attachment points.
 physics::FrameLoads frame_loads(const Model& model, const State& state, bool all_fixed) {
   physics::FrameLoads loads;
   loads.at_compiled_points = all_fixed;
   loads.points.resize(state.samples.size());
   for (size_t i = 0; i < state.samples.size(); ++i) {
     physics::PointLoad& p = loads.points[i];
-    p.at = state.sources[i]->point_is_fixed() ? model.probe_points[i]
-                                              : snap_to_surface(model.mesh.rest, model.mesh.outer, state.samples[i].point);
+    p.at = state.load_points[i];
     p.force = state.samples[i].force;
     p.held = model.probe_held[i];
     p.target = state.samples[i].displacement;
@@ -319,38 +358,38 @@ void commit_frame(const Model& model, State& state, const Eigen::VectorXd& u, bo
 }
 
 // Reaction at each probe point (a probe in equilibrium: equal and opposite to its force), handed back.
-void feed_back(State& state, double t1, FrameRecord& rec) {
+void feed_back(Inputs& inputs, const State& state, double t1, FrameRecord& rec) {
   rec.reactions.clear();
-  for (size_t i = 0; i < state.sources.size(); ++i) {
+  for (size_t i = 0; i < inputs.sources.size(); ++i) {
     const Eigen::Vector3d reaction = -state.samples[i].force;
     rec.reactions.push_back(reaction);
-    state.sources[i]->feedback(t1, reaction);
+    inputs.sources[i]->feedback(t1, reaction);
   }
 }
 
 }  // namespace
 
-// The probes' forces as a nodal force vector (3n); a moving point is attached where it is this frame.
+// The probes' forces as a nodal force vector (3n) at their attachment points of the last frame.
 Eigen::VectorXd nodal_loads(const Model& model, const State& state) {
   return physics::nodal_forces(frame_loads(model, state, true), 3 * model.mesh.n_nodes());
 }
 
-void step(const Model& model, State& state, FrameRecord& rec) {
+void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   // Every field of the record is this frame's (callers may reuse one record across frames).
   rec = FrameRecord{};
-  const double t1 = (state.frame + 1) / model.scene.fps;
+  const double t1 = (state.frame + 1) / model.fps;
   rec.frame = state.frame + 1;
   rec.t = t1;
 
   // Sample inputs.
   auto clock = Clock::now();
-  const InputHealth input = sample_inputs(state, t1);
+  const InputHealth input = sample_inputs(model, inputs, state, t1);
   rec.ms[kInput] = ms_since(clock);
 
   // Predict: the integrator's free motion with the probes' loads, the twisted ring at its end-of-frame angle;
   // displacement-driven probes get the forces that hold their points at the targets.
   clock = Clock::now();
-  rec.twist_degrees = twist_degrees(model.scene.twist, t1);
+  rec.twist_degrees = twist_degrees(model.twist, t1);
   physics::FrameLoads loads = frame_loads(model, state, input.all_fixed);
   Eigen::VectorXd u;
   const physics::Prediction pred =
@@ -369,7 +408,7 @@ void step(const Model& model, State& state, FrameRecord& rec) {
 
   // Commit (or keep the last good frame), then hand the reactions back to the sources.
   commit_frame(model, state, u, pred.finite, input.bad_input, rec);
-  feed_back(state, t1, rec);
+  feed_back(inputs, state, t1, rec);
   state.frame += 1;
   state.t = t1;
 }

@@ -31,13 +31,27 @@ constexpr int kRefactorCgIterations = 5;
 
 // Nearest point of a surface (positions x, triangles tris) to `p`, brute force over the triangles.
 SurfacePoint snap_to_surface(const Points& x, const Tris& tris, const Eigen::Vector3d& p);
-// Spread a force at a surface point over its triangle's nodes with the barycentric weights: f (3n) += ...
-void add_point_load(const SurfacePoint& sp, const Eigen::Vector3d& force, Eigen::VectorXd& f);
+
+// A surface of the mesh drawn every frame: its index in mesh.surfaces and its style.
+struct DrawnSurface {
+  int surface = -1;
+  render::SurfaceStyle style;
+};
 
 // Everything fixed for a session: mesh, fixed and prescribed nodes, the integrator (with its factorisations and
 // precomputed responses), probe attachment points, collision topology. Immutable after compile_model.
 struct Model {
-  Scene scene;
+  // What the session reports and runs by (from the scene, decided when it compiled).
+  std::string name;                                // the scene's name
+  std::string scene_path;                          // the file it came from
+  int frames = 120;                                // the scene's frame count
+  double fps = 40.0;                               // frames per second of simulated time
+  MaterialModel material = MaterialModel::kLinear; // elastic model
+  ElementType element = ElementType::kTet4;        // element of the volume mesh
+  SolverType solver = SolverType::kQuasiStatic;    // quasi-static or one implicit step per frame
+  CollisionSpec collision;                         // self-collision and response parameters
+  RenderSpec render;                               // image size, camera, force arrows
+  TwistSpec twist;                                 // the twisted ring's angle track (prescribed motion below)
   physics::TetMesh mesh;
   std::vector<int> fixed_nodes;                    // node ids held (at rest, or at their prescribed motion)
   std::vector<SurfacePoint> probe_points;          // per probe, where its (fixed) point attaches
@@ -48,6 +62,11 @@ struct Model {
   physics::PrescribedMotion prescribed;
   Eigen::Vector3d twist_center = Eigen::Vector3d::Zero();  // c, metres
   Eigen::Vector3d twist_axis = Eigen::Vector3d::UnitZ();   // a, unit (start -> stop direction)
+  int n_elements = 0;                              // volume elements (tets; tet10: the quadratic ones)
+  // The organ's walls as indices into mesh.surfaces, resolved from their names when the scene compiles.
+  int inner_surface = -1;                          // the lumen wall: self-collision, framing, surface export
+  int outer_surface = -1;                          // the outer wall: where probes attach
+  std::vector<DrawnSurface> drawn;                 // what the renderer draws of the mesh, outermost first
   std::unique_ptr<physics::Integrator> integrator;  // chosen once from material.model and solver.type
   std::vector<int> inner_nodes;                    // node ids on the inner wall (sorted)
   Tris collision_tris;                             // walls that self-collide: inner (+ outer), n x 3 node ids
@@ -59,6 +78,8 @@ struct Model {
   double budget_ms = 25.0;                         // 1000 / fps
   double compile_seconds = 0.0;                    // wall time to build the model
 
+  const Tris& inner_wall() const { return mesh.surfaces[inner_surface].tris; }
+  const Tris& outer_wall() const { return mesh.surfaces[outer_surface].tris; }
   // The factorisation whose inverse is the contact compliance (the integrator's: K, or the implicit step's).
   const physics::StaticSolver& contact_solver() const { return integrator->contact_solver(); }
 };
@@ -76,6 +97,13 @@ Eigen::VectorXd twist_coefficients(const Model& model, double degrees);
 // every other node, 3 n_nodes, metres.
 Eigen::VectorXd twist_displacement(const Model& model, double degrees);
 
+// The session's input sources, one per probe in the scene's order (scripted tracks, replays, devices): owned by
+// the session, apart from the model and from the physics state.
+struct Inputs {
+  std::vector<std::unique_ptr<InputSource>> sources;
+};
+Inputs make_inputs(const Scene& scene);
+
 // The session's mutable state.
 struct State {
   int frame = 0;        // frames done
@@ -83,8 +111,8 @@ struct State {
   Points x;             // positions at the end of the last good frame, n_nodes x 3, metres
   physics::SimState sim;        // displacement u and velocity v from rest (3 n_nodes each), the one simulation state
   physics::IntegratorWork work; // the integrator's warm starts between frames
-  std::vector<std::unique_ptr<InputSource>> sources;  // one per probe
   std::vector<ProbeSample> samples;                   // this frame's probe loads, one per probe
+  std::vector<SurfacePoint> load_points;              // where each probe attaches this frame (a moving one: snapped)
   std::vector<std::uint8_t> in_contact;               // per node, 1 when part of a contact this frame
   std::unique_ptr<collision::CollisionWorkspace> detector;  // BVH refit workspace (the surface is the model's)
   std::vector<collision::Contact> contacts;           // this frame's contacts (first detection)
@@ -103,6 +131,7 @@ Eigen::VectorXd nodal_loads(const Model& model, const State& state);
 // loads and the prescribed motion at the end of the frame); collide and respond (self-collision on the
 // integrator's contact compliance); commit (or keep the last good frame on numerical failure); feed back the
 // reactions. Fills everything in `rec` but the render and total times.
-void step(const Model& model, State& state, FrameRecord& rec);
+// `inputs` holds one source per probe of the model.
+void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec);
 
 }  // namespace lumen::engine

@@ -1,5 +1,6 @@
 // Corotational tet kernels (rotations, forces, warped products), PCG on the warped system, quasi-static solve.
 #include "physics/corotational.hpp"
+#include "physics/detail/messages.hpp"
 
 #include "physics/detail/dofs.hpp"
 
@@ -22,15 +23,6 @@ namespace {
 constexpr double kNewtonMinDet = 1e-2;
 constexpr int kNewtonMaxIterations = 20;
 
-// Throws std::invalid_argument "<where>: <what> must <rule>, got <value>".
-template <typename T>
-[[noreturn]] void fail(const char* where, const std::string& what, const char* rule, T value) {
-  std::ostringstream msg;
-  msg.precision(17);
-  msg << where << ": " << what << " must " << rule << ", got " << value;
-  throw std::invalid_argument(msg.str());
-}
-
 // Index of the first non-finite entry of v, or -1.
 int first_non_finite(const Eigen::VectorXd& v) {
   for (Eigen::Index i = 0; i < v.size(); ++i)
@@ -40,9 +32,9 @@ int first_non_finite(const Eigen::VectorXd& v) {
 
 // Checks a 3n vector: the given size and finite entries.
 void check_vector(const char* where, const char* name, const Eigen::VectorXd& v, int n) {
-  if (v.size() != n) fail(where, std::string(name) + ".size()", ("be " + std::to_string(n)).c_str(), v.size());
+  if (v.size() != n) detail::fail_must(where, std::string(name) + ".size()", ("be " + std::to_string(n)).c_str(), v.size());
   const int bad = first_non_finite(v);
-  if (bad >= 0) fail(where, std::string(name) + "[" + std::to_string(bad) + "]", "be finite", v[bad]);
+  if (bad >= 0) detail::fail_must(where, std::string(name) + "[" + std::to_string(bad) + "]", "be finite", v[bad]);
 }
 
 // Cofactor matrix of X (X^-T det X): its columns are cross products of the columns of X.
@@ -115,7 +107,7 @@ CorotationalElements::CorotationalElements(const TetMesh& mesh, const LinearMate
     for (int a = 0; a < 4; ++a) {
       const int v = tets_(t, a);
       if (v < 0 || v >= n_nodes_) {
-        fail("CorotationalElements", "mesh.tets(" + std::to_string(t) + ", " + std::to_string(a) + ")",
+        detail::fail_must("CorotationalElements", "mesh.tets(" + std::to_string(t) + ", " + std::to_string(a) + ")",
              ("be a node id in [0, " + std::to_string(n_nodes_) + ")").c_str(), v);
       }
     }
@@ -123,7 +115,7 @@ CorotationalElements::CorotationalElements(const TetMesh& mesh, const LinearMate
     for (int a = 0; a < 3; ++a) Dm.col(a) = (mesh.rest.row(tets_(t, a + 1)) - mesh.rest.row(tets_(t, 0))).transpose();
     volume_[t] = Dm.determinant() / 6.0;
     if (!(volume_[t] > 0.0) || !std::isfinite(volume_[t])) {
-      fail("CorotationalElements", "rest volume of tet " + std::to_string(t), "be > 0 and finite", volume_[t]);
+      detail::fail_must("CorotationalElements", "rest volume of tet " + std::to_string(t), "be > 0 and finite", volume_[t]);
     }
     grad_[t] = Dm.inverse();
   }
@@ -140,8 +132,8 @@ CorotationalElements::CorotationalElements(const TetMesh& mesh, const LinearMate
 
 Eigen::Matrix3d CorotationalElements::deformation_gradient(const Eigen::VectorXd& u, int t) const {
   const char* where = "CorotationalElements::deformation_gradient";
-  if (u.size() != n_dofs()) fail(where, "u.size()", ("be 3n = " + std::to_string(n_dofs())).c_str(), u.size());
-  if (t < 0 || t >= n_tets()) fail(where, "t", ("be in [0, " + std::to_string(n_tets()) + ")").c_str(), t);
+  if (u.size() != n_dofs()) detail::fail_must(where, "u.size()", ("be 3n = " + std::to_string(n_dofs())).c_str(), u.size());
+  if (t < 0 || t >= n_tets()) detail::fail_must(where, "t", ("be in [0, " + std::to_string(n_tets()) + ")").c_str(), t);
   return gradient(u, t);
 }
 
@@ -168,10 +160,10 @@ int CorotationalElements::rotations(const Eigen::VectorXd& u, std::vector<Eigen:
 void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R,
                                           Eigen::VectorXd& f) const {
   if (static_cast<int>(R.size()) != n_tets()) {
-    fail("CorotationalElements::elastic_forces", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
+    detail::fail_must("CorotationalElements::elastic_forces", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
          R.size());
   }
-  if (u.size() != n_dofs()) fail("CorotationalElements::elastic_forces", "u.size()", "be 3n", u.size());
+  if (u.size() != n_dofs()) detail::fail_must("CorotationalElements::elastic_forces", "u.size()", "be 3n", u.size());
   f.setZero(n_dofs());
   for (int t = 0; t < n_tets(); ++t) {
     // Strain of the unrotated element, eps = sym(R^T F) - I, its stress, and the nodal forces V R sigma grad N_a.
@@ -187,10 +179,10 @@ void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::v
 void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p,
                                           Eigen::VectorXd& y) const {
   if (static_cast<int>(R.size()) != n_tets()) {
-    fail("CorotationalElements::warped_product", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
+    detail::fail_must("CorotationalElements::warped_product", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
          R.size());
   }
-  if (p.size() != n_dofs()) fail("CorotationalElements::warped_product", "p.size()", "be 3n", p.size());
+  if (p.size() != n_dofs()) detail::fail_must("CorotationalElements::warped_product", "p.size()", "be 3n", p.size());
   y.setZero(n_dofs());
   for (int t = 0; t < n_tets(); ++t) {
     // R K_e R^T p_e: strain of the unrotated displacement gradient R^T (Dp Dm^-1), stress, rotated nodal forces.
@@ -207,7 +199,7 @@ void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R,
 
 Eigen::SparseMatrix<double> CorotationalElements::warped_stiffness(const std::vector<Eigen::Matrix3d>& R) const {
   if (static_cast<int>(R.size()) != n_tets()) {
-    fail("CorotationalElements::warped_stiffness", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
+    detail::fail_must("CorotationalElements::warped_stiffness", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
          R.size());
   }
   std::vector<Eigen::Triplet<double>> triplets;
@@ -235,7 +227,7 @@ Eigen::SparseMatrix<double> CorotationalElements::warped_stiffness(const std::ve
 
 double CorotationalElements::elastic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const {
   if (static_cast<int>(R.size()) != n_tets()) {
-    fail("CorotationalElements::elastic_energy", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
+    detail::fail_must("CorotationalElements::elastic_energy", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
          R.size());
   }
   check_vector("CorotationalElements::elastic_energy", "u", u, n_dofs());
@@ -254,7 +246,7 @@ double CorotationalElements::elastic_energy(const Eigen::VectorXd& u, const std:
 void CorotationalElements::node_rotations(const std::vector<Eigen::Matrix3d>& R,
                                           std::vector<Eigen::Matrix3d>& node_R) const {
   if (static_cast<int>(R.size()) != n_tets()) {
-    fail("CorotationalElements::node_rotations", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
+    detail::fail_must("CorotationalElements::node_rotations", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
          R.size());
   }
   node_R.resize(n_nodes_);
@@ -388,22 +380,22 @@ PcgResult solve_pcg(const WarpedSystem& system, const StaticSolver& precondition
   const int n = el.n_dofs();
   if (!system.rotations) throw std::invalid_argument("solve_pcg: system.rotations must not be null");
   if (static_cast<int>(system.rotations->size()) != el.n_tets()) {
-    fail(where, "system.rotations->size()", ("be n_tets = " + std::to_string(el.n_tets())).c_str(),
+    detail::fail_must(where, "system.rotations->size()", ("be n_tets = " + std::to_string(el.n_tets())).c_str(),
          system.rotations->size());
   }
   if (!(system.c_stiffness > 0.0) || !std::isfinite(system.c_stiffness))
-    fail(where, "system.c_stiffness", "be > 0 and finite", system.c_stiffness);
+    detail::fail_must(where, "system.c_stiffness", "be > 0 and finite", system.c_stiffness);
   if (!(system.c_mass >= 0.0) || !std::isfinite(system.c_mass))
-    fail(where, "system.c_mass", "be >= 0 and finite", system.c_mass);
+    detail::fail_must(where, "system.c_mass", "be >= 0 and finite", system.c_mass);
   if (system.c_mass > 0.0) {
     if (!system.mass) throw std::invalid_argument("solve_pcg: system.mass must not be null when c_mass > 0");
     check_vector(where, "system.mass", *system.mass, n);
   }
   if (preconditioner.n_dofs() != n) {
-    fail(where, "preconditioner.n_dofs()", ("be " + std::to_string(n)).c_str(), preconditioner.n_dofs());
+    detail::fail_must(where, "preconditioner.n_dofs()", ("be " + std::to_string(n)).c_str(), preconditioner.n_dofs());
   }
-  if (!(tolerance > 0.0 && tolerance < 1.0)) fail(where, "tolerance", "be in (0, 1)", tolerance);
-  if (max_iterations < 1) fail(where, "max_iterations", "be >= 1", max_iterations);
+  if (!(tolerance > 0.0 && tolerance < 1.0)) detail::fail_must(where, "tolerance", "be in (0, 1)", tolerance);
+  if (max_iterations < 1) detail::fail_must(where, "max_iterations", "be >= 1", max_iterations);
   check_vector(where, "b", b, n);
   if (x.size() == 0) x.setZero(n);
   check_vector(where, "x", x, n);
@@ -412,12 +404,12 @@ PcgResult solve_pcg(const WarpedSystem& system, const StaticSolver& precondition
   for (int d = 0; d < n; ++d) fixed[d] = preconditioner.is_fixed_dof(d) ? 1 : 0;
   if (node_rotations) {
     if (static_cast<int>(node_rotations->size()) != el.n_nodes()) {
-      fail(where, "node_rotations->size()", ("be n_nodes = " + std::to_string(el.n_nodes())).c_str(),
+      detail::fail_must(where, "node_rotations->size()", ("be n_nodes = " + std::to_string(el.n_nodes())).c_str(),
            node_rotations->size());
     }
     for (int v = 0; v < el.n_nodes(); ++v)
       if (fixed[3 * v] != fixed[3 * v + 1] || fixed[3 * v] != fixed[3 * v + 2])
-        fail(where, "node " + std::to_string(v), "be fixed in all or no components with node_rotations", v);
+        detail::fail_must(where, "node " + std::to_string(v), "be fixed in all or no components with node_rotations", v);
   }
 
   // Right-hand side and guess restricted to the free DOFs.
@@ -454,11 +446,11 @@ CorotationalModel::CorotationalModel(const TetMesh& mesh, const LinearMaterial& 
 
 void validate_options(const CorotationalOptions& o) {
   const char* where = "CorotationalOptions";
-  if (!(o.tolerance > 0.0) || !std::isfinite(o.tolerance)) fail(where, "tolerance", "be > 0 and finite", o.tolerance);
-  if (o.max_iterations < 1) fail(where, "max_iterations", "be >= 1", o.max_iterations);
-  if (!(o.cg_tolerance > 0.0 && o.cg_tolerance < 1.0)) fail(where, "cg_tolerance", "be in (0, 1)", o.cg_tolerance);
-  if (o.max_cg_iterations < 1) fail(where, "max_cg_iterations", "be >= 1", o.max_cg_iterations);
-  if (o.refactor_cg_iterations < 0) fail(where, "refactor_cg_iterations", "be >= 0", o.refactor_cg_iterations);
+  if (!(o.tolerance > 0.0) || !std::isfinite(o.tolerance)) detail::fail_must(where, "tolerance", "be > 0 and finite", o.tolerance);
+  if (o.max_iterations < 1) detail::fail_must(where, "max_iterations", "be >= 1", o.max_iterations);
+  if (!(o.cg_tolerance > 0.0 && o.cg_tolerance < 1.0)) detail::fail_must(where, "cg_tolerance", "be in (0, 1)", o.cg_tolerance);
+  if (o.max_cg_iterations < 1) detail::fail_must(where, "max_cg_iterations", "be >= 1", o.max_cg_iterations);
+  if (o.refactor_cg_iterations < 0) detail::fail_must(where, "refactor_cg_iterations", "be >= 0", o.refactor_cg_iterations);
 }
 
 namespace {

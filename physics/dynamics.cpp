@@ -1,5 +1,6 @@
 // Backward Euler with lumped mass and Rayleigh damping: linear (prefactorised) and corotational (PCG).
 #include "physics/dynamics.hpp"
+#include "physics/detail/messages.hpp"
 
 #include "physics/detail/dofs.hpp"
 
@@ -13,30 +14,21 @@ namespace lumen::physics {
 
 namespace {
 
-// Throws std::invalid_argument "<where>: <what> must <rule>, got <value>".
-template <typename T>
-[[noreturn]] void fail(const char* where, const std::string& what, const char* rule, T value) {
-  std::ostringstream msg;
-  msg.precision(17);
-  msg << where << ": " << what << " must " << rule << ", got " << value;
-  throw std::invalid_argument(msg.str());
-}
-
 // Checks a 3n vector: the given size and finite entries.
 void check_vector(const char* where, const char* name, const Eigen::VectorXd& v, int n) {
-  if (v.size() != n) fail(where, std::string(name) + ".size()", ("be " + std::to_string(n)).c_str(), v.size());
+  if (v.size() != n) detail::fail_must(where, std::string(name) + ".size()", ("be " + std::to_string(n)).c_str(), v.size());
   for (int i = 0; i < n; ++i)
-    if (!std::isfinite(v[i])) fail(where, std::string(name) + "[" + std::to_string(i) + "]", "be finite", v[i]);
+    if (!std::isfinite(v[i])) detail::fail_must(where, std::string(name) + "[" + std::to_string(i) + "]", "be finite", v[i]);
 }
 
 void validate_params(const DynamicParams& p) {
   const char* where = "DynamicParams";
   if (p.elastic != ElasticModel::kLinear && p.elastic != ElasticModel::kCorotational)
-    fail(where, "elastic", "be kLinear or kCorotational", static_cast<int>(p.elastic));
-  if (!(p.density > 0.0) || !std::isfinite(p.density)) fail(where, "density", "be > 0 and finite", p.density);
-  if (!(p.alpha >= 0.0) || !std::isfinite(p.alpha)) fail(where, "alpha", "be >= 0 and finite", p.alpha);
-  if (!(p.beta >= 0.0) || !std::isfinite(p.beta)) fail(where, "beta", "be >= 0 and finite", p.beta);
-  if (!(p.time_step > 0.0) || !std::isfinite(p.time_step)) fail(where, "time_step", "be > 0 and finite", p.time_step);
+    detail::fail_must(where, "elastic", "be kLinear or kCorotational", static_cast<int>(p.elastic));
+  if (!(p.density > 0.0) || !std::isfinite(p.density)) detail::fail_must(where, "density", "be > 0 and finite", p.density);
+  if (!(p.alpha >= 0.0) || !std::isfinite(p.alpha)) detail::fail_must(where, "alpha", "be >= 0 and finite", p.alpha);
+  if (!(p.beta >= 0.0) || !std::isfinite(p.beta)) detail::fail_must(where, "beta", "be >= 0 and finite", p.beta);
+  if (!(p.time_step > 0.0) || !std::isfinite(p.time_step)) detail::fail_must(where, "time_step", "be > 0 and finite", p.time_step);
 }
 
 // Lumped mass, 3n, kg: density * V / 4 to each node of each tet (validated parameters).
@@ -210,7 +202,7 @@ StepResult step(const DynamicModel& model, DynamicState& state, const Eigen::Vec
   const char* where = "step";
   // Validate the step, the loads and the state.
   validate_options(options);
-  if (!(h > 0.0) || !std::isfinite(h)) fail(where, "h", "be > 0 and finite", h);
+  if (!(h > 0.0) || !std::isfinite(h)) detail::fail_must(where, "h", "be > 0 and finite", h);
   const int n = model.n_dofs();
   check_vector(where, "f_ext", f_ext, n);
   if (state.u.size() == 0) state.u.setZero(n);

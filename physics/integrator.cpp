@@ -19,9 +19,7 @@ Eigen::VectorXd combine_columns(const Eigen::MatrixXd& basis, const Eigen::Vecto
 
 Eigen::VectorXd nodal_forces(const FrameLoads& loads, int n_dofs) {
   Eigen::VectorXd f = Eigen::VectorXd::Zero(n_dofs);
-  for (const PointLoad& p : loads.points)
-    for (int k = 0; k < 3; ++k)
-      if (p.at.node[k] >= 0) f.segment<3>(3 * p.at.node[k]) += p.at.weight[k] * p.force;
+  for (const PointLoad& p : loads.points) add_point_force(p.at, p.force, f);
   return f;
 }
 

@@ -68,30 +68,30 @@ LameResult lame_error(const LameSetup& setup) {
   // Constraints: u_z = 0 on both ends (every end node); u_y = 0 at angles 0 and pi, u_x = 0 at pi/2 on the start
   // inner ring (corner nodes, the same ids for both element orders).
   std::vector<FixedDof> fixed;
-  for (int v : quadratic ? qmesh.end_nodes_start : mesh.end_nodes_start) fixed.push_back({v, 2});
-  for (int v : quadratic ? qmesh.end_nodes_stop : mesh.end_nodes_stop) fixed.push_back({v, 2});
-  fixed.push_back({closest(mesh.rest, mesh.end_nodes_start, {a, 0.0, 0.0}), 1});
-  fixed.push_back({closest(mesh.rest, mesh.end_nodes_start, {-a, 0.0, 0.0}), 1});
-  fixed.push_back({closest(mesh.rest, mesh.end_nodes_start, {0.0, a, 0.0}), 0});
+  for (int v : quadratic ? qmesh.node_set(kStartEnd) : mesh.node_set(kStartEnd)) fixed.push_back({v, 2});
+  for (int v : quadratic ? qmesh.node_set(kStopEnd) : mesh.node_set(kStopEnd)) fixed.push_back({v, 2});
+  fixed.push_back({closest(mesh.rest, mesh.node_set(kStartEnd), {a, 0.0, 0.0}), 1});
+  fixed.push_back({closest(mesh.rest, mesh.node_set(kStartEnd), {-a, 0.0, 0.0}), 1});
+  fixed.push_back({closest(mesh.rest, mesh.node_set(kStartEnd), {0.0, a, 0.0}), 0});
 
   // Pressure as consistent nodal forces out of the lumen (the inner triangles' normals point into it).
   Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * n);
   if (quadratic) {
     // Curved 6-node faces: quadrature of p N_a n dA over each face's quadratic map.
-    for (int t = 0; t < qmesh.inner.rows(); ++t) {
+    for (int t = 0; t < qmesh.surface(kInnerWall).rows(); ++t) {
       Eigen::Matrix<double, 6, 3> X6;
-      for (int c = 0; c < 6; ++c) X6.row(c) = x.row(qmesh.inner(t, c));
+      for (int c = 0; c < 6; ++c) X6.row(c) = x.row(qmesh.surface(kInnerWall)(t, c));
       const Eigen::Matrix<double, 6, 3> f6 = tri6_pressure_load(X6, setup.pressure);
-      for (int c = 0; c < 6; ++c) f.segment<3>(3 * qmesh.inner(t, c)) += f6.row(c).transpose();
+      for (int c = 0; c < 6; ++c) f.segment<3>(3 * qmesh.surface(kInnerWall)(t, c)) += f6.row(c).transpose();
     }
   } else {
     // Flat triangles: p * area / 3 per vertex, along -(inner normal).
-    for (int t = 0; t < mesh.inner.rows(); ++t) {
-      const Eigen::Vector3d x0 = mesh.rest.row(mesh.inner(t, 0)).transpose();
-      const Eigen::Vector3d x1 = mesh.rest.row(mesh.inner(t, 1)).transpose();
-      const Eigen::Vector3d x2 = mesh.rest.row(mesh.inner(t, 2)).transpose();
+    for (int t = 0; t < mesh.surface(kInnerWall).rows(); ++t) {
+      const Eigen::Vector3d x0 = mesh.rest.row(mesh.surface(kInnerWall)(t, 0)).transpose();
+      const Eigen::Vector3d x1 = mesh.rest.row(mesh.surface(kInnerWall)(t, 1)).transpose();
+      const Eigen::Vector3d x2 = mesh.rest.row(mesh.surface(kInnerWall)(t, 2)).transpose();
       const Eigen::Vector3d area_normal = 0.5 * (x1 - x0).cross(x2 - x0);  // into the lumen, |.| = area
-      for (int c = 0; c < 3; ++c) f.segment<3>(3 * mesh.inner(t, c)) -= setup.pressure / 3.0 * area_normal;
+      for (int c = 0; c < 3; ++c) f.segment<3>(3 * mesh.surface(kInnerWall)(t, c)) -= setup.pressure / 3.0 * area_normal;
     }
   }
 

@@ -8,6 +8,11 @@
 
 namespace lumen::physics {
 
+void add_point_force(const LoadPoint& p, const Eigen::Vector3d& force, Eigen::VectorXd& f) {
+  for (int k = 0; k < 3; ++k)
+    if (p.node[k] >= 0) f.segment<3>(3 * p.node[k]) += p.weight[k] * force;
+}
+
 using detail::check_slot;
 using detail::fail;
 using detail::num;

@@ -17,6 +17,9 @@ struct LoadPoint {
   int triangle = -1;  // the surface triangle it lies on (-1 when it is not given by one)
 };
 
+// Spread a force (newtons) at a load point over its nodes by their weights: f (3n) += ...
+void add_point_force(const LoadPoint& p, const Eigen::Vector3d& force, Eigen::VectorXd& f);
+
 // Displacement of the whole mesh for forces at fixed load points, precomputed.
 // Keeps no reference to the solver.
 class LoadResponse {

@@ -1,6 +1,10 @@
 // Hollow-cylinder tetrahedral mesh generator and tet volume.
 #include "physics/mesh.hpp"
 
+#include "physics/detail/messages.hpp"
+
+#include <utility>
+
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -13,10 +17,7 @@ namespace {
 // Throws std::invalid_argument "HollowCylinderSpec.<field> <rule>, got <value>".
 template <typename T>
 [[noreturn]] void fail_spec(const char* field, const char* rule, T value) {
-  std::ostringstream msg;
-  msg.precision(17);
-  msg << "HollowCylinderSpec." << field << " " << rule << ", got " << value;
-  throw std::invalid_argument(msg.str());
+  detail::fail_value(std::string("HollowCylinderSpec.") + field, rule, value);
 }
 
 void validate(const HollowCylinderSpec& s) {
@@ -92,36 +93,38 @@ TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec) {
 
   // Inner (k = 0) and outer (k = nr) walls: each quad split on its (i, j)-(i+1, j+1) diagonal like the tets.
   // (p00, p10, p11) has normal along +r, so the inner wall reverses it to point into the lumen.
-  mesh.inner.resize(2 * na * nl, 3);
-  mesh.outer.resize(2 * na * nl, 3);
+  Tris inner(2 * na * nl, 3), outer(2 * na * nl, 3);
   int f = 0;
   for (int j = 0; j < nl; ++j)
     for (int i = 0; i < na; ++i) {
-      mesh.inner.row(f) << node(i, j, 0), node(i + 1, j + 1, 0), node(i + 1, j, 0);
-      mesh.inner.row(f + 1) << node(i, j, 0), node(i, j + 1, 0), node(i + 1, j + 1, 0);
-      mesh.outer.row(f) << node(i, j, nr), node(i + 1, j, nr), node(i + 1, j + 1, nr);
-      mesh.outer.row(f + 1) << node(i, j, nr), node(i + 1, j + 1, nr), node(i, j + 1, nr);
+      inner.row(f) << node(i, j, 0), node(i + 1, j + 1, 0), node(i + 1, j, 0);
+      inner.row(f + 1) << node(i, j, 0), node(i, j + 1, 0), node(i + 1, j + 1, 0);
+      outer.row(f) << node(i, j, nr), node(i + 1, j, nr), node(i + 1, j + 1, nr);
+      outer.row(f + 1) << node(i, j, nr), node(i + 1, j + 1, nr), node(i, j + 1, nr);
       f += 2;
     }
 
   // End caps: quads in (i, k) split on the (i, k)-(i+1, k+1) diagonal. (p00, p10, p11) has normal along -z,
   // which is outward at the start end; the stop end reverses it.
-  mesh.ends.resize(4 * na * nr, 3);
+  Tris ends(4 * na * nr, 3);
   f = 0;
   for (int k = 0; k < nr; ++k)
     for (int i = 0; i < na; ++i) {
-      mesh.ends.row(f++) << node(i, 0, k), node(i + 1, 0, k), node(i + 1, 0, k + 1);
-      mesh.ends.row(f++) << node(i, 0, k), node(i + 1, 0, k + 1), node(i, 0, k + 1);
-      mesh.ends.row(f++) << node(i, nl, k), node(i + 1, nl, k + 1), node(i + 1, nl, k);
-      mesh.ends.row(f++) << node(i, nl, k), node(i, nl, k + 1), node(i + 1, nl, k + 1);
+      ends.row(f++) << node(i, 0, k), node(i + 1, 0, k), node(i + 1, 0, k + 1);
+      ends.row(f++) << node(i, 0, k), node(i + 1, 0, k + 1), node(i, 0, k + 1);
+      ends.row(f++) << node(i, nl, k), node(i + 1, nl, k + 1), node(i + 1, nl, k);
+      ends.row(f++) << node(i, nl, k), node(i, nl, k + 1), node(i + 1, nl, k + 1);
     }
+  mesh.surfaces = {{kInnerWall, std::move(inner)}, {kOuterWall, std::move(outer)}, {kEndCaps, std::move(ends)}};
 
-  // End node lists: every node of the first and last ring of cells.
+  // End node sets: every node of the first and last ring of cells.
+  NodeSet start{kStartEnd, {}}, stop{kStopEnd, {}};
   for (int k = 0; k <= nr; ++k)
     for (int i = 0; i < na; ++i) {
-      mesh.end_nodes_start.push_back(node(i, 0, k));
-      mesh.end_nodes_stop.push_back(node(i, nl, k));
+      start.nodes.push_back(node(i, 0, k));
+      stop.nodes.push_back(node(i, nl, k));
     }
+  mesh.node_sets = {std::move(start), std::move(stop)};
   return mesh;
 }
 

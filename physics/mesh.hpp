@@ -1,21 +1,66 @@
 #pragma once
 // Tetrahedral mesh with tagged surfaces, and the hollow-cylinder generator.
+#include <stdexcept>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "physics/types.hpp"
 
 namespace lumen::physics {
 
-// A tetrahedral volume mesh with its boundary surfaces as index maps onto its vertices.
+// A boundary surface of a volume mesh, by name: faces whose node ids index the mesh's nodes (an index map onto
+// the volume), normals out of the volume. Faces: Tris (n x 3) or, on a quadratic mesh, Tris6 (n x 6).
+template <class Faces>
+struct NamedFaces {
+  std::string name;
+  Faces tris;
+};
+using MeshSurface = NamedFaces<Tris>;
+
+// A named set of node ids (e.g. the nodes of one end, held by a scene's "fixed").
+struct NodeSet {
+  std::string name;
+  std::vector<int> nodes;
+};
+
+// The names the hollow-cylinder generator gives its surfaces and node sets (the names scenes use).
+inline constexpr char kInnerWall[] = "inner";  // surface: the lumen wall, normals into the lumen
+inline constexpr char kOuterWall[] = "outer";  // surface: the outer wall, normals away from the axis
+inline constexpr char kEndCaps[] = "ends";     // surface: both end caps
+inline constexpr char kStartEnd[] = "start";   // node set: every node of the end ring at the centreline's start
+inline constexpr char kStopEnd[] = "stop";     // node set: every node of the end ring at its end
+
+// The item of that name in a list of named items (surfaces, node sets), or null.
+template <class Item>
+const Item* find_named(const std::vector<Item>& items, std::string_view name) {
+  for (const Item& item : items)
+    if (item.name == name) return &item;
+  return nullptr;
+}
+// The same, throwing std::invalid_argument "<owner> has no <kind> "<name>" (it has: a, b)" when it is missing.
+template <class Item>
+const Item& require_named(const std::vector<Item>& items, std::string_view name, const char* owner, const char* kind) {
+  if (const Item* item = find_named(items, name)) return *item;
+  std::string have;
+  for (const Item& item : items) have += (have.empty() ? "" : ", ") + item.name;
+  throw std::invalid_argument(std::string(owner) + " has no " + kind + " \"" + std::string(name) + "\" (it has: " +
+                              (have.empty() ? "none" : have) + ")");
+}
+
+// A tetrahedral volume mesh with its boundary surfaces and node sets by name.
 struct TetMesh {
-  Points rest;               // rest positions, n_nodes x 3, metres
-  Tets tets;                 // elements, n_tets x 4, positive volume
-  Tris inner;                // inner (lumen) wall, n_inner x 3, normals point into the lumen (toward the axis)
-  Tris outer;                // outer wall, n_outer x 3, normals point away from the axis
-  Tris ends;                 // end caps, n_end x 3, normals point out of the volume
-  std::vector<int> end_nodes_start;  // node ids on the end z = 0 (or centreline start)
-  std::vector<int> end_nodes_stop;   // node ids on the end z = length (or centreline end)
+  Points rest;                         // rest positions, n_nodes x 3, metres
+  Tets tets;                           // elements, n_tets x 4, positive volume
+  std::vector<MeshSurface> surfaces;   // boundary surfaces (index maps onto the nodes)
+  std::vector<NodeSet> node_sets;      // named node sets
   int n_nodes() const { return static_cast<int>(rest.rows()); }
+  bool has_surface(std::string_view name) const { return find_named(surfaces, name) != nullptr; }
+  // The surface / node set of that name; throws std::invalid_argument naming it when the mesh has none.
+  const Tris& surface(std::string_view name) const { return require_named(surfaces, name, "TetMesh", "surface").tris; }
+  const std::vector<int>& node_set(std::string_view name) const {
+    return require_named(node_sets, name, "TetMesh", "node set").nodes;
+  }
 };
 
 // Parameters of a hollow cylinder along +z from z = 0 to z = length, axis through the origin.
@@ -34,8 +79,9 @@ struct HollowCylinderSpec {
 // Nodes: around * (along + 1) * (layers + 1); tets: 6 * around * along * layers;
 // inner triangles: 2 * around * along.
 // Node id of ring j (0..along), layer k (0 = inner wall .. layers = outer wall), angle step i (0..around-1):
-// (j * (layers + 1) + k) * around + i, at angle 2 pi i / around from the local x axis. End node lists are the
-// rings j = 0 and j = along in that order (inner layer first).
+// (j * (layers + 1) + k) * around + i, at angle 2 pi i / around from the local x axis. Surfaces kInnerWall,
+// kOuterWall, kEndCaps; node sets kStartEnd and kStopEnd: the rings j = 0 and j = along in that order (inner
+// layer first).
 // Bent tube: the centreline is the arc c(s) = (R - R cos(s/R), 0, R sin(s/R)), R = bend_radius, starting at the
 // origin along +z and curving toward +x (centre of curvature at (R, 0, 0)); each ring lies in the plane normal
 // to the arc, with local axes (cos(s/R), 0, -sin(s/R)) and y. Straight: rings at z = s in the x-y plane.

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
+#include <utility>
 
 namespace lumen::physics {
 
@@ -292,7 +293,7 @@ QuadraticMesh make_quadratic(const TetMesh& mesh) {
   }
 
   // Surfaces: each triangle's edges must be tet edges.
-  auto lift = [&](const Tris& tris, const char* name) {
+  auto lift = [&](const Tris& tris, const std::string& name) {
     Tris6 out(tris.rows(), 6);
     for (int f = 0; f < tris.rows(); ++f) {
       for (int c = 0; c < 3; ++c) out(f, c) = tris(f, c);
@@ -300,7 +301,7 @@ QuadraticMesh make_quadratic(const TetMesh& mesh) {
         const int a = tris(f, kTri6Edges[e][0]), b = tris(f, kTri6Edges[e][1]);
         const auto it = edge_of.find(edge_key(a, b));
         if (it == edge_of.end()) {
-          throw std::invalid_argument(std::string("make_quadratic: mesh.") + name + " triangle " + std::to_string(f) +
+          throw std::invalid_argument("make_quadratic: surface " + name + " triangle " + std::to_string(f) +
                                       " has edge (" + std::to_string(a) + ", " + std::to_string(b) +
                                       ") that is not an edge of any tet");
         }
@@ -309,16 +310,14 @@ QuadraticMesh make_quadratic(const TetMesh& mesh) {
     }
     return out;
   };
-  q.inner = lift(mesh.inner, "inner");
-  q.outer = lift(mesh.outer, "outer");
-  q.ends = lift(mesh.ends, "ends");
+  for (const MeshSurface& surface : mesh.surfaces) q.surfaces.push_back({surface.name, lift(surface.tris, surface.name)});
 
-  // End nodes: the linear lists, then the edge nodes joining two nodes of the same list.
-  auto end_nodes = [&](const std::vector<int>& corners) {
+  // Node sets: the linear sets, then the edge nodes joining two nodes of the same set.
+  auto lift_set = [&](const std::vector<int>& corners) {
     std::vector<char> on(n, 0);
     for (int v : corners) {
       if (v < 0 || v >= n) {
-        throw std::invalid_argument("make_quadratic: end node ids must be in [0, " + std::to_string(n) + "), got " +
+        throw std::invalid_argument("make_quadratic: node set ids must be in [0, " + std::to_string(n) + "), got " +
                                     std::to_string(v));
       }
       on[v] = 1;
@@ -328,8 +327,7 @@ QuadraticMesh make_quadratic(const TetMesh& mesh) {
       if (on[edges[e][0]] && on[edges[e][1]]) out.push_back(n + e);
     return out;
   };
-  q.end_nodes_start = end_nodes(mesh.end_nodes_start);
-  q.end_nodes_stop = end_nodes(mesh.end_nodes_stop);
+  for (const NodeSet& set : mesh.node_sets) q.node_sets.push_back({set.name, lift_set(set.nodes)});
   return q;
 }
 
@@ -373,18 +371,31 @@ Tris split_tri6(const Tris6& tris) {
   return out;
 }
 
-TetMesh surface_view(const QuadraticMesh& q, const TetMesh& linear) {
-  if (linear.n_nodes() != q.n_corners)
-    throw std::invalid_argument("surface_view: linear mesh has " + std::to_string(linear.n_nodes()) +
-                                " nodes, the quadratic mesh " + std::to_string(q.n_corners) + " corners");
+Tets split_tet10(const Points& rest, const Eigen::Matrix<int, Eigen::Dynamic, 10, Eigen::RowMajor>& tets) {
+  // Local nodes of the 8 sub-tets (kTet10Edges order: 4 = (0,1), 5 = (1,2), 6 = (0,2), 7 = (0,3), 8 = (1,3),
+  // 9 = (2,3)): four corner tets, then the octahedron 4..9 around its 6-8 diagonal (the cycle 4, 5, 9, 7).
+  static constexpr int kSub[8][4] = {{0, 4, 6, 7}, {4, 1, 5, 8}, {6, 5, 2, 9}, {7, 8, 9, 3},
+                                     {6, 8, 4, 5}, {6, 8, 5, 9}, {6, 8, 9, 7}, {6, 8, 7, 4}};
+  Tets out(8 * tets.rows(), 4);
+  for (int t = 0; t < tets.rows(); ++t)
+    for (int s = 0; s < 8; ++s) {
+      const int row = 8 * t + s;
+      for (int k = 0; k < 4; ++k) out(row, k) = tets(t, kSub[s][k]);
+      // Orientation: positive volume (swap two nodes otherwise).
+      if (tet_volume(rest, out, row) < 0.0) std::swap(out(row, 2), out(row, 3));
+      if (!(tet_volume(rest, out, row) > 0.0))
+        throw std::logic_error("split_tet10: sub-tet " + std::to_string(s) + " of tet " + std::to_string(t) +
+                               " has no positive volume");
+    }
+  return out;
+}
+
+TetMesh linear_view(const QuadraticMesh& q) {
   TetMesh m;
   m.rest = q.rest;
-  m.tets = linear.tets;
-  m.inner = split_tri6(q.inner);
-  m.outer = split_tri6(q.outer);
-  m.ends = split_tri6(q.ends);
-  m.end_nodes_start = q.end_nodes_start;
-  m.end_nodes_stop = q.end_nodes_stop;
+  m.tets = split_tet10(q.rest, q.tets);
+  for (const auto& surface : q.surfaces) m.surfaces.push_back({surface.name, split_tri6(surface.tris)});
+  m.node_sets = q.node_sets;
   return m;
 }
 

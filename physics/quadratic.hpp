@@ -33,13 +33,19 @@ struct QuadraticMesh {
   Eigen::Matrix<int, Eigen::Dynamic, 2, Eigen::RowMajor> edges;  // per edge node (index e -> node n_corners + e):
                                                                  // its two corners, smaller id first
   int n_corners = 0;
-  // Corner AND edge nodes on each end (for fixing "ends"): the linear mesh's end corners in their order, then the
-  // edge nodes whose two corners are both end corners of that end, ascending.
-  std::vector<int> end_nodes_start, end_nodes_stop;
-  Tris6 inner;  // the linear mesh's inner wall as 6-node triangles (same rows, same orientation)
-  Tris6 outer;  // outer wall, likewise
-  Tris6 ends;   // end caps, likewise
+  // The linear mesh's surfaces as 6-node triangles, by the same names (same rows, same orientation).
+  std::vector<NamedFaces<Tris6>> surfaces;
+  // The linear mesh's node sets by the same names, with corner AND edge nodes: its corners in their order, then
+  // the edge nodes whose two corners are both in the set, ascending.
+  std::vector<NodeSet> node_sets;
   int n_nodes() const { return static_cast<int>(rest.rows()); }
+  // The surface / node set of that name; throws std::invalid_argument naming it when the mesh has none.
+  const Tris6& surface(std::string_view name) const {
+    return require_named(surfaces, name, "QuadraticMesh", "surface").tris;
+  }
+  const std::vector<int>& node_set(std::string_view name) const {
+    return require_named(node_sets, name, "QuadraticMesh", "node set").nodes;
+  }
 };
 
 // Straight-sided (mid-edge nodes at edge midpoints). Edge nodes are numbered in order of first appearance over
@@ -97,10 +103,15 @@ Eigen::Matrix<double, 6, 3> tri6_pressure_load(const Eigen::Matrix<double, 6, 3>
 // (c0, e01, e20), (e01, c1, e12), (e20, e12, c2), (e01, e12, e20). n x 6 -> 4n x 3.
 Tris split_tri6(const Tris6& tris);
 
-// The linear view of a quadratic mesh that rendering and collision use: all its nodes (corners and edge nodes,
-// so positions and displacements index alike), its walls as split_tri6 triangles (twice the linear mesh's
-// resolution along each edge, mapped onto the volume's nodes), the linear mesh's corner tets (an orientation
-// proxy for inversion counts) and its end node sets (corners and edge nodes).
-TetMesh surface_view(const QuadraticMesh& q, const TetMesh& linear);
+// Each 10-node tet split into 8 linear tets over its corner and edge nodes, positive volume at the given rest
+// positions: the four corner tets and the inner octahedron cut along its (0,2)-(1,3) edge-node diagonal.
+// n x 10 -> 8n x 4. Throws std::logic_error if a sub-tet has no positive volume (a degenerate element).
+Tets split_tet10(const Points& rest, const Eigen::Matrix<int, Eigen::Dynamic, 10, Eigen::RowMajor>& tets);
+
+// The linear view of a quadratic mesh that rendering, collision and inversion counts use: all its nodes (corners
+// and edge nodes, so positions and displacements index alike), its tets split by split_tet10 (every node belongs
+// to a tet), its surfaces split by split_tri6 (twice the linear mesh's resolution along each edge, index maps
+// onto the volume's nodes) and its node sets (corners and edge nodes).
+TetMesh linear_view(const QuadraticMesh& q);
 
 }  // namespace lumen::physics

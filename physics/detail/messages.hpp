@@ -16,6 +16,20 @@ inline std::string num(double v) {
   return s.str();
 }
 
+// Throws std::invalid_argument "<subject> <rule>, got <value>" (numbers with 17 significant digits).
+template <typename T>
+[[noreturn]] void fail_value(const std::string& subject, const std::string& rule, T value) {
+  std::ostringstream msg;
+  msg.precision(17);
+  msg << subject << " " << rule << ", got " << value;
+  throw std::invalid_argument(msg.str());
+}
+// The same as "<where>: <what> must <rule>, got <value>".
+template <typename T>
+[[noreturn]] void fail_must(const char* where, const std::string& what, const std::string& rule, T value) {
+  fail_value(std::string(where) + ": " + what, "must " + rule, value);
+}
+
 // Validates a node id of a slot that may be unused (-1).
 inline void check_slot(int node, int n_nodes, const std::string& name) {
   if (node < -1 || node >= n_nodes)

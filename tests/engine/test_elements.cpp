@@ -72,17 +72,18 @@ TEST(Elements, Tet10ModelMatchesADirectQuadraticSolve) {
   const physics::TetMesh linear = physics::make_hollow_cylinder(scene.mesh);
   const physics::QuadraticMesh q = physics::make_quadratic_cylinder(linear, scene.mesh);
   ASSERT_EQ(model->mesh.n_nodes(), q.n_nodes());
-  ASSERT_EQ(model->mesh.inner.rows(), 4 * linear.inner.rows());
+  ASSERT_EQ(model->mesh.surface(lumen::physics::kInnerWall).rows(), 4 * linear.surface(lumen::physics::kInnerWall).rows());
 
   // Run the frames; the last has the full force.
+  engine::Inputs inputs = engine::make_inputs(scene);
   engine::State state = engine::make_state(*model);
   engine::FrameRecord rec;
-  for (int i = 0; i < scene.frames; ++i) engine::step(*model, state, rec);
+  for (int i = 0; i < scene.frames; ++i) engine::step(*model, inputs, state, rec);
   ASSERT_DOUBLE_EQ(state.samples[0].force.y(), -0.01);
 
   // Direct solve: K of the 10-node tets, both ends' corner and edge nodes fixed, the probe's nodal load.
-  std::vector<int> fixed = q.end_nodes_start;
-  fixed.insert(fixed.end(), q.end_nodes_stop.begin(), q.end_nodes_stop.end());
+  std::vector<int> fixed = q.node_set(lumen::physics::kStartEnd);
+  fixed.insert(fixed.end(), q.node_set(lumen::physics::kStopEnd).begin(), q.node_set(lumen::physics::kStopEnd).end());
   const physics::StaticSolver solver(physics::assemble_stiffness(q, physics::LinearMaterial{5000.0, 0.45}), fixed);
   Eigen::VectorXd u;
   solver.solve(engine::nodal_loads(*model, state), u);
@@ -100,9 +101,9 @@ TEST(Elements, OuterWallJoinsTheCollisionSurfaceWhenAsked) {
   auto inner_only = engine::compile_model(engine::parse_scene(s.dump(), "s.json"));
   s["collision"]["surfaces"] = {"inner", "outer"};
   auto both = engine::compile_model(engine::parse_scene(s.dump(), "s.json"));
-  EXPECT_EQ(inner_only->collision_tris.rows(), inner_only->mesh.inner.rows());
-  ASSERT_EQ(both->collision_tris.rows(), both->mesh.inner.rows() + both->mesh.outer.rows());
-  EXPECT_TRUE(both->collision_tris.bottomRows(both->mesh.outer.rows()) == both->mesh.outer);
+  EXPECT_EQ(inner_only->collision_tris.rows(), inner_only->mesh.surface(lumen::physics::kInnerWall).rows());
+  ASSERT_EQ(both->collision_tris.rows(), both->mesh.surface(lumen::physics::kInnerWall).rows() + both->mesh.surface(lumen::physics::kOuterWall).rows());
+  EXPECT_TRUE(both->collision_tris.bottomRows(both->mesh.surface(lumen::physics::kOuterWall).rows()) == both->mesh.surface(lumen::physics::kOuterWall));
   // Every inner- and outer-wall node (the whole 1-layer mesh but none else) is a collision node.
   EXPECT_EQ(static_cast<int>(both->collision_nodes.size()), both->mesh.n_nodes());
   EXPECT_EQ(inner_only->collision_nodes, inner_only->inner_nodes);

@@ -19,11 +19,13 @@ std::string scene_text(const std::string& model, double force, const std::string
     "frames": 10, "fps": 40})";
 }
 Eigen::VectorXd final_u(const std::string& model, double force) {
-  auto m = engine::compile_model(engine::parse_scene(scene_text(model, force), "m.json"));
+  const engine::Scene scene = engine::parse_scene(scene_text(model, force), "m.json");
+  auto m = engine::compile_model(scene);
+  engine::Inputs in = engine::make_inputs(scene);
   engine::State s = engine::make_state(*m);
   engine::FrameRecord rec;
   for (int i = 0; i < 10; ++i) {
-    engine::step(*m, s, rec);
+    engine::step(*m, in, s, rec);
     if (model == "corotational") {
       EXPECT_TRUE(rec.physics_converged);
       EXPECT_FALSE(rec.numerical_failure);
@@ -74,15 +76,17 @@ class FlakySource final : public engine::InputSource {
 }  // namespace
 
 TEST(Models, FaultyDeviceIsDetectedReportedAndSurvived) {
-  auto m = engine::compile_model(engine::parse_scene(scene_text("linear", 0.004), "m.json"));
+  const engine::Scene scene = engine::parse_scene(scene_text("linear", 0.004), "m.json");
+  auto m = engine::compile_model(scene);
+  engine::Inputs in = engine::make_inputs(scene);
   engine::State s = engine::make_state(*m);
   auto device = std::make_unique<FlakySource>();
   FlakySource* dev = device.get();
-  s.sources[0] = std::move(device);
+  in.sources[0] = std::move(device);
   engine::FrameRecord rec;
   int failures = 0;
   for (int i = 0; i < 12; ++i) {
-    engine::step(*m, s, rec);
+    engine::step(*m, in, s, rec);
     failures += rec.bad_input;
     EXPECT_EQ(rec.bad_input, (i + 1) % 3 == 0) << "frame " << rec.frame;
     EXPECT_TRUE(s.sim.u.allFinite());
@@ -105,9 +109,11 @@ TEST(Models, SolverKeysBoundTheCorotationalSolve) {
     text.erase(text.find(first_key), first_key.size());  // the full load from the first frame on
     const std::string mesh = R"("segments_around": 12, "segments_along": 8, "layers": 2)";
     text.replace(text.find(mesh), mesh.size(), R"("segments_around": 8, "segments_along": 4, "layers": 1)");
-    auto m = engine::compile_model(engine::parse_scene(text, "m.json"));
+    const engine::Scene scene = engine::parse_scene(text, "m.json");
+    auto m = engine::compile_model(scene);
+    engine::Inputs in = engine::make_inputs(scene);
     engine::State s = engine::make_state(*m);
-    engine::step(*m, s, rec);
+    engine::step(*m, in, s, rec);
     return s.sim.u;
   };
   engine::FrameRecord one, loose, tight, tighter;

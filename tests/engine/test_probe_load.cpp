@@ -19,7 +19,7 @@ TEST(ProbeLoad, SnapsToNearestOuterPointAndSpreadsWithoutMoment) {
   for (int trial = 0; trial < 20; ++trial) {
     const double a = angle(rng), rr = r(rng);
     const Eigen::Vector3d p(rr * std::cos(a), rr * std::sin(a), z(rng));
-    const engine::SurfacePoint sp = engine::snap_to_surface(mesh.rest, mesh.outer, p);
+    const engine::SurfacePoint sp = engine::snap_to_surface(mesh.rest, mesh.surface(lumen::physics::kOuterWall), p);
     ASSERT_GE(sp.triangle, 0);
     Eigen::Vector3d q = Eigen::Vector3d::Zero();
     double wsum = 0;
@@ -31,19 +31,19 @@ TEST(ProbeLoad, SnapsToNearestOuterPointAndSpreadsWithoutMoment) {
     EXPECT_NEAR(wsum, 1.0, 1e-12);
     // Brute-force twin: densely sampled points of every outer triangle are never closer.
     double best = 1e9;
-    for (int t = 0; t < mesh.outer.rows(); ++t)
+    for (int t = 0; t < mesh.surface(lumen::physics::kOuterWall).rows(); ++t)
       for (int i = 0; i <= 20; ++i)
         for (int j = 0; i + j <= 20; ++j) {
-          const Eigen::Vector3d s = (1 - (i + j) / 20.0) * mesh.rest.row(mesh.outer(t, 0)).transpose() +
-                                    (i / 20.0) * mesh.rest.row(mesh.outer(t, 1)).transpose() +
-                                    (j / 20.0) * mesh.rest.row(mesh.outer(t, 2)).transpose();
+          const Eigen::Vector3d s = (1 - (i + j) / 20.0) * mesh.rest.row(mesh.surface(lumen::physics::kOuterWall)(t, 0)).transpose() +
+                                    (i / 20.0) * mesh.rest.row(mesh.surface(lumen::physics::kOuterWall)(t, 1)).transpose() +
+                                    (j / 20.0) * mesh.rest.row(mesh.surface(lumen::physics::kOuterWall)(t, 2)).transpose();
           best = std::min(best, (s - p).norm());
         }
     EXPECT_LE((q - p).norm(), best + 1e-12);
     // Nodal forces: same resultant, zero moment about the attachment point.
     const Eigen::Vector3d F(0.3, -1.2, 0.5);
     Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * mesh.n_nodes());
-    engine::add_point_load(sp, F, f);
+    physics::add_point_force(sp, F, f);
     Eigen::Vector3d sum = Eigen::Vector3d::Zero(), moment = Eigen::Vector3d::Zero();
     for (int i = 0; i < mesh.n_nodes(); ++i) {
       sum += f.segment<3>(3 * i);
@@ -66,15 +66,16 @@ TEST(ProbeLoad, DisplacementDrivenProbeReachesItsTargetAndReportsTheForce) {
                {"point": [0.0, -0.013, 0.03], "track": [{"t": 0, "force": [0, 0, 0]}, {"t": 1, "force": [0, 0.02, 0.01]}]}],
     "frames": 40, "fps": 40})", "held.json");
   auto model = engine::compile_model(scene);
+  engine::Inputs inputs = engine::make_inputs(scene);
   engine::State state = engine::make_state(*model);
   engine::FrameRecord rec;
-  for (int i = 0; i < 30; ++i) engine::step(*model, state, rec);
+  for (int i = 0; i < 30; ++i) engine::step(*model, inputs, state, rec);
   const double t = 30.0 / 40.0;
   const Eigen::Vector3d target = t * Eigen::Vector3d(0.0005, -0.003, 0);
   // Direct solve with both forces.
   Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * model->mesh.n_nodes()), u;
-  engine::add_point_load(model->probe_points[0], -rec.reactions[0], f);
-  engine::add_point_load(model->probe_points[1], t * Eigen::Vector3d(0, 0.02, 0.01), f);
+  physics::add_point_force(model->probe_points[0], -rec.reactions[0], f);
+  physics::add_point_force(model->probe_points[1], t * Eigen::Vector3d(0, 0.02, 0.01), f);
   model->contact_solver().solve(f, u);
   Eigen::Vector3d moved = Eigen::Vector3d::Zero();
   for (int k = 0; k < 3; ++k) moved += model->probe_points[0].weight[k] * u.segment<3>(3 * model->probe_points[0].node[k]);
@@ -102,9 +103,11 @@ Squeeze squeeze(bool self_collision) {
                {"point": [0.0, -0.013, 0.04], "track": [{"t": 0, "displacement": [0, 0, 0]}, {"t": 1, "displacement": [0, 0.013, 0]}]}],
     "frames": 40, "fps": 40, "collision": {"self": )") + (self_collision ? "true" : "false") + R"(, "gap": 1e-4}})";
   Squeeze s;
-  s.model = engine::compile_model(engine::parse_scene(text, "squeeze.json"));
+  const engine::Scene scene = engine::parse_scene(text, "squeeze.json");
+  s.model = engine::compile_model(scene);
+  engine::Inputs inputs = engine::make_inputs(scene);
   s.state = engine::make_state(*s.model);
-  for (int i = 0; i < 40; ++i) engine::step(*s.model, s.state, s.last);
+  for (int i = 0; i < 40; ++i) engine::step(*s.model, inputs, s.state, s.last);
   return s;
 }
 }  // namespace

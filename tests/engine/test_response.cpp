@@ -135,11 +135,12 @@ Scene squeeze_scene(const std::string& response, int frames) {
 }
 
 void expect_session_intersection_free(const std::string& response, int frames) {
-  const auto model = compile_model(squeeze_scene(response, frames));
+  const Scene scene = squeeze_scene(response, frames);
+  const auto model = compile_model(scene);
   SessionOptions opt;
   opt.render = false;
   opt.check = true;
-  const SessionResult r = run_session(*model, opt);
+  const SessionResult r = run_session(*model, make_inputs(scene), opt);
   long contacts = 0, solved_frames = 0;
   for (const FrameRecord& f : r.frames) {
     EXPECT_EQ(f.intersecting_pairs, 0) << response << " frame " << f.frame;
@@ -169,7 +170,7 @@ TEST(CollideAndRespond, TheSqueezeIntersectsWithoutResponse) {
   SessionOptions opt;
   opt.render = false;
   opt.check = true;
-  const SessionResult r = run_session(*model, opt);
+  const SessionResult r = run_session(*model, make_inputs(s), opt);
   long frames_with = 0;
   for (const FrameRecord& f : r.frames) frames_with += f.intersecting_pairs > 0;
   EXPECT_GT(frames_with, 3);

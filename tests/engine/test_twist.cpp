@@ -17,11 +17,14 @@ using namespace lumen;
 
 namespace {
 
-// The scene's linear material (the model keeps only what its integrator needs).
-physics::LinearMaterial material_of(const engine::Model& m) {
+// The scenes' material (pascals, dimensionless).
+constexpr double kYoungModulus = 5000.0, kPoissonRatio = 0.45;
+
+// The scenes' linear material (the model keeps only what its integrator needs).
+physics::LinearMaterial material_of(const engine::Model&) {
   physics::LinearMaterial mat;
-  mat.young_modulus = m.scene.material.young_modulus;
-  mat.poisson_ratio = m.scene.material.poisson_ratio;
+  mat.young_modulus = kYoungModulus;
+  mat.poisson_ratio = kPoissonRatio;
   return mat;
 }
 
@@ -55,7 +58,8 @@ std::string scene_text(const TwistCase& c) {
     "length": 0.1, "segments_around": )" + std::to_string(c.around) + R"(, "segments_along": )" +
          std::to_string(c.along) + R"(, "layers": )" + std::to_string(c.layers) + R"(, "bend_radius": )" +
          std::to_string(c.bend_radius) + R"(},
-    "material": {"model": ")" + c.model + R"(", "young_modulus": 5000.0, "poisson_ratio": 0.45, "density": 1050.0},
+    "material": {"model": ")" + c.model + R"(", "young_modulus": )" + std::to_string(kYoungModulus) +
+         R"(, "poisson_ratio": )" + std::to_string(kPoissonRatio) + R"(, "density": 1050.0},
     "fixed": )" + c.fixed + R"(, "probes": )" + c.probes + R"(, "frames": 10, "fps": 40,
     "collision": {"self": )" + (c.self_collision ? "true" : "false") + R"(},
     "solver": )" + c.solver + R"(, "twist": {"end": ")" + c.end + R"(", "track": )" + track + "}}";
@@ -64,13 +68,16 @@ std::string scene_text(const TwistCase& c) {
 std::unique_ptr<engine::Model> compile(const TwistCase& c) {
   return engine::compile_model(engine::parse_scene(scene_text(c), "tw.json"));
 }
+// The case's input sources (its probes' tracks).
+engine::Inputs inputs_of(const TwistCase& c) { return engine::make_inputs(engine::parse_scene(scene_text(c), "tw.json")); }
 
-// Run `frames` frames; every frame must be finite and, when asked, converged.
-engine::State run(const engine::Model& m, int frames, bool require_converged = true) {
+// Run `frames` frames of the case's model m; every frame must be finite and, when asked, converged.
+engine::State run(const TwistCase& c, const engine::Model& m, int frames, bool require_converged = true) {
+  engine::Inputs in = inputs_of(c);
   engine::State s = engine::make_state(m);
   engine::FrameRecord rec;
   for (int i = 0; i < frames; ++i) {
-    engine::step(m, s, rec);
+    engine::step(m, in, s, rec);
     EXPECT_FALSE(rec.numerical_failure) << "frame " << rec.frame;
     if (require_converged) {
       EXPECT_TRUE(rec.physics_converged) << "frame " << rec.frame;
@@ -155,11 +162,11 @@ TEST(Twist, TurnedRingIsAtItsRigidRotationInEveryModel) {
     c.degrees = 40.0;
     c.ramp_seconds = 0.05;
     const auto m = compile(c);
-    const engine::State s = run(*m, 3);
+    const engine::State s = run(c, *m, 3);
     const std::string what = v.model + " " + v.solver + " " + v.end + " bend " + std::to_string(v.bend);
     const bool stop = v.end == "stop";
-    const auto& ring = stop ? m->mesh.end_nodes_stop : m->mesh.end_nodes_start;
-    const auto& other = stop ? m->mesh.end_nodes_start : m->mesh.end_nodes_stop;
+    const auto& ring = stop ? m->mesh.node_set(lumen::physics::kStopEnd) : m->mesh.node_set(lumen::physics::kStartEnd);
+    const auto& other = stop ? m->mesh.node_set(lumen::physics::kStartEnd) : m->mesh.node_set(lumen::physics::kStopEnd);
     EXPECT_LT(ring_error(*m, s.x, ring, stop, 40.0 * EIGEN_PI / 180.0), 1e-12) << what;
     // Not trivially: the ring really turned (by 40 degrees at radius >= 1 cm: > 6 mm).
     EXPECT_GT(ring_error(*m, s.x, ring, stop, 0.0), 6e-3) << what;
@@ -187,7 +194,7 @@ TEST(Twist, LinearMatchesCorotationalInTheSmallAngleLimit) {
     const auto lin = compile(c);
     c.model = "corotational";
     const auto cor = compile(c);
-    const Eigen::VectorXd ul = run(*lin, 1).sim.u, uc = run(*cor, 1).sim.u;
+    const Eigen::VectorXd ul = run(c, *lin, 1).sim.u, uc = run(c, *cor, 1).sim.u;
     const double rel = (uc - ul).norm() / ul.norm();
     if (previous > 0.0) {
       EXPECT_GT(previous / rel, 3.0) << degrees;
@@ -213,12 +220,12 @@ TEST(Twist, HalfTurnKeepsCorotationalVolumeAndCrushesLinear) {
   c.layers = 1;
   c.model = "corotational";
   const auto cor = compile(c);
-  const engine::State sc = run(*cor, frames);
-  EXPECT_LT(ring_error(*cor, sc.x, cor->mesh.end_nodes_stop, true, EIGEN_PI), 1e-12);
+  const engine::State sc = run(c, *cor, frames);
+  EXPECT_LT(ring_error(*cor, sc.x, cor->mesh.node_set(lumen::physics::kStopEnd), true, EIGEN_PI), 1e-12);
   const VolumeChange vc = volume_change(*cor, sc.x);
   c.model = "linear";
   const auto lin = compile(c);
-  const engine::State sl = run(*lin, frames);
+  const engine::State sl = run(c, *lin, frames);
   const VolumeChange vl = volume_change(*lin, sl.x);
   std::printf("half turn: corotational volume %+.4f (max per tet %.4f, inverted %d); linear %+.4f (max per tet %.4f, inverted %d)\n",
               vc.total, vc.max_tet, vc.inverted, vl.total, vl.max_tet, vl.inverted);
@@ -239,9 +246,10 @@ TEST(Twist, DisplacementDrivenProbeReachesItsTargetOnATwistedTube) {
   c.degrees = 20.0;
   c.probes = R"([{"point": [0.0, 0.013, 0.05], "track": [{"t": 0, "displacement": [0.0, -0.002, 0.001]}]}])";
   const auto m = compile(c);
+  engine::Inputs in = inputs_of(c);
   engine::State s = engine::make_state(*m);
   engine::FrameRecord rec;
-  engine::step(*m, s, rec);
+  engine::step(*m, in, s, rec);
   const engine::SurfacePoint& sp = m->probe_points[0];
   Eigen::Vector3d moved = Eigen::Vector3d::Zero();
   for (int k = 0; k < 3; ++k) moved += sp.weight[k] * s.sim.u.segment<3>(3 * sp.node[k]);
@@ -249,7 +257,7 @@ TEST(Twist, DisplacementDrivenProbeReachesItsTargetOnATwistedTube) {
   // Truth: K_ff u_f = f_f - K_fc u_c with the reported force, by a dense solve on the free DOFs.
   const Eigen::SparseMatrix<double> K = physics::assemble_stiffness(m->mesh, material_of(*m));
   Eigen::VectorXd f = Eigen::VectorXd::Zero(K.rows());
-  engine::add_point_load(sp, -rec.reactions[0], f);
+  physics::add_point_force(sp, -rec.reactions[0], f);
   const Eigen::VectorXd uc = engine::twist_displacement(*m, 20.0);
   const Eigen::VectorXd rhs = f - K * uc;
   std::vector<int> free_dofs;
@@ -276,12 +284,12 @@ TEST(Twist, DampedDynamicTwistSettlesOnTheQuasiStaticTwist) {
   const auto qs = compile(c);
   c.solver = R"({"type": "dynamic", "rayleigh_mass": 10.0})";
   const auto dyn = compile(c);
-  const Eigen::VectorXd uq = run(*qs, 20).sim.u;
+  const Eigen::VectorXd uq = run(c, *qs, 20).sim.u;
   // (At rest with no load the step's residual is scaled by the support reactions of the turned ring: every frame
   // must converge.)
-  const engine::State sd = run(*dyn, 140);
+  const engine::State sd = run(c, *dyn, 140);
   EXPECT_LT((sd.sim.u - uq).norm(), 1e-6 * uq.norm());
-  EXPECT_LT(ring_error(*dyn, sd.x, dyn->mesh.end_nodes_stop, true, 30.0 * EIGEN_PI / 180.0), 1e-12);
+  EXPECT_LT(ring_error(*dyn, sd.x, dyn->mesh.node_set(lumen::physics::kStopEnd), true, 30.0 * EIGEN_PI / 180.0), 1e-12);
 }
 
 // Twist, probe loads and self-collision together through step(): a coarse tube squeezed shut by two probes while
@@ -308,18 +316,19 @@ TEST(Twist, TwistWithProbesAndCollisionRunsCleanly) {
     scene.twist.end = engine::TwistEnd::kStop;
     scene.twist.track = {{0.0, 0.0}, {0.5, 30.0}};
     const auto m = engine::compile_model(scene);
+    engine::Inputs in = engine::make_inputs(scene);
     engine::State s = engine::make_state(*m);
     engine::FrameRecord rec;
     int solved = 0;
     for (int i = 0; i < 24; ++i) {
-      engine::step(*m, s, rec);
+      engine::step(*m, in, s, rec);
       ASSERT_FALSE(rec.numerical_failure) << variant << " frame " << rec.frame;
       ASSERT_TRUE(s.sim.u.allFinite());
-      EXPECT_EQ(collision::count_intersecting_pairs(s.x, m->mesh.inner), 0) << variant << " frame " << rec.frame;
+      EXPECT_EQ(collision::count_intersecting_pairs(s.x, m->mesh.surface(lumen::physics::kInnerWall)), 0) << variant << " frame " << rec.frame;
       EXPECT_DOUBLE_EQ(rec.twist_degrees, std::min(30.0, 30.0 * rec.t / 0.5));
       solved += rec.response_iterations > 0 && !rec.fallback;
       if (!rec.fallback) {
-        EXPECT_LT(ring_error(*m, s.x, m->mesh.end_nodes_stop, true, rec.twist_degrees * EIGEN_PI / 180.0), 1e-12)
+        EXPECT_LT(ring_error(*m, s.x, m->mesh.node_set(lumen::physics::kStopEnd), true, rec.twist_degrees * EIGEN_PI / 180.0), 1e-12)
             << variant << " frame " << rec.frame;
       }
     }
@@ -337,19 +346,20 @@ TEST(Twist, CorotationalSessionIsReproducibleWithoutTheBackgroundFactorisation) 
   c.ramp_seconds = 0.15;  // 30 degrees a frame at 40 fps
   c.solver = R"({"tolerance": 1e-5, "max_iterations": 60, "background_factorisation": false})";
   const auto m = compile(c);
-  ASSERT_FALSE(m->scene.solver.background_factorisation);
-  const engine::State a = run(*m, 8), b = run(*m, 8);
+  ASSERT_FALSE(engine::parse_scene(scene_text(c), "tw.json").solver.background_factorisation);
+  const engine::State a = run(c, *m, 8), b = run(c, *m, 8);
   EXPECT_TRUE(a.sim.u == b.sim.u);
   // It did refactorise (what makes the background thread's timing matter).
+  engine::Inputs in = inputs_of(c);
   engine::State s = engine::make_state(*m);
   engine::FrameRecord rec;
   int refactorisations = 0;
   for (int i = 0; i < 8; ++i) {
-    engine::step(*m, s, rec);
+    engine::step(*m, in, s, rec);
     refactorisations += rec.refactorisations;
   }
   EXPECT_GT(refactorisations, 0);
-  EXPECT_LT(ring_error(*m, a.x, m->mesh.end_nodes_stop, true, EIGEN_PI), 1e-12);
+  EXPECT_LT(ring_error(*m, a.x, m->mesh.node_set(lumen::physics::kStopEnd), true, EIGEN_PI), 1e-12);
   // (That the background thread reaches the same equilibrium is timing-dependent per frame here; the physics
   // test CorotationalSolve.LaggedWarpedPreconditionerReachesTheSameEquilibriumInFewerIterations covers it.)
 }

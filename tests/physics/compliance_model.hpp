@@ -30,13 +30,13 @@ struct Model {
     s.segments_around = 8, s.segments_along = 4, s.layers = 2, s.length = 0.04;
     mesh = make_hollow_cylinder(s);
     K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
-    std::vector<int> fixed = mesh.end_nodes_start;
-    fixed.insert(fixed.end(), mesh.end_nodes_stop.begin(), mesh.end_nodes_stop.end());
+    std::vector<int> fixed = mesh.node_set(kStartEnd);
+    fixed.insert(fixed.end(), mesh.node_set(kStopEnd).begin(), mesh.node_set(kStopEnd).end());
     solver = std::make_unique<StaticSolver>(K, fixed);
     const int n = mesh.n_nodes();
     std::vector<char> is_fixed(n, 0), is_inner(n, 0);
     for (int v : fixed) is_fixed[v] = 1;
-    for (int i = 0; i < mesh.inner.size(); ++i) is_inner[mesh.inner.data()[i]] = 1;
+    for (int i = 0; i < mesh.surface(kInnerWall).size(); ++i) is_inner[mesh.surface(kInnerWall).data()[i]] = 1;
     for (int v = 0; v < n; ++v) {
       if (is_inner[v]) inner.push_back(v);
       if (!is_fixed[v]) free_nodes.push_back(v);

@@ -30,11 +30,11 @@ struct Tube {
     physics::HollowCylinderSpec s;
     s.segments_around = 8, s.segments_along = 5, s.layers = 2, s.length = 0.04;
     mesh = physics::make_hollow_cylinder(s);
-    std::vector<int> fixed = mesh.end_nodes_start;
-    fixed.insert(fixed.end(), mesh.end_nodes_stop.begin(), mesh.end_nodes_stop.end());
+    std::vector<int> fixed = mesh.node_set(kStartEnd);
+    fixed.insert(fixed.end(), mesh.node_set(kStopEnd).begin(), mesh.node_set(kStopEnd).end());
     solver = std::make_unique<physics::StaticSolver>(physics::assemble_stiffness(mesh, {5000.0, 0.45}), fixed);
     std::vector<char> on(mesh.n_nodes(), 0), is_fixed(mesh.n_nodes(), 0);
-    for (int i = 0; i < mesh.inner.size(); ++i) on[mesh.inner.data()[i]] = 1;
+    for (int i = 0; i < mesh.surface(kInnerWall).size(); ++i) on[mesh.surface(kInnerWall).data()[i]] = 1;
     for (int v : fixed) is_fixed[v] = 1;
     for (int v = 0; v < mesh.n_nodes(); ++v) {
       if (on[v]) inner.push_back(v);

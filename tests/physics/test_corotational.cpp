@@ -32,8 +32,8 @@ TetMesh small_tube(int around = 8, int along = 4, int layers = 1, double length 
 }
 
 std::vector<int> both_ends(const TetMesh& m) {
-  std::vector<int> f = m.end_nodes_start;
-  f.insert(f.end(), m.end_nodes_stop.begin(), m.end_nodes_stop.end());
+  std::vector<int> f = m.node_set(kStartEnd);
+  f.insert(f.end(), m.node_set(kStopEnd).begin(), m.node_set(kStopEnd).end());
   return f;
 }
 
@@ -75,7 +75,7 @@ Eigen::Matrix3d random_rotation(std::mt19937& rng) {
 // Loads: a transverse force split over the stop-end nodes, newtons (3n).
 Eigen::VectorXd tip_load(const TetMesh& m, double total) {
   Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * m.n_nodes());
-  for (int v : m.end_nodes_stop) f[3 * v + 1] = -total / m.end_nodes_stop.size();
+  for (int v : m.node_set(kStopEnd)) f[3 * v + 1] = -total / m.node_set(kStopEnd).size();
   return f;
 }
 
@@ -83,7 +83,7 @@ Eigen::VectorXd tip_load(const TetMesh& m, double total) {
 Eigen::VectorXd end_twist(const TetMesh& m, double theta) {
   Eigen::VectorXd u_fixed = Eigen::VectorXd::Zero(3 * m.n_nodes());
   const Eigen::Matrix3d Q = Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  for (int v : m.end_nodes_stop) {
+  for (int v : m.node_set(kStopEnd)) {
     const Eigen::Vector3d X = m.rest.row(v).transpose();
     u_fixed.segment<3>(3 * v) = Q * X - X;
   }
@@ -209,7 +209,7 @@ TEST(CorotationalElements, RigidRotationOfFreeMeshGivesZeroForceUnlikeLinear) {
 
 TEST(CorotationalSolve, EqualsLinearInTheSmallLoadLimit) {
   const TetMesh m = small_tube(8, 4, 1, 0.04);
-  const CorotationalModel model(m, kMaterial, m.end_nodes_start);
+  const CorotationalModel model(m, kMaterial, m.node_set(kStartEnd));
   CorotationalOptions opt;
   opt.tolerance = 1e-10;
   opt.max_iterations = 100;
@@ -343,7 +343,7 @@ TEST(CorotationalSolve, TwistOfOneEndBy180DegreesKeepsVolumeUnlikeLinear) {
     outer += r.iterations, cg += r.cg_iterations;
   }
   const Eigen::VectorXd u_end = twist(EIGEN_PI);
-  for (int v : m.end_nodes_stop) EXPECT_EQ(state.u.segment<3>(3 * v), u_end.segment<3>(3 * v));
+  for (int v : m.node_set(kStopEnd)) EXPECT_EQ(state.u.segment<3>(3 * v), u_end.segment<3>(3 * v));
   // Linear: u = u_p + K_ff^-1 (-K u_p) on the free DOFs.
   Eigen::VectorXd du;
   model.solver().solve(-(model.stiffness() * u_end), du);
@@ -455,7 +455,7 @@ TEST(CorotationalSolve, ContinuesThroughInvertedElementsWithoutNaN) {
   // An inner node in the middle and the outer node beside it are prescribed to swap places (and pass each
   // other by half the wall thickness), inverting the tets between them.
   std::vector<int> fixed = both_ends(m);
-  const int inner_node = m.inner(m.inner.rows() / 2, 0);
+  const int inner_node = m.surface(kInnerWall)(m.surface(kInnerWall).rows() / 2, 0);
   int outer_node = -1;
   for (int v = 0; v < m.n_nodes(); ++v) {
     const Eigen::Vector3d d = m.rest.row(v) - m.rest.row(inner_node);
@@ -487,7 +487,7 @@ TEST(CorotationalSolve, ContinuesThroughInvertedElementsWithoutNaN) {
 
 TEST(CorotationalSolve, WarmStartAtEquilibriumCostsNoIteration) {
   const TetMesh m = small_tube();
-  const CorotationalModel model(m, kMaterial, m.end_nodes_start);
+  const CorotationalModel model(m, kMaterial, m.node_set(kStartEnd));
   const Eigen::VectorXd f = tip_load(m, 0.005);
   CorotationalState state;
   const CorotationalResult first = solve_corotational(model, f, state);

@@ -28,8 +28,8 @@ TetMesh small_tube(int around, int along, int layers, double length, HollowCylin
 }
 
 std::vector<int> both_ends(const TetMesh& m) {
-  std::vector<int> f = m.end_nodes_start;
-  f.insert(f.end(), m.end_nodes_stop.begin(), m.end_nodes_stop.end());
+  std::vector<int> f = m.node_set(kStartEnd);
+  f.insert(f.end(), m.node_set(kStopEnd).begin(), m.node_set(kStopEnd).end());
   return f;
 }
 
@@ -176,14 +176,14 @@ TEST(DynamicStep, CorotationalSettlesToTheQuasiStaticCorotationalSolution) {
   DynamicParams p;
   p.elastic = ElasticModel::kCorotational;
   p.alpha = 10.0, p.beta = 5e-3, p.time_step = 0.05;
-  const DynamicModel model(m, kMaterial, m.end_nodes_start, p);
+  const DynamicModel model(m, kMaterial, m.node_set(kStartEnd), p);
   // Cantilever with a large tip load: in the nonlinear range.
   Eigen::VectorXd f = Eigen::VectorXd::Zero(model.n_dofs());
-  for (int v : m.end_nodes_stop) f[3 * v + 1] = -0.015 / m.end_nodes_stop.size();
+  for (int v : m.node_set(kStopEnd)) f[3 * v + 1] = -0.015 / m.node_set(kStopEnd).size();
   CorotationalOptions opt;
   opt.tolerance = 1e-9;
   opt.max_iterations = 100;
-  const CorotationalModel statics(m, kMaterial, m.end_nodes_start);
+  const CorotationalModel statics(m, kMaterial, m.node_set(kStartEnd));
   CorotationalState qs;
   ASSERT_TRUE(solve_corotational(statics, f, qs, opt).converged);
   Eigen::VectorXd u_lin;

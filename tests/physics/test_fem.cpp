@@ -179,8 +179,8 @@ TEST(Assembly, SymmetricRigidModesAndEnergyIsSumOfElements) {
 TEST(StaticSolver, PositiveDefiniteWithEndsFixedAndMatchesDenseCholesky) {
   const TetMesh mesh = small_mesh();
   const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
-  std::vector<int> fixed_nodes = mesh.end_nodes_start;
-  fixed_nodes.insert(fixed_nodes.end(), mesh.end_nodes_stop.begin(), mesh.end_nodes_stop.end());
+  std::vector<int> fixed_nodes = mesh.node_set(kStartEnd);
+  fixed_nodes.insert(fixed_nodes.end(), mesh.node_set(kStopEnd).begin(), mesh.node_set(kStopEnd).end());
   const StaticSolver solver(K, fixed_nodes);
   const int n = mesh.n_nodes();
   EXPECT_EQ(solver.n_dofs(), 3 * n);
@@ -235,10 +235,10 @@ TEST(StaticSolver, PositiveDefiniteWithEndsFixedAndMatchesDenseCholesky) {
 TEST(StaticSolver, ScaledViewSolvesTheScaledMatrixOnTheSameFactor) {
   const TetMesh mesh = small_mesh();
   const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
-  const StaticSolver solver(K, mesh.end_nodes_start);
+  const StaticSolver solver(K, mesh.node_set(kStartEnd));
   const int n = mesh.n_nodes();
   std::vector<char> fixed(3 * n, 0);
-  for (int v : mesh.end_nodes_start)
+  for (int v : mesh.node_set(kStartEnd))
     for (int c = 0; c < 3; ++c) fixed[3 * v + c] = 1;
   std::vector<int> free;
   const double c = 1600.0;  // e.g. 1 / h^2 at 40 fps
@@ -276,10 +276,10 @@ TEST(StaticSolver, SingleFixedDofsMatchDenseSolve) {
   const int n = mesh.n_nodes();
   // u_z = 0 on the start end, u_x = u_y = 0 on three start nodes (enough to remove rigid motion).
   std::vector<FixedDof> dofs;
-  for (int v : mesh.end_nodes_start) dofs.push_back({v, 2});
-  dofs.push_back({mesh.end_nodes_start[0], 0});
-  dofs.push_back({mesh.end_nodes_start[0], 1});
-  dofs.push_back({mesh.end_nodes_start[3], 0});
+  for (int v : mesh.node_set(kStartEnd)) dofs.push_back({v, 2});
+  dofs.push_back({mesh.node_set(kStartEnd)[0], 0});
+  dofs.push_back({mesh.node_set(kStartEnd)[0], 1});
+  dofs.push_back({mesh.node_set(kStartEnd)[3], 0});
   const StaticSolver solver(K, dofs);
   std::vector<char> fixed(3 * n, 0);
   for (const FixedDof& fd : dofs) fixed[3 * fd.node + fd.component] = 1;
@@ -307,7 +307,7 @@ TEST(StaticSolver, PatchTestReproducesLinearField) {
   const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
   const int n = mesh.n_nodes();
   std::vector<char> on_surface(n, 0);
-  for (const Tris* t : {&mesh.inner, &mesh.outer, &mesh.ends})
+  for (const Tris* t : {&mesh.surface(kInnerWall), &mesh.surface(kOuterWall), &mesh.surface(kEndCaps)})
     for (int i = 0; i < t->size(); ++i) on_surface[t->data()[i]] = 1;
   std::vector<int> boundary;
   for (int v = 0; v < n; ++v)
@@ -341,13 +341,13 @@ TEST(StaticSolver, RejectsBadInput) {
   EXPECT_THROW(StaticSolver(K, std::vector<FixedDof>{{0, 3}}), std::invalid_argument);
   Eigen::SparseMatrix<double> rect(6, 9);
   EXPECT_THROW(StaticSolver(rect, std::vector<int>{}), std::invalid_argument);
-  const StaticSolver solver(K, mesh.end_nodes_start);
+  const StaticSolver solver(K, mesh.node_set(kStartEnd));
   Eigen::VectorXd u;
   EXPECT_THROW(solver.solve(Eigen::VectorXd::Zero(5), u), std::invalid_argument);
   EXPECT_THROW(solver.solve_many(Eigen::MatrixXd::Zero(5, 2)), std::invalid_argument);
   EXPECT_THROW(solver.is_fixed_dof(-1), std::invalid_argument);
   // Moved-from and moved-to solvers keep working.
-  StaticSolver moved = StaticSolver(K, mesh.end_nodes_start);
+  StaticSolver moved = StaticSolver(K, mesh.node_set(kStartEnd));
   Eigen::VectorXd f = Eigen::VectorXd::Ones(3 * mesh.n_nodes()), u1, u2;
   moved.solve(f, u1);
   solver.solve(f, u2);

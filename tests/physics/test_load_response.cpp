@@ -14,14 +14,14 @@ namespace {
 TEST(LoadResponse, EqualsDirectSolve) {
   const Model& m = model();
   std::mt19937 rng(11);
-  std::uniform_int_distribution<int> tri(0, static_cast<int>(m.mesh.inner.rows()) - 1);
+  std::uniform_int_distribution<int> tri(0, static_cast<int>(m.mesh.surface(kInnerWall).rows()) - 1);
   std::uniform_real_distribution<double> u01(0.0, 1.0), force(-0.05, 0.05);
   std::vector<LoadPoint> points(3);
   for (LoadPoint& p : points) {
     const int t = tri(rng);
     double b0 = u01(rng), b1 = u01(rng) * (1 - b0);
     const double b[3] = {b0, b1, 1 - b0 - b1};
-    for (int k = 0; k < 3; ++k) p.node[k] = m.mesh.inner(t, k), p.weight[k] = b[k];
+    for (int k = 0; k < 3; ++k) p.node[k] = m.mesh.surface(kInnerWall)(t, k), p.weight[k] = b[k];
   }
   points[2].node[2] = -1;  // a point on an edge (two nodes)
   const LoadResponse lr(*m.solver, points);

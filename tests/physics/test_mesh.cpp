@@ -62,11 +62,11 @@ TEST(HollowCylinder, PaperMeshCounts) {
   const TetMesh m = make_hollow_cylinder(HollowCylinderSpec{});
   EXPECT_EQ(m.n_nodes(), 2160);
   EXPECT_EQ(m.tets.rows(), 9360);
-  EXPECT_EQ(m.inner.rows(), 1040);
-  EXPECT_EQ(m.outer.rows(), 1040);
-  EXPECT_EQ(m.ends.rows(), 2 * 2 * 20 * 3);
-  EXPECT_EQ(m.end_nodes_start.size(), 80u);
-  EXPECT_EQ(m.end_nodes_stop.size(), 80u);
+  EXPECT_EQ(m.surface(kInnerWall).rows(), 1040);
+  EXPECT_EQ(m.surface(kOuterWall).rows(), 1040);
+  EXPECT_EQ(m.surface(kEndCaps).rows(), 2 * 2 * 20 * 3);
+  EXPECT_EQ(m.node_set(kStartEnd).size(), 80u);
+  EXPECT_EQ(m.node_set(kStopEnd).size(), 80u);
 }
 
 TEST(HollowCylinder, CountsFollowTheSpec) {
@@ -75,9 +75,9 @@ TEST(HollowCylinder, CountsFollowTheSpec) {
     const int A = s.segments_around, L = s.segments_along, R = s.layers;
     EXPECT_EQ(m.n_nodes(), A * (L + 1) * (R + 1));
     EXPECT_EQ(m.tets.rows(), 6 * A * L * R);
-    EXPECT_EQ(m.inner.rows(), 2 * A * L);
-    EXPECT_EQ(m.outer.rows(), 2 * A * L);
-    EXPECT_EQ(m.ends.rows(), 4 * A * R);
+    EXPECT_EQ(m.surface(kInnerWall).rows(), 2 * A * L);
+    EXPECT_EQ(m.surface(kOuterWall).rows(), 2 * A * L);
+    EXPECT_EQ(m.surface(kEndCaps).rows(), 4 * A * R);
   }
 }
 
@@ -110,7 +110,7 @@ TEST(HollowCylinder, ConformingAndBoundaryIsTheTaggedSurfaces) {
       }
     }
     std::set<Tri> tagged;
-    for (const Tris* tris : {&m.inner, &m.outer, &m.ends})
+    for (const Tris* tris : {&m.surface(kInnerWall), &m.surface(kOuterWall), &m.surface(kEndCaps)})
       for (int f = 0; f < tris->rows(); ++f)
         EXPECT_TRUE(tagged.insert(oriented_key((*tris)(f, 0), (*tris)(f, 1), (*tris)(f, 2))).second);
     EXPECT_EQ(boundary.size(), tagged.size());
@@ -123,24 +123,24 @@ TEST(HollowCylinder, SurfacesLieOnTheirRadiiWithStatedNormals) {
     const TetMesh m = make_hollow_cylinder(s);
     const double tol = 1e-12;
     // Inner wall: vertices at the inner radius, normals toward the centreline (into the lumen).
-    for (int f = 0; f < m.inner.rows(); ++f) {
+    for (int f = 0; f < m.surface(kInnerWall).rows(); ++f) {
       for (int c = 0; c < 3; ++c) {
-        const Eigen::Vector3d p = point(m, m.inner(f, c));
+        const Eigen::Vector3d p = point(m, m.surface(kInnerWall)(f, c));
         const Frame fr = frame_at(s, p);
         EXPECT_NEAR((p - fr.c).norm(), s.inner_radius, tol);
         EXPECT_NEAR((p - fr.c).dot(fr.t), 0.0, tol);
       }
-      const Eigen::Vector3d ctr = (point(m, m.inner(f, 0)) + point(m, m.inner(f, 1)) + point(m, m.inner(f, 2))) / 3;
-      EXPECT_LT(area_normal(m, m.inner, f).dot(ctr - frame_at(s, ctr).c), 0.0);
+      const Eigen::Vector3d ctr = (point(m, m.surface(kInnerWall)(f, 0)) + point(m, m.surface(kInnerWall)(f, 1)) + point(m, m.surface(kInnerWall)(f, 2))) / 3;
+      EXPECT_LT(area_normal(m, m.surface(kInnerWall), f).dot(ctr - frame_at(s, ctr).c), 0.0);
     }
     // Outer wall: outer radius, normals away from the centreline.
-    for (int f = 0; f < m.outer.rows(); ++f) {
+    for (int f = 0; f < m.surface(kOuterWall).rows(); ++f) {
       for (int c = 0; c < 3; ++c) {
-        const Eigen::Vector3d p = point(m, m.outer(f, c));
+        const Eigen::Vector3d p = point(m, m.surface(kOuterWall)(f, c));
         EXPECT_NEAR((p - frame_at(s, p).c).norm(), s.outer_radius, tol);
       }
-      const Eigen::Vector3d ctr = (point(m, m.outer(f, 0)) + point(m, m.outer(f, 1)) + point(m, m.outer(f, 2))) / 3;
-      EXPECT_GT(area_normal(m, m.outer, f).dot(ctr - frame_at(s, ctr).c), 0.0);
+      const Eigen::Vector3d ctr = (point(m, m.surface(kOuterWall)(f, 0)) + point(m, m.surface(kOuterWall)(f, 1)) + point(m, m.surface(kOuterWall)(f, 2))) / 3;
+      EXPECT_GT(area_normal(m, m.surface(kOuterWall), f).dot(ctr - frame_at(s, ctr).c), 0.0);
     }
     // End caps: the start cap lies in z = 0 with normal -z; the stop cap is perpendicular to the end tangent
     // with the normal along it.
@@ -150,8 +150,8 @@ TEST(HollowCylinder, SurfacesLieOnTheirRadiiWithStatedNormals) {
     const Eigen::Vector3d c_end = s.bend_radius > 0 ? Eigen::Vector3d(s.bend_radius * (1 - std::cos(phi_end)), 0,
                                                                       s.bend_radius * std::sin(phi_end))
                                                     : Eigen::Vector3d(0, 0, s.length);
-    std::set<int> start(m.end_nodes_start.begin(), m.end_nodes_start.end());
-    std::set<int> stop(m.end_nodes_stop.begin(), m.end_nodes_stop.end());
+    std::set<int> start(m.node_set(kStartEnd).begin(), m.node_set(kStartEnd).end());
+    std::set<int> stop(m.node_set(kStopEnd).begin(), m.node_set(kStopEnd).end());
     EXPECT_EQ(start.size(), static_cast<size_t>(s.segments_around * (s.layers + 1)));
     EXPECT_EQ(stop.size(), start.size());
     for (int v : start) {
@@ -167,11 +167,11 @@ TEST(HollowCylinder, SurfacesLieOnTheirRadiiWithStatedNormals) {
       EXPECT_LE(r, s.outer_radius + tol);
     }
     int n_start = 0, n_stop = 0;
-    for (int f = 0; f < m.ends.rows(); ++f) {
-      const bool on_start = start.count(m.ends(f, 0)) && start.count(m.ends(f, 1)) && start.count(m.ends(f, 2));
-      const bool on_stop = stop.count(m.ends(f, 0)) && stop.count(m.ends(f, 1)) && stop.count(m.ends(f, 2));
+    for (int f = 0; f < m.surface(kEndCaps).rows(); ++f) {
+      const bool on_start = start.count(m.surface(kEndCaps)(f, 0)) && start.count(m.surface(kEndCaps)(f, 1)) && start.count(m.surface(kEndCaps)(f, 2));
+      const bool on_stop = stop.count(m.surface(kEndCaps)(f, 0)) && stop.count(m.surface(kEndCaps)(f, 1)) && stop.count(m.surface(kEndCaps)(f, 2));
       ASSERT_TRUE(on_start != on_stop) << "end triangle " << f << " is not on exactly one end";
-      const Eigen::Vector3d nrm = area_normal(m, m.ends, f).normalized();
+      const Eigen::Vector3d nrm = area_normal(m, m.surface(kEndCaps), f).normalized();
       if (on_start) {
         EXPECT_NEAR(nrm.z(), -1.0, 1e-12);
         ++n_start;
@@ -213,7 +213,7 @@ TEST(HollowCylinder, BendFollowsTheArc) {
     EXPECT_LE(rho, R + s.outer_radius + 1e-12);
   }
   // Angle of the stop ring from the centre of curvature: length / R.
-  for (int v : m.end_nodes_stop) {
+  for (int v : m.node_set(kStopEnd)) {
     const Eigen::Vector3d p = point(m, v);
     EXPECT_NEAR(std::atan2(p.z(), R - p.x()), s.length / R, 1e-12);
   }
@@ -230,10 +230,10 @@ TEST(HollowCylinder, NodeNumberingAsDocumented) {
         const double r = s.inner_radius + (s.outer_radius - s.inner_radius) * k / 2, th = 2 * EIGEN_PI * i / 7;
         EXPECT_LE((point(m, v) - Eigen::Vector3d(r * std::cos(th), r * std::sin(th), 0.02 * j)).norm(), 1e-15);
         if (j == 0) {
-          EXPECT_EQ(m.end_nodes_start[k * 7 + i], v);
+          EXPECT_EQ(m.node_set(kStartEnd)[k * 7 + i], v);
         }
         if (j == 3) {
-          EXPECT_EQ(m.end_nodes_stop[k * 7 + i], v);
+          EXPECT_EQ(m.node_set(kStopEnd)[k * 7 + i], v);
         }
       }
 }

@@ -314,7 +314,7 @@ TEST(Quadratic, MakeQuadraticMatchesBruteForceEdges) {
       ASSERT_EQ(q.edges(e, 1), std::max(a, b));
     }
   // Surfaces: edge nodes of each 6-node triangle join its corners.
-  for (const Tris6* s : {&q.inner, &q.outer, &q.ends})
+  for (const Tris6* s : {&q.surface(kInnerWall), &q.surface(kOuterWall), &q.surface(kEndCaps)})
     for (int f = 0; f < s->rows(); ++f)
       for (int k = 0; k < 3; ++k) {
         const int e = (*s)(f, 3 + k) - q.n_corners;
@@ -322,9 +322,9 @@ TEST(Quadratic, MakeQuadraticMatchesBruteForceEdges) {
         ASSERT_EQ(std::make_pair(q.edges(e, 0), q.edges(e, 1)), std::make_pair(std::min(a, b), std::max(a, b)));
       }
   // End nodes: exactly the nodes (corner and edge) in the planes z = 0 and z = length.
-  std::set<int> start(q.end_nodes_start.begin(), q.end_nodes_start.end());
-  std::set<int> stop(q.end_nodes_stop.begin(), q.end_nodes_stop.end());
-  EXPECT_EQ(start.size(), q.end_nodes_start.size());
+  std::set<int> start(q.node_set(kStartEnd).begin(), q.node_set(kStartEnd).end());
+  std::set<int> stop(q.node_set(kStopEnd).begin(), q.node_set(kStopEnd).end());
+  EXPECT_EQ(start.size(), q.node_set(kStartEnd).size());
   std::set<int> z0, zl;
   for (int v = 0; v < q.n_nodes(); ++v) {
     if (std::abs(q.rest(v, 2)) < 1e-12) z0.insert(v);
@@ -380,8 +380,8 @@ void check_isoparametric(const HollowCylinderSpec& spec) {
   EXPECT_EQ(on_inner, spec.segments_around * (3 * spec.segments_along + 1));
   EXPECT_EQ(on_outer, on_inner);
   // Every inner-wall 6-node triangle has all its nodes at radius a.
-  for (int f = 0; f < q.inner.rows(); ++f)
-    for (int c = 0; c < 6; ++c) EXPECT_NEAR(local_radius(spec, q.rest.row(q.inner(f, c)).transpose()), a, 1e-15);
+  for (int f = 0; f < q.surface(kInnerWall).rows(); ++f)
+    for (int c = 0; c < 6; ++c) EXPECT_NEAR(local_radius(spec, q.rest.row(q.surface(kInnerWall)(f, c)).transpose()), a, 1e-15);
 }
 
 TEST(Quadratic, IsoparametricNodesOnTheWallsStraight) { check_isoparametric({0.01, 0.013, 0.02, 8, 2, 2, 0.0}); }
@@ -436,7 +436,7 @@ TEST(Quadratic, CylinderRejectsForeignMesh) {
 // Boundary nodes (every node of a surface 6-node triangle).
 std::vector<char> boundary_mask(const QuadraticMesh& q) {
   std::vector<char> on(q.n_nodes(), 0);
-  for (const Tris6* s : {&q.inner, &q.outer, &q.ends})
+  for (const Tris6* s : {&q.surface(kInnerWall), &q.surface(kOuterWall), &q.surface(kEndCaps)})
     for (int f = 0; f < s->rows(); ++f)
       for (int c = 0; c < 6; ++c) on[(*s)(f, c)] = 1;
   return on;
@@ -564,17 +564,17 @@ TEST(Quadratic, PaperMeshSizesAndTimings) {
   const auto t0 = Clock::now();
   const Eigen::SparseMatrix<double> K = assemble_stiffness(q, kMat);
   const auto t1 = Clock::now();
-  std::vector<int> fixed = q.end_nodes_start;
-  fixed.insert(fixed.end(), q.end_nodes_stop.begin(), q.end_nodes_stop.end());
+  std::vector<int> fixed = q.node_set(kStartEnd);
+  fixed.insert(fixed.end(), q.node_set(kStopEnd).begin(), q.node_set(kStopEnd).end());
   const StaticSolver solver(K, fixed);
   const auto t2 = Clock::now();
   // Unit pressure on the inner wall, one solve.
   Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * q.n_nodes());
-  for (int t = 0; t < q.inner.rows(); ++t) {
+  for (int t = 0; t < q.surface(kInnerWall).rows(); ++t) {
     Eigen::Matrix<double, 6, 3> X6;
-    for (int c = 0; c < 6; ++c) X6.row(c) = q.rest.row(q.inner(t, c));
+    for (int c = 0; c < 6; ++c) X6.row(c) = q.rest.row(q.surface(kInnerWall)(t, c));
     const Eigen::Matrix<double, 6, 3> f6 = tri6_pressure_load(X6, 1.0);
-    for (int c = 0; c < 6; ++c) f.segment<3>(3 * q.inner(t, c)) += f6.row(c).transpose();
+    for (int c = 0; c < 6; ++c) f.segment<3>(3 * q.surface(kInnerWall)(t, c)) += f6.row(c).transpose();
   }
   Eigen::VectorXd u;
   const auto t3 = Clock::now();
@@ -596,26 +596,27 @@ TEST(Quadratic, PaperMeshSizesAndTimings) {
 // The split inner wall of an isoparametric cylinder is the polygonal tube through its nodes: 2 x around sides
 // inscribed in the inner radius, so its area is exactly length x 2N a sin(pi / N), N = 2 around; every split
 // triangle faces the axis and every edge is shared by two triangles or lies on an end ring.
-TEST(Quadratic, SurfaceViewSplitsTheWallsIntoTheInscribedPolygonTube) {
+TEST(Quadratic, LinearViewSplitsTheWallsIntoTheInscribedPolygonTube) {
   HollowCylinderSpec spec{0.01, 0.013, 0.03, 8, 3, 2, 0.0};
   const TetMesh lin = make_hollow_cylinder(spec);
   const QuadraticMesh q = make_quadratic_cylinder(lin, spec);
-  const TetMesh v = surface_view(q, lin);
-  ASSERT_EQ(v.inner.rows(), 4 * lin.inner.rows());
-  ASSERT_EQ(v.outer.rows(), 4 * lin.outer.rows());
+  const TetMesh v = linear_view(q);
+  const Tris& inner = v.surface(kInnerWall);
+  ASSERT_EQ(inner.rows(), 4 * lin.surface(kInnerWall).rows());
+  ASSERT_EQ(v.surface(kOuterWall).rows(), 4 * lin.surface(kOuterWall).rows());
   ASSERT_EQ(v.n_nodes(), q.n_nodes());
   const int n_sides = 2 * spec.segments_around;
   double area = 0.0;
   std::map<std::pair<int, int>, int> edge_count;
-  for (int t = 0; t < v.inner.rows(); ++t) {
-    const Eigen::Vector3d a = v.rest.row(v.inner(t, 0)), b = v.rest.row(v.inner(t, 1)), c = v.rest.row(v.inner(t, 2));
+  for (int t = 0; t < inner.rows(); ++t) {
+    const Eigen::Vector3d a = v.rest.row(inner(t, 0)), b = v.rest.row(inner(t, 1)), c = v.rest.row(inner(t, 2));
     const Eigen::Vector3d n = (b - a).cross(c - a);
     area += 0.5 * n.norm();
     // Facing the axis: the normal points from the centroid toward the axis.
     const Eigen::Vector3d g = (a + b + c) / 3.0;
     EXPECT_LT(n.x() * g.x() + n.y() * g.y(), 0.0) << "triangle " << t;
     for (int k = 0; k < 3; ++k) {
-      const int p = v.inner(t, k), r = v.inner(t, (k + 1) % 3);
+      const int p = inner(t, k), r = inner(t, (k + 1) % 3);
       ++edge_count[{std::min(p, r), std::max(p, r)}];
     }
   }
@@ -625,6 +626,76 @@ TEST(Quadratic, SurfaceViewSplitsTheWallsIntoTheInscribedPolygonTube) {
                         (std::abs(v.rest(e.first, 2)) < 1e-12 || std::abs(v.rest(e.first, 2) - spec.length) < 1e-12);
     EXPECT_EQ(count, on_end ? 1 : 2) << "edge " << e.first << "-" << e.second;
   }
+}
+
+// The linear view is a real tet mesh on the quadratic mesh's nodes: on straight-sided elements the 8 sub-tets of
+// each element have positive volumes summing to the element's (a partition); every node belongs to a sub-tet;
+// and the faces that only one sub-tet has (the view's own boundary, found by brute force) are exactly its split
+// surfaces, with the same orientation (out of the volume).
+TEST(Quadratic, LinearViewIsATetMeshWhoseBoundaryIsItsSurfaces) {
+  const HollowCylinderSpec spec{0.01, 0.013, 0.03, 6, 3, 2, 0.0};
+  const TetMesh lin = make_hollow_cylinder(spec);
+  const QuadraticMesh q = make_quadratic(lin);  // straight-sided
+  const TetMesh v = linear_view(q);
+  ASSERT_EQ(v.tets.rows(), 8 * lin.tets.rows());
+  // Partition of each element.
+  for (int t = 0; t < lin.tets.rows(); ++t) {
+    double sum = 0.0;
+    for (int s = 0; s < 8; ++s) {
+      const double vol = tet_volume(v.rest, v.tets, 8 * t + s);
+      EXPECT_GT(vol, 0.0) << "tet " << t << " sub-tet " << s;
+      sum += vol;
+    }
+    EXPECT_NEAR(sum, tet_volume(lin.rest, lin.tets, t), 1e-12 * tet_volume(lin.rest, lin.tets, t)) << "tet " << t;
+  }
+  // Every node in a sub-tet.
+  std::vector<char> used(v.n_nodes(), 0);
+  for (int i = 0; i < v.tets.size(); ++i) used[v.tets.data()[i]] = 1;
+  EXPECT_EQ(std::count(used.begin(), used.end(), 1), v.n_nodes());
+  // Boundary faces of the sub-tets, oriented out of each (faces (1,2,3), (0,3,2), (0,1,3), (0,2,1)).
+  static constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+  std::map<std::array<int, 3>, std::array<int, 3>> faces;  // sorted ids -> oriented ids
+  std::map<std::array<int, 3>, int> count;
+  for (int t = 0; t < v.tets.rows(); ++t)
+    for (const auto& f : kFaces) {
+      std::array<int, 3> ids = {v.tets(t, f[0]), v.tets(t, f[1]), v.tets(t, f[2])}, key = ids;
+      std::sort(key.begin(), key.end());
+      faces[key] = ids;
+      ++count[key];
+    }
+  // The split surfaces, as the same sorted keys with their cyclic orientation.
+  auto cyclic_equal = [](const std::array<int, 3>& a, const std::array<int, 3>& b) {
+    for (int r = 0; r < 3; ++r)
+      if (a[0] == b[r] && a[1] == b[(r + 1) % 3] && a[2] == b[(r + 2) % 3]) return true;
+    return false;
+  };
+  int surface_faces = 0;
+  for (const MeshSurface& s : v.surfaces)
+    for (int t = 0; t < s.tris.rows(); ++t) {
+      std::array<int, 3> ids = {s.tris(t, 0), s.tris(t, 1), s.tris(t, 2)}, key = ids;
+      std::sort(key.begin(), key.end());
+      ASSERT_EQ(count[key], 1) << s.name << " triangle " << t << " is not a boundary face";
+      EXPECT_TRUE(cyclic_equal(faces[key], ids)) << s.name << " triangle " << t << " faces into the volume";
+      ++surface_faces;
+    }
+  int boundary = 0;
+  for (const auto& [key, c] : count) boundary += c == 1;
+  EXPECT_EQ(boundary, surface_faces);
+  // Node sets carried over by name.
+  EXPECT_EQ(v.node_set(kStartEnd), q.node_set(kStartEnd));
+  EXPECT_EQ(v.node_set(kStopEnd), q.node_set(kStopEnd));
+}
+
+// Named lookups refuse a missing name and say what the mesh has.
+TEST(Quadratic, MissingSurfaceNameIsRefusedWithTheNamesThereAre) {
+  const TetMesh lin = make_hollow_cylinder(HollowCylinderSpec{0.01, 0.013, 0.03, 6, 3, 1, 0.0});
+  try {
+    lin.surface("lumen");
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "TetMesh has no surface \"lumen\" (it has: inner, outer, ends)");
+  }
+  EXPECT_THROW(make_quadratic(lin).node_set("middle"), std::invalid_argument);
 }
 
 }  // namespace

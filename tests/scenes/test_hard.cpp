@@ -87,7 +87,7 @@ struct Invariants {
     if (!finite && nonfinite++ == 0) first_nonfinite = rec.frame;
     if (rec.numerical_failure && failures++ == 0) first_failure = rec.frame;
     // Exact intersection count of the inner wall (orientation predicates, not the CCD).
-    const long pairs = state.x.allFinite() ? collision::count_intersecting_pairs(state.x, model.mesh.inner) : -1;
+    const long pairs = state.x.allFinite() ? collision::count_intersecting_pairs(state.x, model.mesh.surface(lumen::physics::kInnerWall)) : -1;
     if (pairs != 0 && intersecting++ == 0) first_intersecting = rec.frame;
     worst_pairs = std::max(worst_pairs, pairs);
     const int inverted = count_inverted(state.x, model.mesh.tets);
@@ -111,6 +111,7 @@ struct Invariants {
 
 // A hard case run frame by frame; `each` sees every committed frame.
 struct HardRun {
+  Scene scene;
   std::unique_ptr<Model> model;
   std::vector<FrameRecord> frames;
   Invariants inv;
@@ -121,13 +122,15 @@ using FrameHook = std::function<void(const Model&, const State&, const FrameReco
 
 HardRun run_hard(const std::string& file, const FrameHook& each = {}) {
   HardRun run;
-  run.model = compile_model(load_scene(hard_scene(file)));
+  run.scene = load_scene(hard_scene(file));
+  run.model = compile_model(run.scene);
+  Inputs inputs = make_inputs(run.scene);
   State state = make_state(*run.model);
-  const int frames = run.model->scene.frames;
+  const int frames = run.scene.frames;
   run.frames.reserve(frames);
   for (int i = 0; i < frames; ++i) {
     FrameRecord rec;
-    step(*run.model, state, rec);
+    step(*run.model, inputs, state, rec);
     run.inv.check(*run.model, state, rec);
     if (each) each(*run.model, state, rec);
     run.frames.push_back(std::move(rec));
@@ -197,13 +200,13 @@ TEST(HardCases, ModulusSweepScalesExactly) {
     ASSERT_EQ(other->frames.size(), mid.frames.size());
     for (size_t i = 0; i < mid.frames.size(); ++i)
       EXPECT_NEAR(other->frames[i].max_displacement, mid.frames[i].max_displacement, 1e-9 * umax)
-          << other->model->scene.name << " frame " << i + 1;
+          << other->scene.name << " frame " << i + 1;
     const double diff = (other->final_x - mid.final_x).cwiseAbs().maxCoeff();
-    EXPECT_LE(diff, 1e-9 * umax) << other->model->scene.name << ": final positions differ";
+    EXPECT_LE(diff, 1e-9 * umax) << other->scene.name << ": final positions differ";
     std::printf("[hard] %s vs modulus-5kpa: final positions differ by %.3g m (max displacement %.4g m)\n",
-                other->model->scene.name.c_str(), diff, umax);
+                other->scene.name.c_str(), diff, umax);
     // The same contact work: the linear system is the same up to a factor.
-    EXPECT_EQ(other->inv.frames_with_contacts, mid.inv.frames_with_contacts) << other->model->scene.name;
+    EXPECT_EQ(other->inv.frames_with_contacts, mid.inv.frames_with_contacts) << other->scene.name;
   }
 }
 
@@ -221,15 +224,16 @@ TEST(HardCases, InvertingPointForce) {
 // of the arc (where the probe pushes), never intersecting.
 TEST(HardCases, BentTubeWallsTouchInTheBend) {
   std::vector<int> contact_rings;
+  const Scene bent = load_scene(hard_scene("bent-tube-contact.json"));
   HardRun run = run_hard("bent-tube-contact.json", [&](const Model& model, const State& state, const FrameRecord&) {
-    const int per_ring = (model.scene.mesh.layers + 1) * model.scene.mesh.segments_around;
+    const int per_ring = (bent.mesh.layers + 1) * bent.mesh.segments_around;
     for (int v = 0; v < model.mesh.n_nodes(); ++v)
       if (state.in_contact[v]) contact_rings.push_back(v / per_ring);
   });
-  ASSERT_GT(run.model->scene.mesh.bend_radius, 0.0);
+  ASSERT_GT(run.scene.mesh.bend_radius, 0.0);
   EXPECT_GT(run.inv.max_contacts, 0);
   ASSERT_FALSE(contact_rings.empty());
-  const int along = run.model->scene.mesh.segments_along;
+  const int along = run.scene.mesh.segments_along;
   const auto [lo, hi] = std::minmax_element(contact_rings.begin(), contact_rings.end());
   EXPECT_GE(*lo, along / 3);
   EXPECT_LE(*hi, along - along / 3);
@@ -240,9 +244,11 @@ TEST(HardCases, BentTubeWallsTouchInTheBend) {
 // soak's largest displacement); equal phases of an early and a late cycle give equal positions (no drift); the
 // resident memory after frame 10,000 is not above that after frame 1,000 plus 1 MiB.
 TEST(HardCases, SoakTenThousandFrames) {
-  auto model = compile_model(load_scene(hard_scene("soak-oscillating.json")));
-  ASSERT_EQ(model->scene.frames, 10000);
-  const int period = static_cast<int>(std::lround(4.0 * model->scene.fps));  // frames per push-pull cycle
+  const Scene scene = load_scene(hard_scene("soak-oscillating.json"));
+  auto model = compile_model(scene);
+  Inputs inputs = make_inputs(scene);
+  ASSERT_EQ(scene.frames, 10000);
+  const int period = static_cast<int>(std::lround(4.0 * scene.fps));  // frames per push-pull cycle
   const int zero_every = period / 2;                                          // frames between zero-force keys
   State state = make_state(*model);
   Invariants inv;
@@ -255,9 +261,9 @@ TEST(HardCases, SoakTenThousandFrames) {
   std::vector<Points> early_x(4);
   double drift = 0.0;
   long rss_1000 = -1, rss_end = -1;
-  for (int i = 0; i < model->scene.frames; ++i) {
+  for (int i = 0; i < scene.frames; ++i) {
     FrameRecord rec;
-    step(*model, state, rec);
+    step(*model, inputs, state, rec);
     inv.check(*model, state, rec);
     // Largest node displacement from rest, from the positions.
     const double u = (state.x - model->mesh.rest).rowwise().norm().maxCoeff();
@@ -273,14 +279,14 @@ TEST(HardCases, SoakTenThousandFrames) {
       if (rec.frame == late + phases[p]) drift = std::max(drift, (state.x - early_x[p]).cwiseAbs().maxCoeff());
     }
     if (rec.frame == 1000) rss_1000 = resident_bytes();
-    if (rec.frame == model->scene.frames) rss_end = resident_bytes();
+    if (rec.frame == scene.frames) rss_end = resident_bytes();
   }
   inv.expect_clean("soak-oscillating.json", 10000);
   std::printf("[hard] soak: max displacement %.6g m, at zero force %.3g m, drift %.3g m, contacts max %ld, "
               "frames with contacts %d, inverted max %d, resident %ld -> %ld bytes\n",
               umax, worst_at_zero, drift, inv.max_contacts, inv.frames_with_contacts, inv.max_inverted, rss_1000, rss_end);
   EXPECT_GT(inv.max_contacts, 0) << "the soak should close the lumen";
-  EXPECT_EQ(zero_frames, model->scene.frames / zero_every);
+  EXPECT_EQ(zero_frames, scene.frames / zero_every);
   ASSERT_GT(umax, 0.0);
   EXPECT_LE(worst_at_zero, 1e-9 * umax) << "not back at rest when the force is zero";
   EXPECT_LE(drift, 1e-9 * umax) << "positions at equal phases drift between cycles 2 and 60";
@@ -301,7 +307,7 @@ TEST(HardCases, TwistCorotationalKeepsTheVolume) {
   std::printf("[hard] twist corotational: volume change %.4f, largest per-tet volume error %.3f, contacts max %ld\n",
               v1 / v0 - 1.0, max_tet_volume_error(run.final_x, rest, run.model->mesh.tets), run.inv.max_contacts);
   // The end really turned: the stop end's first node is at the opposite side of the axis.
-  const int v = run.model->mesh.end_nodes_stop.front();
+  const int v = run.model->mesh.node_set(lumen::physics::kStopEnd).front();
   EXPECT_NEAR(run.final_x(v, 0), -rest(v, 0), 1e-6);
   EXPECT_NEAR(run.final_x(v, 1), -rest(v, 1), 1e-6);
 }

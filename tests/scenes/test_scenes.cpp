@@ -17,7 +17,7 @@ SessionResult run_checked(const std::string& scene_file) {
   SessionOptions opt;
   opt.render = false;
   opt.check = true;
-  return run_session(*model, opt);
+  return run_session(*model, make_inputs(scene), opt);
 }
 
 void expect_never_intersects(const std::string& scene_file) {
@@ -51,7 +51,7 @@ TEST(Scenes, PaperSceneLoadsWithThePaperMeshCounts) {
   auto model = compile_model(scene);
   EXPECT_EQ(model->mesh.n_nodes(), 2160);
   EXPECT_EQ(model->mesh.tets.rows(), 9360);
-  EXPECT_EQ(model->mesh.inner.rows(), 1040);
+  EXPECT_EQ(model->mesh.surface(lumen::physics::kInnerWall).rows(), 1040);
 }
 
 // Quadratic elements at the paper's wall resolution (10 x 13 x 1 tet10: 1040 split inner triangles).
@@ -62,11 +62,11 @@ TEST(Scenes, FullClosureWithTheOuterWallCollidingNeverIntersects) {
   Scene scene = load_scene(std::string(LUMEN_SOURCE_DIR) + "/scenes/full-closure.json");
   scene.collision.outer_wall = true;
   auto model = compile_model(scene);
-  ASSERT_EQ(model->collision_tris.rows(), model->mesh.inner.rows() + model->mesh.outer.rows());
+  ASSERT_EQ(model->collision_tris.rows(), model->mesh.surface(lumen::physics::kInnerWall).rows() + model->mesh.surface(lumen::physics::kOuterWall).rows());
   SessionOptions opt;
   opt.render = false;
   opt.check = true;
-  const SessionResult r = run_session(*model, opt);
+  const SessionResult r = run_session(*model, make_inputs(scene), opt);
   long contacts = 0;
   for (const auto& f : r.frames) {
     EXPECT_EQ(f.intersecting_pairs, 0) << "frame " << f.frame;

@@ -38,12 +38,12 @@ struct CorotPaperModel {
   std::map<int, std::vector<Eigen::VectorXd>> tight;  // per peak (mN): tightly converged u per frame
 
   CorotPaperModel() {
-    fixed = mesh.end_nodes_start;
-    fixed.insert(fixed.end(), mesh.end_nodes_stop.begin(), mesh.end_nodes_stop.end());
+    fixed = mesh.node_set(kStartEnd);
+    fixed.insert(fixed.end(), mesh.node_set(kStopEnd).begin(), mesh.node_set(kStopEnd).end());
     model = std::make_unique<CorotationalModel>(mesh, LinearMaterial{5000.0, 0.45}, fixed);
     const Eigen::RowVector3d probe(0.0, 0.013, 0.05);
     std::vector<char> on(mesh.n_nodes(), 0);
-    for (int i = 0; i < mesh.outer.size(); ++i) on[mesh.outer.data()[i]] = 1;
+    for (int i = 0; i < mesh.surface(kOuterWall).size(); ++i) on[mesh.surface(kOuterWall).data()[i]] = 1;
     for (int v = 0; v < mesh.n_nodes(); ++v)
       if (on[v] && (mesh.rest.row(v) - probe).norm() <= 0.005 + 1e-9) patch.push_back(v);
   }

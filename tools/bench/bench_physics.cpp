@@ -26,11 +26,11 @@ struct PaperModel {
   std::unique_ptr<SurfaceCompliance> compliance;
 
   PaperModel() {
-    fixed = mesh.end_nodes_start;
-    fixed.insert(fixed.end(), mesh.end_nodes_stop.begin(), mesh.end_nodes_stop.end());
+    fixed = mesh.node_set(kStartEnd);
+    fixed.insert(fixed.end(), mesh.node_set(kStopEnd).begin(), mesh.node_set(kStopEnd).end());
     solver = std::make_unique<StaticSolver>(K, fixed);
     std::vector<char> on(mesh.n_nodes(), 0);
-    for (int i = 0; i < mesh.inner.size(); ++i) on[mesh.inner.data()[i]] = 1;
+    for (int i = 0; i < mesh.surface(kInnerWall).size(); ++i) on[mesh.surface(kInnerWall).data()[i]] = 1;
     for (int v = 0; v < mesh.n_nodes(); ++v)
       if (on[v]) inner_nodes.push_back(v);
   }
@@ -43,8 +43,8 @@ struct PaperModel {
   std::vector<LoadPoint> load_points(int m) const {
     std::vector<LoadPoint> pts(m);
     for (int p = 0; p < m; ++p) {
-      const int t = static_cast<int>((p + 0.5) * mesh.inner.rows() / m);
-      for (int k = 0; k < 3; ++k) pts[p].node[k] = mesh.inner(t, k), pts[p].weight[k] = 1.0 / 3.0;
+      const int t = static_cast<int>((p + 0.5) * mesh.surface(kInnerWall).rows() / m);
+      for (int k = 0; k < 3; ++k) pts[p].node[k] = mesh.surface(kInnerWall)(t, k), pts[p].weight[k] = 1.0 / 3.0;
     }
     return pts;
   }
@@ -76,7 +76,7 @@ BENCHMARK(BM_PhysicsFactorise)->Unit(benchmark::kMillisecond);
 void BM_PhysicsSolve(benchmark::State& state) {
   const PaperModel& m = model();
   Eigen::VectorXd f = Eigen::VectorXd::Zero(m.solver->n_dofs()), u;
-  f[3 * m.mesh.inner(500, 0) + 1] = -0.05;
+  f[3 * m.mesh.surface(kInnerWall)(500, 0) + 1] = -0.05;
   for (auto _ : state) {
     m.solver->solve(f, u);
     benchmark::DoNotOptimize(u.data());
@@ -128,12 +128,12 @@ BENCHMARK(BM_PhysicsSurfaceComplianceBuild)->Unit(benchmark::kMillisecond)->Iter
 
 // Contact rows on the inner wall: vertex-face rows between nodes on opposite sides, all violated by 0.5 mm.
 std::vector<ContactRow> contact_rows(const PaperModel& m, int count, std::mt19937& rng) {
-  std::uniform_int_distribution<int> tri(0, static_cast<int>(m.mesh.inner.rows()) - 1);
+  std::uniform_int_distribution<int> tri(0, static_cast<int>(m.mesh.surface(kInnerWall).rows()) - 1);
   std::vector<ContactRow> rows(count);
   for (ContactRow& r : rows) {
     const int t = tri(rng), s = tri(rng);
-    r.node[0] = m.mesh.inner(s, 0), r.weight[0] = 1.0;
-    for (int k = 0; k < 3; ++k) r.node[k + 1] = m.mesh.inner(t, k), r.weight[k + 1] = -1.0 / 3.0;
+    r.node[0] = m.mesh.surface(kInnerWall)(s, 0), r.weight[0] = 1.0;
+    for (int k = 0; k < 3; ++k) r.node[k + 1] = m.mesh.surface(kInnerWall)(t, k), r.weight[k + 1] = -1.0 / 3.0;
     r.n = Eigen::Vector3d(0.0, 1.0, 0.2).normalized();
     r.g = 5e-4;
   }

@@ -36,8 +36,8 @@ struct Organ {
     mesh = lumen::physics::make_hollow_cylinder(spec);
     positions.assign(mesh.rest.data(), mesh.rest.data() + mesh.rest.size());
     contact.assign(mesh.n_nodes(), 0);
-    framing = lumen::render::frame_organ(mesh.rest.data(), mesh.n_nodes(), mesh.inner.data(),
-                                         static_cast<int>(mesh.inner.rows()));
+    framing = lumen::render::frame_organ(mesh.rest.data(), mesh.n_nodes(), mesh.surface(lumen::physics::kInnerWall).data(),
+                                         static_cast<int>(mesh.surface(lumen::physics::kInnerWall).rows()));
   }
 
   // Pinch the tube from above at an axial station that moves with the frame; flag the pinched nodes.
@@ -53,9 +53,9 @@ struct Organ {
     v.positions = positions.data();
     v.n_points = mesh.n_nodes();
     using lumen::render::SurfaceStyle;
-    v.surfaces.push_back({mesh.outer.data(), static_cast<int>(mesh.outer.rows()), SurfaceStyle::outer_wall()});
-    v.surfaces.push_back({mesh.ends.data(), static_cast<int>(mesh.ends.rows()), SurfaceStyle::wall_ends()});
-    v.surfaces.push_back({mesh.inner.data(), static_cast<int>(mesh.inner.rows()), SurfaceStyle::inner_wall()});
+    v.surfaces.push_back({mesh.surface(lumen::physics::kOuterWall).data(), static_cast<int>(mesh.surface(lumen::physics::kOuterWall).rows()), SurfaceStyle::outer_wall()});
+    v.surfaces.push_back({mesh.surface(lumen::physics::kEndCaps).data(), static_cast<int>(mesh.surface(lumen::physics::kEndCaps).rows()), SurfaceStyle::wall_ends()});
+    v.surfaces.push_back({mesh.surface(lumen::physics::kInnerWall).data(), static_cast<int>(mesh.surface(lumen::physics::kInnerWall).rows()), SurfaceStyle::inner_wall()});
     v.contact = contact.data();
     v.force_scale = 0.02;
     v.probes.push_back({Eigen::Vector3d(0, spec.outer_radius - 0.009, zc), Eigen::Vector3d(0, -1.0, 0)});

@@ -29,6 +29,7 @@ const std::string kFullClosure = std::string(LUMEN_SOURCE_DIR) + "/scenes/full-c
 // its contacts (last frame's pushing ones plus the new ones) as rows, and the warm-start guess.
 struct FrozenFrame {
   std::unique_ptr<Model> model;
+  Inputs inputs;
   State state;
   Eigen::VectorXd u_free;                   // 3n, metres
   std::vector<physics::ContactRow> rows;    // one per active contact
@@ -36,21 +37,23 @@ struct FrozenFrame {
   std::vector<physics::ContactRow> held;    // the paper's hold of the same contacts: 3 unit rows per node
 
   explicit FrozenFrame(int frames) {
-    model = compile_model(load_scene(kFullClosure));
+    const Scene scene = load_scene(kFullClosure);
+    model = compile_model(scene);
+    inputs = make_inputs(scene);
     state = make_state(*model);
     for (int f = 0; f < frames; ++f) {
       FrameRecord rec;
-      step(*model, state, rec);
+      step(*model, inputs, state, rec);
     }
     // The next frame's free motion (fixed probe points: the precomputed unit responses).
     const int n = model->mesh.n_nodes();
-    const double t1 = (state.frame + 1) / model->scene.fps;
-    Points forces(state.sources.size(), 3);
-    for (size_t i = 0; i < state.sources.size(); ++i) forces.row(i) = state.sources[i]->sample(t1).force.transpose();
+    const double t1 = (state.frame + 1) / model->fps;
+    Points forces(inputs.sources.size(), 3);
+    for (size_t i = 0; i < inputs.sources.size(); ++i) forces.row(i) = inputs.sources[i]->sample(t1).force.transpose();
     dynamic_cast<const physics::LinearQuasiStatic&>(*model->integrator).load_response().displacement(forces, u_free);
     const Points x1 = model->mesh.rest + Eigen::Map<const Points>(u_free.data(), n, 3);
     std::vector<collision::Contact> found;
-    collision::detect_self(*model->collision_surface, *state.detector, state.x, x1, model->scene.collision.gap, found,
+    collision::detect_self(*model->collision_surface, *state.detector, state.x, x1, model->collision.gap, found,
                            nullptr);
     std::map<FeatureKey, collision::Contact> active;
     std::set<FeatureKey> pushing;
@@ -59,7 +62,7 @@ struct FrozenFrame {
     std::set<int> nodes;
     for (const auto& [key, c] : active) {
       if (pushing.count(key)) warm.push_back(static_cast<int>(rows.size()));
-      rows.push_back(contact_row(c, model->mesh.rest, state.x, x1, model->scene.collision.gap));
+      rows.push_back(contact_row(c, model->mesh.rest, state.x, x1, model->collision.gap));
       for (int k = 0; k < 4; ++k) nodes.insert(c.v[k]);
     }
     for (int v : nodes)
@@ -86,13 +89,14 @@ void frame_counters(benchmark::State& state, const FrozenFrame& f) {
 
 // Whole sessions without rendering; the per-frame percentiles are the counters (ms).
 void BM_ResponseFullClosureSession(benchmark::State& state) {
-  auto model = compile_model(load_scene(kFullClosure));
+  const Scene scene = load_scene(kFullClosure);
+  auto model = compile_model(scene);
   SessionOptions opt;
   opt.render = false;
   std::vector<double> resp, both;
   long fallbacks = 0, iterations = 0;
   for (auto _ : state) {
-    const SessionResult r = run_session(*model, opt);
+    const SessionResult r = run_session(*model, make_inputs(scene), opt);
     for (const FrameRecord& f : r.frames) {
       resp.push_back(f.ms[kResponse]);
       both.push_back(f.ms[kCollision] + f.ms[kResponse]);

@@ -142,14 +142,14 @@ Outcome run(const engine::Scene& scene, bool render) {
   const physics::TetMesh& mesh = model->mesh;
   o.nodes = mesh.n_nodes();
   o.tets = static_cast<int>(mesh.tets.rows());
-  o.inner_tris = static_cast<int>(mesh.inner.rows());
+  o.inner_tris = static_cast<int>(mesh.surface(lumen::physics::kInnerWall).rows());
   const auto& ms = scene.mesh;
 
   // Outer-wall nodes of the probe patch (rest positions within kPatchRadius of the first probe's point).
   std::vector<int> patch;
   std::vector<char> on_outer(mesh.n_nodes(), 0);
-  for (int t = 0; t < mesh.outer.rows(); ++t)
-    for (int k = 0; k < 3; ++k) on_outer[mesh.outer(t, k)] = 1;
+  for (int t = 0; t < mesh.surface(lumen::physics::kOuterWall).rows(); ++t)
+    for (int k = 0; k < 3; ++k) on_outer[mesh.surface(lumen::physics::kOuterWall)(t, k)] = 1;
   for (int v = 0; v < mesh.n_nodes(); ++v)
     if (on_outer[v] && (mesh.rest.row(v).transpose() - scene.probes[0].point).norm() <= kPatchRadius) patch.push_back(v);
   // Inner-wall nodes facing each other at the probes' section: ring along/2, layer 0, angles 90 and 270 degrees.
@@ -158,10 +158,10 @@ Outcome run(const engine::Scene& scene, bool render) {
   const int bottom = (ring * (ms.layers + 1)) * ms.segments_around + 3 * ms.segments_around / 4;
   // Inner-wall area per node (a third of each incident triangle's rest area), m^2.
   std::vector<double> node_area(mesh.n_nodes(), 0.0);
-  for (int t = 0; t < mesh.inner.rows(); ++t) {
-    const Eigen::Vector3d a = mesh.rest.row(mesh.inner(t, 0)), b = mesh.rest.row(mesh.inner(t, 1)),
-                          c = mesh.rest.row(mesh.inner(t, 2));
-    for (int k = 0; k < 3; ++k) node_area[mesh.inner(t, k)] += (b - a).cross(c - a).norm() / 6.0;
+  for (int t = 0; t < mesh.surface(lumen::physics::kInnerWall).rows(); ++t) {
+    const Eigen::Vector3d a = mesh.rest.row(mesh.surface(lumen::physics::kInnerWall)(t, 0)), b = mesh.rest.row(mesh.surface(lumen::physics::kInnerWall)(t, 1)),
+                          c = mesh.rest.row(mesh.surface(lumen::physics::kInnerWall)(t, 2));
+    for (int k = 0; k < 3; ++k) node_area[mesh.surface(lumen::physics::kInnerWall)(t, k)] += (b - a).cross(c - a).norm() / 6.0;
   }
 
   // The session, measuring the committed state after the last frame.
@@ -169,7 +169,7 @@ Outcome run(const engine::Scene& scene, bool render) {
   opt.render = render;
   opt.write_frames = false;
   opt.on_frame = [&](const engine::Model& m, const engine::State& st, const engine::FrameRecord& rec) {
-    if (rec.frame != m.scene.frames) return;
+    if (rec.frame != m.frames) return;
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (int v : patch) mean += st.sim.u.segment<3>(3 * v);
     o.probe_disp = patch.empty() ? 0.0 : (mean / static_cast<double>(patch.size())).norm();
@@ -179,7 +179,7 @@ Outcome run(const engine::Scene& scene, bool render) {
       if (st.in_contact[v]) o.contact_area += node_area[v];
     o.contact_force = rec.contact_force;
   };
-  const engine::SessionResult r = engine::run_session(*model, opt);
+  const engine::SessionResult r = engine::run_session(*model, engine::make_inputs(scene), opt);
   o.session_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   // Frame statistics.
