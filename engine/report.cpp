@@ -111,6 +111,9 @@ nlohmann::json frame_json(const FrameRecord& r) {
   nlohmann::json re = nlohmann::json::array();
   for (const auto& f : r.reactions) re.push_back({f.x(), f.y(), f.z()});
   j["reaction_force_n"] = re;
+  nlohmann::json pd = nlohmann::json::array();
+  for (const auto& d : r.probe_displacement) pd.push_back({d.x(), d.y(), d.z()});
+  j["probe_displacement_m"] = pd;
   return j;
 }
 

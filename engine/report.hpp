@@ -39,6 +39,9 @@ struct FrameRecord {
                                       // contact multipliers), newtons; 0 without contact or with "paper"
   double max_displacement = 0.0;      // metres, max node displacement from rest
   std::vector<Eigen::Vector3d> reactions;  // per probe, newtons
+  // Per probe, the displacement from rest of its attachment point at the end of the frame (its nodes'
+  // displacements by the barycentric weights), metres. A tip made of several probes is measured by their mean.
+  std::vector<Eigen::Vector3d> probe_displacement;
 };
 
 struct StageSummary {

@@ -357,13 +357,20 @@ void commit_frame(const Model& model, State& state, const Eigen::VectorXd& u, bo
     rec.max_displacement = std::max(rec.max_displacement, state.sim.u.segment<3>(3 * i).norm());
 }
 
-// Reaction at each probe point (a probe in equilibrium: equal and opposite to its force), handed back.
+// Reaction at each probe point (a probe in equilibrium: equal and opposite to its force), handed back; the
+// point's displacement recorded.
 void feed_back(Inputs& inputs, const State& state, double t1, FrameRecord& rec) {
   rec.reactions.clear();
+  rec.probe_displacement.clear();
   for (size_t i = 0; i < inputs.sources.size(); ++i) {
     const Eigen::Vector3d reaction = -state.samples[i].force;
     rec.reactions.push_back(reaction);
     inputs.sources[i]->feedback(t1, reaction);
+    const SurfacePoint& at = state.load_points[i];
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k)
+      if (at.node[k] >= 0) d += at.weight[k] * state.sim.u.segment<3>(3 * at.node[k]);
+    rec.probe_displacement.push_back(d);
   }
 }
 

@@ -80,6 +80,13 @@ TEST(ProbeLoad, DisplacementDrivenProbeReachesItsTargetAndReportsTheForce) {
   Eigen::Vector3d moved = Eigen::Vector3d::Zero();
   for (int k = 0; k < 3; ++k) moved += model->probe_points[0].weight[k] * u.segment<3>(3 * model->probe_points[0].node[k]);
   EXPECT_LT((moved - target).norm(), 1e-9 * target.norm() + 1e-15);
+  // The record's probe displacements are the direct solve's at both points (the held one: its target).
+  ASSERT_EQ(rec.probe_displacement.size(), 2u);
+  EXPECT_LT((rec.probe_displacement[0] - target).norm(), 1e-9 * target.norm());
+  Eigen::Vector3d other = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) other += model->probe_points[1].weight[k] * u.segment<3>(3 * model->probe_points[1].node[k]);
+  EXPECT_LT((rec.probe_displacement[1] - other).norm(), 1e-9 * other.norm());
+  EXPECT_GT(other.norm(), 1e-4);  // a real displacement, not zero
   // The force-driven probe's reaction is its force, reversed.
   EXPECT_LT((rec.reactions[1] + t * Eigen::Vector3d(0, 0.02, 0.01)).norm(), 1e-15);
   // Pushing the point inwards takes an inward force.
