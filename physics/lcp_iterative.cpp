@@ -55,9 +55,12 @@ class PgsState {
     refresh();
   }
 
-  // One Gauss-Seidel sweep over the rows with the projection on z >= 0; w follows each change by a column update.
-  void sweep() {
-    for (Eigen::Index i = 0; i < z.size(); ++i) {
+  // One Gauss-Seidel sweep over the rows (first to last, or last to first) with the projection on z >= 0; w
+  // follows each change by a column update.
+  void sweep(bool backward = false) {
+    const Eigen::Index m = z.size();
+    for (Eigen::Index k = 0; k < m; ++k) {
+      const Eigen::Index i = backward ? m - 1 - k : k;
       if (inv_diag_[i] == 0.0) continue;
       const double zi = std::max(0.0, z[i] - omega_ * w[i] * inv_diag_[i]);
       const double dz = zi - z[i];
@@ -125,13 +128,15 @@ LcpResult solve_lcp_nncg(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, con
   validate("solve_lcp_nncg", A, q, options);
   PgsState s(A, q, options);
   if (s.done(options.tolerance)) return s.result(options.tolerance);
-  // Each round: one sweep and its gradient g = z_before - PGS(z_before) (m); the test, on the post-sweep iterate
+  // Each round: a symmetric sweep (forward then backward; only forward when one sweep of the budget is left) and
+  // its gradient g = z_before - SPGS(z_before) (m); the test, on the post-sweep iterate
   // only (z >= 0); then the first round sets the direction p = -g (m), later ones conjugate or restart.
   Eigen::VectorXd z_before, g, p = Eigen::VectorXd::Zero(q.size());
   double gg = 0.0;
   for (bool first = true;; first = false) {
     z_before = s.z;
     s.sweep();
+    if (s.sweeps < options.max_sweeps) s.sweep(/*backward=*/true);
     g = z_before - s.z;
     const double gg_next = g.squaredNorm();
     if (s.done(options.tolerance) || s.sweeps >= options.max_sweeps) break;

@@ -28,9 +28,13 @@ struct IterativeLcpOptions {
 // wrong size or not finite, or bad options.
 LcpResult solve_lcp_pgs(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, const IterativeLcpOptions& options = {});
 
-// NNCG: each iteration is one PGS sweep (the "gradient" g = z_k - PGS(z_k)) followed by the conjugation
-// z += beta p, p <- beta p - g with beta = |g_k+1|^2 / |g_k|^2 (Fletcher-Reeves), restarted (p = 0) when beta > 1,
-// i.e. when the merit |g| grows. The returned z is always a PGS iterate (z >= 0). Same validation as PGS.
+// NNCG: each round is one symmetric PGS sweep (forward then backward, 2 sweeps of the budget; the "gradient"
+// g = z_k - SPGS(z_k)) followed by the conjugation z += beta p, p <- beta p - g with beta = |g_k+1|^2 / |g_k|^2
+// (Fletcher-Reeves), restarted (p = 0) when beta > 1, i.e. when the merit |g| grows. The returned z is always a
+// post-sweep iterate (z >= 0). Silcowitz et al. use the forward sweep alone; with it, on a pinch-like patch of
+// coupled contacts, a third of the rounds restarted and NNCG needed 5x PGS's sweeps, while the symmetric sweep
+// (a symmetric preconditioner, as in CG) needs about 0.6x PGS's sweeps there and 0.07x on a stack. Same
+// validation as PGS.
 LcpResult solve_lcp_nncg(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, const IterativeLcpOptions& options = {});
 
 }  // namespace lumen::physics

@@ -91,6 +91,42 @@ ContactProblem contact_problem(int n_nodes, int m, double ground, unsigned seed)
   return p;
 }
 
+// A pinch-like problem: a soft square membrane of side x side nodes (springs to the 4 neighbours, N/m, and a
+// weak ground spring), its central c x c patch pressed onto a plane (rows on the nodes' heights), every contact
+// pushing: strongly coupled rows, A = H K^-1 H^T (m/N), q the penetration (metres, deepest at the centre).
+ContactProblem patch_problem(int c) {
+  const int side = 2 * c + 4, n = side * side, dofs = 3 * n;
+  constexpr double kSpring = 1e3;   // N/m
+  constexpr double kGround = 0.01;  // ground spring, relative to kSpring
+  Eigen::MatrixXd K = Eigen::MatrixXd::Zero(dofs, dofs);
+  for (int i = 0; i < side; ++i)
+    for (int j = 0; j < side; ++j)
+      for (const int b : {i + 1 < side ? (i + 1) * side + j : -1, j + 1 < side ? i * side + j + 1 : -1}) {
+        if (b < 0) continue;
+        const int a = i * side + j;
+        for (int k = 0; k < 3; ++k) {
+          K(3 * a + k, 3 * a + k) += kSpring;
+          K(3 * b + k, 3 * b + k) += kSpring;
+          K(3 * a + k, 3 * b + k) -= kSpring;
+          K(3 * b + k, 3 * a + k) -= kSpring;
+        }
+      }
+  K.diagonal().array() += kGround * kSpring;
+  const int m = c * c, o = (side - c) / 2;
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(m, dofs);
+  ContactProblem p;
+  p.q.resize(m);
+  for (int r = 0; r < m; ++r) {
+    const int i = o + r / c, j = o + r % c;
+    H(r, 3 * (i * side + j) + 2) = 1.0;
+    const double x = (i - 0.5 * side) / c, y = (j - 0.5 * side) / c;
+    p.q[r] = -1e-3 * (1.0 - 0.5 * (x * x + y * y));
+  }
+  p.A = H * K.llt().solve(H.transpose());
+  p.A = 0.5 * (p.A + p.A.transpose());
+  return p;
+}
+
 // The conditions of a solution to tolerance tol: z >= 0, w = A z + q >= -tol, |w_i| <= tol where z_i > 0.
 void expect_solution(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, const LcpResult& r, double tol,
                      const std::string& what) {
@@ -193,7 +229,7 @@ TEST(IterativeLcp, WarmStartFromTheSolutionConvergesInOneSweep) {
 // An ill-conditioned stack: kNodes unit masses in a column on the ground, a contact row under each (ground and
 // neighbours): A = J M^-1 J^T is the tridiagonal (-1, 2, -1) (condition ~ kNodes^2), every row violated and
 // every contact pushing at the solution (A^-1 > 0). A larger budget never gives a larger residual (beyond
-// rounding), and NNCG reaches the tolerance in fewer than half of PGS's sweeps.
+// rounding), and NNCG reaches the tolerance in fewer than half of PGS's sweeps; on a pinch-like patch, in fewer.
 TEST(IterativeLcp, NncgNeedsFewerSweepsThanPgsOnAnIllConditionedStack) {
   constexpr int kNodes = 60;
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(kNodes, kNodes);
@@ -213,6 +249,16 @@ TEST(IterativeLcp, NncgNeedsFewerSweepsThanPgsOnAnIllConditionedStack) {
   EXPECT_LT(2 * nncg.iterations, pgs.iterations) << "nncg " << nncg.iterations << " pgs " << pgs.iterations;
   EXPECT_EQ((nncg.z.array() > 0.0).count(), kNodes);
   std::printf("stack of %d: sweeps to %.1e: pgs %d, nncg %d\n", kNodes, opt.tolerance, pgs.iterations, nncg.iterations);
+  // The same on the pinch-like patch (every contact pushing), where plain PGS does comparatively well.
+  const ContactProblem patch = patch_problem(7);
+  IterativeLcpOptions popt = opt;
+  popt.tolerance = 1e-9 * patch.q.cwiseAbs().maxCoeff();
+  const LcpResult ppgs = solve_lcp_pgs(patch.A, patch.q, popt);
+  const LcpResult pnncg = solve_lcp_nncg(patch.A, patch.q, popt);
+  ASSERT_TRUE(ppgs.converged && pnncg.converged);
+  EXPECT_LT(pnncg.iterations, ppgs.iterations);
+  EXPECT_GT((pnncg.z.array() > 0.0).count(), 30);  // most contacts pushing
+  std::printf("patch of 49: sweeps to %.1e: pgs %d, nncg %d\n", popt.tolerance, ppgs.iterations, pnncg.iterations);
   const LcpResult lemke = solve_lcp_dense(A, q);
   ASSERT_TRUE(lemke.converged);
   EXPECT_LE((nncg.w - lemke.w).cwiseAbs().maxCoeff(), 1e-8 * q.cwiseAbs().maxCoeff());
