@@ -21,7 +21,9 @@ namespace {
 
 using Vec3 = Eigen::Vector3d;
 
-constexpr double kMaxCellsPerAxis = 1 << 20;  // grid resolution limit (keeps cell keys well inside 64 bits)
+constexpr double kMaxCellsPerAxis = 1 << 20;       // grid resolution limit (keeps cell keys well inside 64 bits)
+constexpr std::int64_t kDenseCellsPerEntry = 16;  // a dense cell directory when cells <= 16 entries + 4096,
+constexpr std::int64_t kDenseCellsMin = 4096;     // else binary search in the sorted entries
 
 Vec3 point(const PointsRef& x, int i) { return Vec3(x(i, 0), x(i, 1), x(i, 2)); }
 
@@ -136,12 +138,32 @@ class SpatialHash {
   void insert(const CellRange& c, int id) {
     for_cells(c, [&](std::int64_t key) { entries_.emplace_back(key, id); });
   }
-  void finish() { std::sort(entries_.begin(), entries_.end()); }
+  // A dense directory of the cells (counting sort of the entries by cell) when the grid is not much larger than
+  // the entries; else the entries sorted by cell for binary search.
+  void finish() {
+    const std::int64_t cells = dims_[0] * dims_[1] * dims_[2];
+    dense_ = cells <= kDenseCellsPerEntry * static_cast<std::int64_t>(entries_.size()) + kDenseCellsMin;
+    if (!dense_) {
+      std::sort(entries_.begin(), entries_.end());
+      return;
+    }
+    start_.assign(static_cast<std::size_t>(cells + 1), 0);
+    for (const auto& e : entries_) ++start_[static_cast<std::size_t>(e.first + 1)];
+    for (std::size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
+    ids_.resize(entries_.size());
+    std::vector<int> fill(start_.begin(), start_.end() - 1);
+    for (const auto& e : entries_) ids_[static_cast<std::size_t>(fill[static_cast<std::size_t>(e.first)]++)] = e.second;
+  }
 
   // Calls f(id) for every id stored in a cell of c (an id once per shared cell: callers deduplicate).
   template <class F>
   void query(const CellRange& c, F f) const {
     for_cells(c, [&](std::int64_t key) {
+      if (dense_) {
+        const std::size_t k = static_cast<std::size_t>(key);
+        for (int i = start_[k]; i < start_[k + 1]; ++i) f(ids_[static_cast<std::size_t>(i)]);
+        return;
+      }
       auto it = std::lower_bound(entries_.begin(), entries_.end(), std::make_pair(key, -1));
       for (; it != entries_.end() && it->first == key; ++it) f(it->second);
     });
@@ -157,7 +179,10 @@ class SpatialHash {
   double h_;
   Vec3 origin_;
   std::int64_t dims_[3] = {1, 1, 1};
-  std::vector<std::pair<std::int64_t, int>> entries_;
+  std::vector<std::pair<std::int64_t, int>> entries_;  // (cell key, primitive id); sorted unless dense
+  bool dense_ = false;
+  std::vector<int> start_;  // dense directory: the ids of cell k are ids_[start_[k] .. start_[k + 1])
+  std::vector<int> ids_;
 };
 
 // Bounding box of the points ids[0..n) of x0.
@@ -170,6 +195,12 @@ std::pair<Vec3, Vec3> box(const PointsRef& x0, const int* ids, int n) {
   return {lo, hi};
 }
 
+// Whether the boxes [alo, ahi] and [blo, bhi] are more than r apart along some axis (then so are the primitives:
+// the pair cannot lower any bound below r).
+bool apart(const Vec3& alo, const Vec3& ahi, const Vec3& blo, const Vec3& bhi, double r) {
+  return ((blo - ahi).array() > r).any() || ((alo - bhi).array() > r).any();
+}
+
 // Mean edge length of the surface (metres; 0 without edges).
 double mean_edge_length(const CollisionSurface& s, const PointsRef& x0) {
   double sum = 0.0;
@@ -177,38 +208,44 @@ double mean_edge_length(const CollisionSurface& s, const PointsRef& x0) {
   return s.num_edges() > 0 ? sum / s.num_edges() : 0.0;
 }
 
-// Vertex-face pairs within r: triangles hashed by their boxes, each vertex queries its r-box.
+// Vertex-face pairs within r: triangles hashed by their boxes, each vertex queries its r-box; a triangle whose
+// box is more than r away is skipped before the exact distance.
 void hash_vertex_face(const CollisionSurface& s, const PointsRef& x0, double r, double h, PairDistances& pd) {
   SpatialHash grid(x0, s.used_vertices(), h);
+  std::vector<std::pair<Vec3, Vec3>> boxes(static_cast<std::size_t>(s.num_triangles()));  // per triangle, metres
   for (int t = 0; t < s.num_triangles(); ++t) {
-    const auto [lo, hi] = box(x0, s.triangle(t), 3);
-    grid.insert(grid.range(lo, hi, 0.0), t);
+    boxes[static_cast<std::size_t>(t)] = box(x0, s.triangle(t), 3);
+    grid.insert(grid.range(boxes[static_cast<std::size_t>(t)].first, boxes[static_cast<std::size_t>(t)].second, 0.0), t);
   }
   grid.finish();
   std::vector<int> seen(static_cast<std::size_t>(s.num_triangles()), -1);  // last vertex that visited t
   for (int p : s.used_vertices()) {
     const Vec3 xp = point(x0, p);
     grid.query(grid.range(xp, xp, r), [&](int t) {
-      if (seen[static_cast<std::size_t>(t)] == p) return;
+      const auto& b = boxes[static_cast<std::size_t>(t)];
+      if (seen[static_cast<std::size_t>(t)] == p || apart(xp, xp, b.first, b.second, r)) return;
       seen[static_cast<std::size_t>(t)] = p;
       pd.vertex_face(p, t);
     });
   }
 }
 
-// Edge-edge pairs within r: edges hashed by their boxes, each edge queries its r-inflated box (pairs e < g).
+// Edge-edge pairs within r: edges hashed by their boxes, each edge queries its r-inflated box (pairs e < g); an
+// edge whose box is more than r away is skipped before the exact distance.
 void hash_edge_edge(const CollisionSurface& s, const PointsRef& x0, double r, double h, PairDistances& pd) {
   SpatialHash grid(x0, s.used_vertices(), h);
+  std::vector<std::pair<Vec3, Vec3>> boxes(static_cast<std::size_t>(s.num_edges()));  // per edge, metres
   for (int e = 0; e < s.num_edges(); ++e) {
-    const auto [lo, hi] = box(x0, s.edge(e), 2);
-    grid.insert(grid.range(lo, hi, 0.0), e);
+    boxes[static_cast<std::size_t>(e)] = box(x0, s.edge(e), 2);
+    grid.insert(grid.range(boxes[static_cast<std::size_t>(e)].first, boxes[static_cast<std::size_t>(e)].second, 0.0), e);
   }
   grid.finish();
   std::vector<int> seen(static_cast<std::size_t>(s.num_edges()), -1);  // last edge that visited g
   for (int e = 0; e < s.num_edges(); ++e) {
-    const auto [lo, hi] = box(x0, s.edge(e), 2);
-    grid.query(grid.range(lo, hi, r), [&](int g) {
-      if (g <= e || seen[static_cast<std::size_t>(g)] == e) return;
+    const auto& a = boxes[static_cast<std::size_t>(e)];
+    grid.query(grid.range(a.first, a.second, r), [&](int g) {
+      const auto& b = boxes[static_cast<std::size_t>(g)];
+      if (g <= e || seen[static_cast<std::size_t>(g)] == e || apart(a.first, a.second, b.first, b.second, r)) return;
       seen[static_cast<std::size_t>(g)] = e;
       pd.edge_edge(e, g);
     });
