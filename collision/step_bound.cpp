@@ -214,8 +214,9 @@ void hash_vertex_face(const CollisionSurface& s, const PointsRef& x0, double r, 
   SpatialHash grid(x0, s.used_vertices(), h);
   std::vector<std::pair<Vec3, Vec3>> boxes(static_cast<std::size_t>(s.num_triangles()));  // per triangle, metres
   for (int t = 0; t < s.num_triangles(); ++t) {
-    boxes[static_cast<std::size_t>(t)] = box(x0, s.triangle(t), 3);
-    grid.insert(grid.range(boxes[static_cast<std::size_t>(t)].first, boxes[static_cast<std::size_t>(t)].second, 0.0), t);
+    auto& b = boxes[static_cast<std::size_t>(t)];
+    b = box(x0, s.triangle(t), 3);
+    grid.insert(grid.range(b.first, b.second, 0.0), t);
   }
   grid.finish();
   std::vector<int> seen(static_cast<std::size_t>(s.num_triangles()), -1);  // last vertex that visited t
@@ -236,8 +237,9 @@ void hash_edge_edge(const CollisionSurface& s, const PointsRef& x0, double r, do
   SpatialHash grid(x0, s.used_vertices(), h);
   std::vector<std::pair<Vec3, Vec3>> boxes(static_cast<std::size_t>(s.num_edges()));  // per edge, metres
   for (int e = 0; e < s.num_edges(); ++e) {
-    boxes[static_cast<std::size_t>(e)] = box(x0, s.edge(e), 2);
-    grid.insert(grid.range(boxes[static_cast<std::size_t>(e)].first, boxes[static_cast<std::size_t>(e)].second, 0.0), e);
+    auto& b = boxes[static_cast<std::size_t>(e)];
+    b = box(x0, s.edge(e), 2);
+    grid.insert(grid.range(b.first, b.second, 0.0), e);
   }
   grid.finish();
   std::vector<int> seen(static_cast<std::size_t>(s.num_edges()), -1);  // last edge that visited g

@@ -142,6 +142,32 @@ TEST(StepBound, BoundsFollowTheRuleOnAKnownPair) {
   EXPECT_EQ(far, vertex_step_bounds_brute_force(s, x, opt));
 }
 
+// A small triangle whose vertex p hovers h above the middle of a large triangle, its edges pointing away: the
+// large triangle's vertices are bounded by p's distance to their triangle (not only by edge-edge distances, which
+// are about a centimetre here), so lifting the large triangle by 3 h, which would cross the small one, is cut
+// to a safe step.
+TEST(StepBound, TriangleVerticesAreBoundedByNearbyPoints) {
+  constexpr double h = 1e-3;  // metres
+  Points x0(6, 3);
+  x0 << -0.01, -0.01, 0, 0.02, -0.01, 0, -0.01, 0.02, 0,  // a, b, c: the large triangle in z = 0
+      0, 0, h, 1e-3, 0, h + 3e-3, 0, 1e-3, h + 3e-3;     // p, q, s: p above its middle, q and s higher
+  Tris tris(2, 3);
+  tris << 0, 1, 2, 3, 4, 5;
+  const CollisionSurface s(tris, x0);
+  Points dx = Points::Zero(6, 3);
+  dx.col(2).head(3).setConstant(3.0 * h);  // the large triangle lifted through p
+  const MotionCheck full = check_motion(s, tris, x0, dx);
+  ASSERT_GT(full.contacts, 0u);
+  ASSERT_GT(full.intersecting, 0);
+  StepBoundOptions opt;
+  opt.radius = 2e-2;
+  const TruncatedStep step = bound_step(s, x0, dx, opt);
+  for (int v = 0; v < 3; ++v) EXPECT_NEAR(step.dx(v, 2), 0.5 * kStepFraction * h, 1e-15) << "vertex " << v;
+  const MotionCheck cut = check_motion(s, tris, x0, step.dx);
+  EXPECT_EQ(cut.contacts, 0u);
+  EXPECT_EQ(cut.intersecting, 0);
+}
+
 // dx = 0 stays 0 (kept fraction 1); vertices farther than r from every non-adjacent primitive keep a motion
 // shorter than gamma / 2 * r in full; points not on the surface are never bounded.
 TEST(StepBound, ZeroAndSmallMotionsAreKept) {
