@@ -129,8 +129,8 @@ LcpResult solve_lcp_nncg(const Eigen::MatrixXd& A, const Eigen::VectorXd& q, con
   PgsState s(A, q, options);
   if (s.done(options.tolerance)) return s.result(options.tolerance);
   // Each round: a symmetric sweep (forward then backward; only forward when one sweep of the budget is left) and
-  // its gradient g = z_before - SPGS(z_before) (m); the test, on the post-sweep iterate
-  // only (z >= 0); then the first round sets the direction p = -g (m), later ones conjugate or restart.
+  // its gradient g = z_before - SPGS(z_before) (m); the test, on the post-sweep iterate only (z >= 0); then the
+  // first round sets the direction p = -g (m), later ones conjugate or restart.
   Eigen::VectorXd z_before, g, p = Eigen::VectorXd::Zero(q.size());
   double gg = 0.0;
   for (bool first = true;; first = false) {

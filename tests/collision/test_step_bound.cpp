@@ -58,13 +58,13 @@ MotionCheck check_motion(const CollisionSurface& s, const Tris& tris, const Poin
 TEST(StepBound, HashEqualsBruteForceOnPerturbedTubes) {
   Points rest;
   Tris tris;
-  make_tube(12, 16, kRadius, kLength, rest, tris);
+  make_tube(10, 14, kRadius, kLength, rest, tris);
   std::mt19937 rng(5);
   int limited = 0;
-  for (int trial = 0; trial < 6; ++trial) {
-    const Points x0 = pinched(rest, 0.5 + 0.08 * trial, 3e-4, rng);
+  for (int trial = 0; trial < 4; ++trial) {
+    const Points x0 = pinched(rest, 0.5 + 0.12 * trial, 3e-4, rng);
     const CollisionSurface s(tris, static_cast<int>(x0.rows()));
-    for (const double r : {1e-3, 4e-3, 1.2e-2, 3e-2}) {
+    for (const double r : {1e-3, 6e-3, 3e-2}) {
       StepBoundOptions opt;
       opt.radius = r;
       const Eigen::VectorXd fast = vertex_step_bounds(s, x0, opt);
@@ -76,7 +76,7 @@ TEST(StepBound, HashEqualsBruteForceOnPerturbedTubes) {
       for (Eigen::Index v = 0; v < fast.size(); ++v) limited += fast[v] < 0.5 * kStepFraction * r;
     }
   }
-  EXPECT_GT(limited, 1000);  // most bounds come from pair distances, not from the radius
+  EXPECT_GT(limited, 800);  // most bounds come from pair distances, not from the radius
 }
 
 // Large random motions of a partly pinched tube that cross its walls (asserted: the untruncated motion has CCD
@@ -88,7 +88,7 @@ TEST(StepBound, TruncatedLargeMotionsStayFreeOfContactAndIntersection) {
   std::mt19937 rng(17);
   std::normal_distribution<double> nd;
   double kept_sum = 0.0;
-  for (int trial = 0; trial < 16; ++trial) {
+  for (int trial = 0; trial < 10; ++trial) {
     const std::string what = "trial " + std::to_string(trial);
     const Points x0 = pinched(rest, 0.6 + 0.02 * (trial % 8), 2e-4, rng);
     const CollisionSurface s(tris, x0);
@@ -118,7 +118,7 @@ TEST(StepBound, TruncatedLargeMotionsStayFreeOfContactAndIntersection) {
     EXPECT_LT(step.kept, 1.0) << what;
     EXPECT_GT(step.truncated, 0) << what;
   }
-  std::printf("mean kept fraction of the truncated motions: %.3f\n", kept_sum / 16);
+  std::printf("mean kept fraction of the truncated motions: %.3f\n", kept_sum / 10);
 }
 
 // Two parallel triangles d apart, offset so that the closest pair is known: every vertex is bounded by

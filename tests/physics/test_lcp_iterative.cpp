@@ -250,15 +250,15 @@ TEST(IterativeLcp, NncgNeedsFewerSweepsThanPgsOnAnIllConditionedStack) {
   EXPECT_EQ((nncg.z.array() > 0.0).count(), kNodes);
   std::printf("stack of %d: sweeps to %.1e: pgs %d, nncg %d\n", kNodes, opt.tolerance, pgs.iterations, nncg.iterations);
   // The same on the pinch-like patch (every contact pushing), where plain PGS does comparatively well.
-  const ContactProblem patch = patch_problem(7);
+  const ContactProblem patch = patch_problem(6);
   IterativeLcpOptions popt = opt;
   popt.tolerance = 1e-9 * patch.q.cwiseAbs().maxCoeff();
   const LcpResult ppgs = solve_lcp_pgs(patch.A, patch.q, popt);
   const LcpResult pnncg = solve_lcp_nncg(patch.A, patch.q, popt);
   ASSERT_TRUE(ppgs.converged && pnncg.converged);
   EXPECT_LT(pnncg.iterations, ppgs.iterations);
-  EXPECT_GT((pnncg.z.array() > 0.0).count(), 30);  // most contacts pushing
-  std::printf("patch of 49: sweeps to %.1e: pgs %d, nncg %d\n", popt.tolerance, ppgs.iterations, pnncg.iterations);
+  EXPECT_GT((pnncg.z.array() > 0.0).count(), 24);  // most contacts pushing
+  std::printf("patch of 36: sweeps to %.1e: pgs %d, nncg %d\n", popt.tolerance, ppgs.iterations, pnncg.iterations);
   const LcpResult lemke = solve_lcp_dense(A, q);
   ASSERT_TRUE(lemke.converged);
   EXPECT_LE((nncg.w - lemke.w).cwiseAbs().maxCoeff(), 1e-8 * q.cwiseAbs().maxCoeff());
