@@ -107,6 +107,8 @@ nlohmann::json frame_json(const FrameRecord& r) {
   j["twist_degrees"] = r.twist_degrees;
   j["kinetic_energy_j"] = r.kinetic_energy;
   j["contact_force_n"] = r.contact_force;
+  j["contact_residual_m"] = r.contact_residual;
+  j["lcp_iterations"] = r.lcp_iterations;
   j["max_displacement_m"] = r.max_displacement;
   nlohmann::json re = nlohmann::json::array();
   for (const auto& f : r.reactions) re.push_back({f.x(), f.y(), f.z()});

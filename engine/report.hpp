@@ -37,6 +37,9 @@ struct FrameRecord {
   double kinetic_energy = 0.0;        // dynamic: 1/2 v^T M v at the end of the frame, joules (0 quasi-static)
   double contact_force = 0.0;         // constraint response: total normal force the walls carry (sum of the
                                       // contact multipliers), newtons; 0 without contact or with "paper"
+  double contact_residual = 0.0;      // the last contact solve's residual (largest row violation or
+                                      // complementarity gap), metres; 0 without contact
+  int lcp_iterations = 0;             // the contact solves' pivots / active-set rounds / NNCG sweeps, summed
   double max_displacement = 0.0;      // metres, max node displacement from rest
   std::vector<Eigen::Vector3d> reactions;  // per probe, newtons
   // Per probe, the displacement from rest of its attachment point at the end of the frame (its nodes'

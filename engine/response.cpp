@@ -87,6 +87,7 @@ physics::ContactRow contact_row(const collision::Contact& c, const Points& rest,
 namespace {
 
 // Behavioural constants of the response.
+constexpr double kIterativeToleranceGapFraction = 1e-3;  // NNCG: residual accepted, as a fraction of the gap
 constexpr double kRecheckGapFraction = 0.5;   // re-check the corrected motion at this fraction of the gap
 constexpr double kFallbackTimeFraction = 0.9; // the fallback stops the motion at this fraction of the first contact
 constexpr double kEqualityTolerance = 1e-9;   // paper response: metres
@@ -98,6 +99,8 @@ struct ResponseRounds {
   std::vector<physics::ContactRow> rows;            // the last solve's rows (active order)
   physics::ContactResult solved;                    // the last solve
   int iterations = 0;
+  int lcp_iterations = 0;                           // pivots / rounds / sweeps over the solves
+  std::map<FeatureKey, double> carried;             // last frame's multipliers (NNCG's warm start)
 };
 
 // The paper's response (Sec. 3.4): hold every colliding vertex, and the probe points, at their time-of-contact
@@ -132,12 +135,25 @@ void solve_paper(const Model& model, State& state, const Points& x_free, const E
 void solve_constraint(const Model& model, State& state, const Points& x1, const Eigen::VectorXd& u_free,
                       ResponseRounds& rr) {
   std::vector<int> warm;
+  Eigen::VectorXd lambda0(static_cast<Eigen::Index>(rr.active.size()));
   for (const auto& [key, c] : rr.active) {
+    const auto carried = rr.carried.find(key);
+    lambda0[static_cast<Eigen::Index>(rr.rows.size())] = carried == rr.carried.end() ? 0.0 : carried->second;
     if (rr.pushing.count(key)) warm.push_back(static_cast<int>(rr.rows.size()));
     rr.rows.push_back(contact_row(c, model.mesh.rest, state.x, x1, model.collision.gap));
   }
-  rr.solved = physics::solve_contacts(*state.compliance, rr.rows, u_free, warm, {}, false,
-                                      model.integrator->held_points());
+  if (model.collision.lcp == LcpSolver::kNncg) {
+    physics::IterativeLcpOptions o;
+    o.max_sweeps = model.collision.lcp_sweeps;
+    o.tolerance = kIterativeToleranceGapFraction * model.collision.gap;
+    o.warm = lambda0;
+    rr.solved = physics::solve_contacts_iterative(*state.compliance, rr.rows, u_free, o, false,
+                                                  model.integrator->held_points());
+  } else {
+    rr.solved = physics::solve_contacts(*state.compliance, rr.rows, u_free, warm, {}, false,
+                                        model.integrator->held_points());
+  }
+  rr.lcp_iterations += rr.solved.iterations;
   rr.pushing.clear();
   int r = 0;
   for (const auto& entry : rr.active)
@@ -181,11 +197,14 @@ void keep_for_next_frame(const Model& model, State& state, const ResponseRounds&
                          const Eigen::VectorXd& u_free) {
   state.last_correction = u - u_free;
   state.active.clear();
+  state.active_lambda.clear();
   int r = 0;
   for (const auto& [key, c] : rr.active) {
-    const bool carries = model.collision.response == ResponseKind::kPaper ||
-                         (r < rr.solved.lambda.size() && rr.solved.lambda[r] > 0.0);
-    if (carries) state.active.push_back(c);
+    const double lambda = r < rr.solved.lambda.size() ? rr.solved.lambda[r] : 0.0;
+    if (model.collision.response == ResponseKind::kPaper || lambda > 0.0) {
+      state.active.push_back(c);
+      state.active_lambda.push_back(lambda);
+    }
     ++r;
   }
   for (const auto& c : rr.active)
@@ -221,9 +240,11 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   clock = Clock::now();
   ResponseRounds rr;
   if (!paper)
-    for (const auto& c : state.active) {
-      rr.active.emplace(key_of(c), c);
-      rr.pushing.insert(key_of(c));
+    for (size_t i = 0; i < state.active.size(); ++i) {
+      const FeatureKey key = key_of(state.active[i]);
+      rr.active.emplace(key, state.active[i]);
+      rr.pushing.insert(key);
+      if (i < state.active_lambda.size()) rr.carried[key] = state.active_lambda[i];
     }
   std::vector<collision::Contact> found = state.contacts;
   bool resolved = found.empty() && rr.active.empty();
@@ -254,6 +275,8 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   if (rr.iterations > 0) {
     // Total normal force the walls carry (the constraint response's multipliers are contact forces).
     if (!paper) rec.contact_force = rr.solved.lambda.sum();
+    rec.contact_residual = rr.solved.residual;
+    rec.lcp_iterations = rr.lcp_iterations;
     add_contact_to_probe_forces(model, state, rr);
     // Whole-mesh correction for the last multipliers (a sum of precomputed columns or one back-substitution); the
     // colliding walls keep the values the check saw (equal to round-off).

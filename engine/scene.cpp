@@ -18,6 +18,7 @@ constexpr const char* kMaterialModelNames[] = {"linear", "corotational"};
 constexpr const char* kElementNames[] = {"tet4", "tet10"};
 constexpr const char* kSolverNames[] = {"quasi_static", "dynamic"};
 constexpr const char* kResponseNames[] = {"paper", "constraint"};
+constexpr const char* kLcpSolverNames[] = {"active_set", "nncg"};
 constexpr const char* kTwistEndNames[] = {"", "start", "stop"};
 constexpr const char* kNodeSetNames[] = {"ends", "start", "stop"};
 constexpr const char* kCameraNames[] = {"side", "diagonal", "endoscope"};
@@ -200,7 +201,7 @@ void read_render(const Reader& r, const json& m, RenderSpec& spec) {
 }
 
 void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
-  r.only_keys(m, "collision", {"self", "kdop", "response", "gap", "max_iterations", "surfaces"});
+  r.only_keys(m, "collision", {"self", "kdop", "response", "gap", "max_iterations", "surfaces", "lcp", "lcp_sweeps"});
   if (m.contains("surfaces")) {
     const json& list = m.at("surfaces");
     if (!list.is_array() || list.empty()) r.fail("collision.surfaces", "must be a non-empty array of wall names", &list);
@@ -219,9 +220,11 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
       r.fail("collision.kdop", "must be one of 6, 14, 18, 26", &m.at("kdop"));
   }
   if (m.contains("response")) spec.response = r.choice<ResponseKind>(m.at("response"), "collision.response", kResponseNames);
+  if (m.contains("lcp")) spec.lcp = r.choice<LcpSolver>(m.at("lcp"), "collision.lcp", kLcpSolverNames);
   if (m.contains("gap")) spec.gap = r.number_in(m.at("gap"), "collision.gap", 0.0, 0.01, false, false);
   if (m.contains("max_iterations"))
     spec.max_iterations = r.integer_in(m.at("max_iterations"), "collision.max_iterations", 1, 100);
+  if (m.contains("lcp_sweeps")) spec.lcp_sweeps = r.integer_in(m.at("lcp_sweeps"), "collision.lcp_sweeps", 2, 100000);
 }
 
 void read_solver(const Reader& r, const json& m, SolverSpec& spec) {
@@ -275,6 +278,10 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   if (s.element == ElementType::kTet10 && s.solver.type != SolverType::kQuasiStatic)
     r.fail("mesh.element", std::string("\"tet10\" needs solver.type \"quasi_static\" (got \"") + name_of(s.solver.type) + "\")",
            &root.at("mesh").at("element"));
+  // The iterative LCP solves the constraint response's non-penetration problem (the paper's response is equalities).
+  if (s.collision.lcp == LcpSolver::kNncg && s.collision.response != ResponseKind::kConstraint)
+    r.fail("collision.lcp", "\"nncg\" needs collision.response \"constraint\" (got \"paper\")",
+           &root.at("collision").at("lcp"));
   // Displacement-driven probes (held points) are solved on the linear quasi-static model's probe compliance.
   int held = -1;
   for (size_t i = 0; i < s.probes.size() && held < 0; ++i)
@@ -299,6 +306,7 @@ const char* name_of(MaterialModel v) { return kMaterialModelNames[static_cast<in
 const char* name_of(ElementType v) { return kElementNames[static_cast<int>(v)]; }
 const char* name_of(SolverType v) { return kSolverNames[static_cast<int>(v)]; }
 const char* name_of(ResponseKind v) { return kResponseNames[static_cast<int>(v)]; }
+const char* name_of(LcpSolver v) { return kLcpSolverNames[static_cast<int>(v)]; }
 const char* name_of(TwistEnd v) { return kTwistEndNames[static_cast<int>(v)]; }
 const char* name_of(render::CameraPreset v) { return kCameraNames[static_cast<int>(v)]; }
 

@@ -43,6 +43,7 @@ enum class MaterialModel { kLinear, kCorotational };  // "linear" (prefactorised
 enum class ElementType { kTet4, kTet10 };             // "tet4" | "tet10"
 enum class SolverType { kQuasiStatic, kDynamic };     // "quasi_static" | "dynamic"
 enum class ResponseKind { kPaper, kConstraint };      // "paper" | "constraint"
+enum class LcpSolver { kActiveSet, kNncg };           // "active_set" | "nncg"
 enum class TwistEnd { kNone, kStart, kStop };         // (no twist) | "start" | "stop"
 enum class NodeSetName { kEnds, kStart, kStop };      // "ends" | "start" | "stop"
 // The JSON name of a choice (what the scene file says and report.json repeats).
@@ -50,6 +51,7 @@ const char* name_of(MaterialModel v);
 const char* name_of(ElementType v);
 const char* name_of(SolverType v);
 const char* name_of(ResponseKind v);
+const char* name_of(LcpSolver v);
 const char* name_of(TwistEnd v);
 const char* name_of(render::CameraPreset v);
 
@@ -76,6 +78,11 @@ struct CollisionSpec {
   // Walls that take part in self-collision: the inner wall only (the paper's, the default), or also the outer
   // wall ("outer") when a scene folds the organ so that its outside meets itself.
   bool outer_wall = false;         // key "surfaces": ["inner"] | ["inner", "outer"]
+  // The constraint response's LCP solver (key "lcp"): "active_set" (exact: active set on columns computed on
+  // demand, Lemke's pivoting as its fallback) or "nncg" (iterative, for many contacts: all of the coupling
+  // matrix, warm-started from last frame's multipliers, at most lcp_sweeps sweeps; its residual is reported).
+  LcpSolver lcp = LcpSolver::kActiveSet;
+  int lcp_sweeps = 200;            // "nncg": sweep budget per solve, >= 2
 };
 
 // How a frame is solved: quasi-statically (equilibrium with the frame's loads) or by one implicit dynamic step.

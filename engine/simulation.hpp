@@ -118,6 +118,7 @@ struct State {
   std::vector<collision::Contact> contacts;           // this frame's contacts (first detection)
   std::unique_ptr<physics::SurfaceCompliance> compliance;  // contact compliance on the colliding walls
   std::vector<collision::Contact> active;             // contacts held at the end of the last frame (warm start)
+  std::vector<double> active_lambda;                  // their multipliers at the end of the last frame, newtons
   Eigen::VectorXd last_correction;                    // last frame's contact correction u - u_free, 3n, metres
   int failures = 0;                                   // frames where the last good state was kept
 };

@@ -99,6 +99,59 @@ ContactResult solve_lcp(SurfaceCompliance& compliance, const std::vector<Contact
   return out;
 }
 
+namespace {
+
+// The held points' coupling to the rows: G = H U (how each row's value moves per unit force at the held points,
+// rows x 3d, m/N) and G S (rows x 3d); empty without held points. Validates their shapes.
+struct HeldCoupling {
+  Eigen::MatrixXd G, GS;
+};
+HeldCoupling held_coupling(const std::vector<ContactRow>& rows, const HeldPoints* held, int n, const char* who) {
+  HeldCoupling hc;
+  if (!held) return hc;
+  const int m = static_cast<int>(rows.size()), d3 = static_cast<int>(held->U.cols());
+  if (held->U.rows() != n || held->S.rows() != d3 || held->S.cols() != d3 ||
+      static_cast<int>(held->points.size()) * 3 != d3)
+    fail(std::string(who) + ": held points must have U 3n x 3d, S 3d x 3d and d points, got U " +
+         std::to_string(held->U.rows()) + " x " + std::to_string(d3) + ", S " + std::to_string(held->S.rows()) + " x " +
+         std::to_string(held->S.cols()) + ", " + std::to_string(held->points.size()) + " points");
+  hc.G.resize(m, d3);
+  for (int r = 0; r < m; ++r) {
+    hc.G.row(r).setZero();
+    for (int k = 0; k < 4; ++k)
+      if (rows[r].node[k] >= 0)
+        hc.G.row(r) += rows[r].weight[k] * rows[r].n.transpose() * held->U.middleRows(3 * rows[r].node[k], 3);
+  }
+  hc.GS = hc.G * held->S;
+  return hc;
+}
+
+// The result of the LCP's multipliers: force and correction (finish), the held points' force change -S G^T lambda
+// joining both, and the residual of the rows at u_free + correction.
+void finish_contacts(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows, const Eigen::VectorXd& u_free,
+                     const HeldPoints* held, const HeldCoupling& hc, const Eigen::VectorXd& g, bool whole_mesh,
+                     ContactResult& out) {
+  Eigen::VectorXd h = finish(compliance, rows, u_free, out, whole_mesh);
+  if (held) {
+    out.held_force = -(hc.GS.transpose() * out.lambda);
+    out.correction += held->U * out.held_force;
+    for (int p = 0; p < static_cast<int>(held->points.size()); ++p)
+      for (int k = 0; k < 3; ++k)
+        if (held->points[p].node[k] >= 0)
+          out.force.segment<3>(3 * held->points[p].node[k]) += held->points[p].weight[k] * out.held_force.segment<3>(3 * p);
+    h = row_values(rows, u_free + out.correction);
+  }
+  out.residual = lcp_residual(h - g, out.lambda);  // (g - H u)^+, |H u - g| where lambda > 0
+}
+
+Eigen::VectorXd row_targets(const std::vector<ContactRow>& rows) {
+  Eigen::VectorXd g(static_cast<Eigen::Index>(rows.size()));
+  for (size_t r = 0; r < rows.size(); ++r) g[static_cast<Eigen::Index>(r)] = rows[r].g;
+  return g;
+}
+
+}  // namespace
+
 ContactResult solve_contacts(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
                              const Eigen::VectorXd& u_free, const std::vector<int>& warm, const LcpOptions& options,
                              bool whole_mesh, const HeldPoints* held) {
@@ -108,32 +161,14 @@ ContactResult solve_contacts(SurfaceCompliance& compliance, const std::vector<Co
     if (warm[i] < 0 || warm[i] >= m)
       fail("solve_contacts: warm[" + std::to_string(i) + "] must be a row index in [0, " + std::to_string(m) +
            "), got " + std::to_string(warm[i]));
-  const int n = compliance.solver().n_dofs();
-  const int d3 = held ? static_cast<int>(held->U.cols()) : 0;
-  if (held && (held->U.rows() != n || held->S.rows() != d3 || held->S.cols() != d3 ||
-               static_cast<int>(held->points.size()) * 3 != d3))
-    fail("solve_contacts: held points must have U 3n x 3d, S 3d x 3d and d points, got U " +
-         std::to_string(held->U.rows()) + " x " + std::to_string(d3) + ", S " + std::to_string(held->S.rows()) + " x " +
-         std::to_string(held->S.cols()) + ", " + std::to_string(held->points.size()) + " points");
-  Eigen::VectorXd g(m);
-  for (int r = 0; r < m; ++r) g[r] = rows[r].g;
-  // G = H U: how each row's value moves per unit force at the held points (rows x 3d, m/N).
-  Eigen::MatrixXd G(m, d3), GS(m, d3);
-  if (held) {
-    for (int r = 0; r < m; ++r) {
-      G.row(r).setZero();
-      for (int k = 0; k < 4; ++k)
-        if (rows[r].node[k] >= 0)
-          G.row(r) += rows[r].weight[k] * rows[r].n.transpose() * held->U.middleRows(3 * rows[r].node[k], 3);
-    }
-    GS = G * held->S;
-  }
+  const HeldCoupling hc = held_coupling(rows, held, compliance.solver().n_dofs(), "solve_contacts");
+  const Eigen::VectorXd g = row_targets(rows);
   // w = A' lambda + (H u_free - g), A' = A - G S G^T: active set on columns computed on demand, Lemke if that fails.
   CouplingMatrix A(compliance, rows);
   std::vector<Eigen::VectorXd> held_columns(held ? m : 0);
   auto column = [&](int j) -> const Eigen::VectorXd& {
     if (!held) return A.column(j);
-    if (held_columns[j].size() == 0) held_columns[j] = A.column(j) - G * GS.row(j).transpose();
+    if (held_columns[j].size() == 0) held_columns[j] = A.column(j) - hc.G * hc.GS.row(j).transpose();
     return held_columns[j];
   };
   const Eigen::VectorXd q = row_values(rows, u_free) - g;
@@ -142,26 +177,34 @@ ContactResult solve_contacts(SurfaceCompliance& compliance, const std::vector<Co
   if (!lcp.converged) {
     const int rounds = lcp.iterations;
     Eigen::MatrixXd dense = A.dense();
-    if (held) dense -= G * GS.transpose();
+    if (held) dense -= hc.G * hc.GS.transpose();
     lcp = solve_lcp_dense(0.5 * (dense + dense.transpose()), q, options);
     lcp.iterations += rounds;
     out.used_lemke = true;
   }
   out.lambda = lcp.z;
   out.iterations = lcp.iterations;
-  Eigen::VectorXd h = finish(compliance, rows, u_free, out, whole_mesh);
-  // Held points: their force change -S G^T lambda joins the force and its displacement U df the correction.
-  if (held) {
-    out.held_force = -(GS.transpose() * out.lambda);
-    out.correction += held->U * out.held_force;
-    for (int p = 0; p < static_cast<int>(held->points.size()); ++p)
-      for (int k = 0; k < 3; ++k)
-        if (held->points[p].node[k] >= 0)
-          out.force.segment<3>(3 * held->points[p].node[k]) += held->points[p].weight[k] * out.held_force.segment<3>(3 * p);
-    h = row_values(rows, u_free + out.correction);
-  }
-  out.residual = lcp_residual(h - g, out.lambda);  // (g - H u)^+, |H u - g| where lambda > 0
+  finish_contacts(compliance, rows, u_free, held, hc, g, whole_mesh, out);
   out.converged = lcp.converged && out.residual <= options.tolerance;
+  return out;
+}
+
+ContactResult solve_contacts_iterative(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
+                                       const Eigen::VectorXd& u_free, const IterativeLcpOptions& options,
+                                       bool whole_mesh, const HeldPoints* held) {
+  check_u_free(compliance, u_free, "solve_contacts_iterative");
+  const HeldCoupling hc = held_coupling(rows, held, compliance.solver().n_dofs(), "solve_contacts_iterative");
+  const Eigen::VectorXd g = row_targets(rows);
+  // All of A' = A - G S G^T (symmetric), then NNCG within the sweep budget from the warm start.
+  Eigen::MatrixXd A = CouplingMatrix(compliance, rows).dense();
+  if (held) A -= hc.G * hc.GS.transpose();
+  A = 0.5 * (A + A.transpose());
+  const LcpResult lcp = solve_lcp_nncg(A, row_values(rows, u_free) - g, options);
+  ContactResult out;
+  out.lambda = lcp.z;
+  out.iterations = lcp.iterations;
+  finish_contacts(compliance, rows, u_free, held, hc, g, whole_mesh, out);
+  out.converged = out.residual <= options.tolerance;
   return out;
 }
 

@@ -7,6 +7,7 @@
 
 #include "physics/contact_rows.hpp"
 #include "physics/lcp.hpp"
+#include "physics/lcp_iterative.hpp"
 #include "physics/load_response.hpp"
 #include "physics/surface_compliance.hpp"
 
@@ -57,5 +58,14 @@ ContactResult solve_contacts(SurfaceCompliance& compliance, const std::vector<Co
                              const Eigen::VectorXd& u_free, const std::vector<int>& warm = {},
                              const LcpOptions& options = {}, bool whole_mesh = true,
                              const HeldPoints* held = nullptr);
+
+// The same non-penetration problem for many contacts: NNCG (solve_lcp_nncg) on all of A' (every column
+// computed), warm-started from options.warm (per-row multipliers, e.g. last frame's), within options.max_sweeps.
+// iterations = sweeps spent; residual as for solve_contacts; converged = residual <= options.tolerance. Running
+// out of sweeps is not an error (converged = false, the residual reached is reported). whole_mesh and held as
+// for solve_contacts.
+ContactResult solve_contacts_iterative(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
+                                       const Eigen::VectorXd& u_free, const IterativeLcpOptions& options,
+                                       bool whole_mesh = true, const HeldPoints* held = nullptr);
 
 }  // namespace lumen::physics

@@ -10,6 +10,7 @@
 using lumen::engine::InputError;
 using lumen::engine::parse_scene;
 using lumen::engine::ResponseKind;
+using lumen::engine::LcpSolver;
 using lumen::engine::SolverType;
 using lumen::engine::TwistEnd;
 namespace render = lumen::render;
@@ -187,6 +188,23 @@ TEST(Scene, CollisionKeys) {
   EXPECT_EQ(scene.collision.response, ResponseKind::kPaper);
   s["collision"]["kdop"] = 10;
   EXPECT_EQ(error_of(s), "dir/s.json: collision.kdop: must be one of 6, 14, 18, 26 (value 10)");
+}
+
+TEST(Scene, LcpSolverKeys) {
+  json s = good_scene();
+  s["collision"] = {{"self", true}, {"lcp", "nncg"}, {"lcp_sweeps", 50}};
+  auto scene = parse_scene(s.dump(), "dir/s.json");
+  EXPECT_EQ(scene.collision.lcp, LcpSolver::kNncg);
+  EXPECT_EQ(scene.collision.lcp_sweeps, 50);
+  EXPECT_EQ(parse_scene(good_scene().dump(), "dir/s.json").collision.lcp, LcpSolver::kActiveSet);
+  s["collision"]["lcp_sweeps"] = 1;
+  EXPECT_EQ(error_of(s), "dir/s.json: collision.lcp_sweeps: out of range [2, 100000] (value 1)");
+  s["collision"]["lcp_sweeps"] = 50;
+  s["collision"]["lcp"] = "pgs";
+  EXPECT_EQ(error_of(s), "dir/s.json: collision.lcp: must be one of active_set, nncg (value \"pgs\")");
+  s["collision"]["lcp"] = "nncg";
+  s["collision"]["response"] = "paper";
+  EXPECT_EQ(error_of(s), "dir/s.json: collision.lcp: \"nncg\" needs collision.response \"constraint\" (got \"paper\") (value \"nncg\")");
 }
 
 TEST(Scene, UnreadableFile) {

@@ -128,6 +128,56 @@ TEST(SolveContacts, EqualsLemkeOnContactRows) {
                std::invalid_argument);
 }
 
+// The iterative solve (NNCG on all of A) against the exact active-set solve on the same feasible contact
+// problems (no duplicated rows, so A is definite and the multipliers unique): the same multipliers and correction
+// to the tolerance asked, the residual reported within it; warm-started from the exact multipliers it needs at
+// most one round (2 sweeps); a budget of 2 sweeps from zero is reported as not converged, with a finite residual.
+TEST(SolveContacts, IterativeMatchesTheExactSolveWithinItsTolerance) {
+  Tube& t = tube();
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> d(-1e-3, 1e-3), force(-0.02, 0.02);
+  int pushing = 0, unconverged_small_budget = 0;
+  for (int trial = 0; trial < 10; ++trial) {
+    const int m = 6 + 4 * trial;
+    Eigen::VectorXd f(3 * t.mesh.n_nodes());
+    for (int i = 0; i < f.size(); ++i) f[i] = force(rng);
+    Eigen::VectorXd u_free, u_target;
+    t.solver->solve(f, u_free);
+    std::vector<ContactRow> rows;
+    for (int r = 0; r < m; ++r) rows.push_back(random_row(rng, t, r % 2 == 1, false));
+    for (int i = 0; i < f.size(); ++i) f[i] = force(rng);
+    t.solver->solve(f, u_target);
+    const Eigen::VectorXd h_target = physics::row_values(rows, u_target);
+    for (int r = 0; r < m; ++r) rows[r].g = h_target[r] - 0.2 * std::abs(d(rng));
+    const std::string what = "trial " + std::to_string(trial);
+    const physics::ContactResult exact = physics::solve_contacts(*t.compliance, rows, u_free);
+    ASSERT_TRUE(exact.converged) << what;
+    physics::IterativeLcpOptions o;
+    o.max_sweeps = 20000;
+    o.tolerance = 1e-10;  // metres
+    const physics::ContactResult it = physics::solve_contacts_iterative(*t.compliance, rows, u_free, o);
+    ASSERT_TRUE(it.converged) << what << " residual " << it.residual << " after " << it.iterations << " sweeps";
+    EXPECT_LE(it.residual, o.tolerance) << what;
+    EXPECT_LE((it.correction - exact.correction).norm(), 1e-4 * exact.correction.norm() + 1e-9) << what;
+    EXPECT_LE((it.lambda - exact.lambda).norm(), 1e-3 * exact.lambda.norm() + 1e-9) << what;
+    pushing += static_cast<int>((exact.lambda.array() > 0).count());
+    // Warm start from the exact multipliers.
+    o.warm = exact.lambda;
+    const physics::ContactResult warm = physics::solve_contacts_iterative(*t.compliance, rows, u_free, o);
+    EXPECT_TRUE(warm.converged) << what;
+    EXPECT_LE(warm.iterations, 2) << what;
+    // A tiny budget from zero.
+    o.warm.resize(0);
+    o.max_sweeps = 2;
+    const physics::ContactResult small = physics::solve_contacts_iterative(*t.compliance, rows, u_free, o);
+    EXPECT_TRUE(std::isfinite(small.residual)) << what;
+    EXPECT_EQ(small.converged, small.residual <= o.tolerance) << what;
+    unconverged_small_budget += !small.converged;
+  }
+  EXPECT_GT(pushing, 20);
+  EXPECT_GT(unconverged_small_budget, 5);  // 2 sweeps are not enough for these problems
+}
+
 // Holding nodes at prescribed displacements (3 unit rows per node, the paper's response) equals the dense
 // constrained solve [K_ff -H^T; H 0] [u; lambda] = [f; g].
 TEST(Contact, EqualityHoldsNodesExactlyAndMatchesConstrainedSolve) {
