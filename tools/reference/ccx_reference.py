@@ -16,7 +16,10 @@ ccx always runs as OMP_NUM_THREADS=1 CCX_NPROC_EQUATION_SOLVER=1, one at a time.
 Results go to <out>/reference_convergence.csv (one row per case/force/material/level;
 rows of the cases run are replaced, others kept) and <out>/reference_inner_wall_<case>.csv
 (finest level).  Each CSV starts with a '# command: ...' line.
-The full run (`all`) takes about 35-45 minutes on this machine (2 shared cores).
+The full run (`all`) takes about 25 minutes on this machine (2 cores shared with builds):
+small 20 s, large 10 min (its level 4 Neo-Hookean run is stopped by --timeout), closure 10 min.
+Levels are integers (see LEVELS) or explicit meshes "NTHxNZxNR" (elements per quarter circle,
+along the half length, through the wall), e.g. --levels 2,10x12x3,3.
 
 The problem
 -----------
@@ -25,13 +28,19 @@ of the nodes at z = 0 and z = 0.1 fixed.  E = 5000 Pa, nu = 0.45.  Two tips at m
 on the outer wall, centres (0, +0.013, 0.05) pushed along -y and (0, -0.013, 0.05) along
 +y, force F each (dead load, fixed direction).
 
-Models (symmetry reductions; both checked against the full tube by test_reference.py):
-- quarter (closure): x >= 0, z <= 0.05, symmetry planes x = 0 (u_x = 0) and z = 0.05
-  (u_z = 0).  Both tips and both halves of the inner wall are in the model, so the contact
-  pair is a genuine pair between the upper and lower halves, and the y-symmetry is not
-  imposed but checked (the two tips must move the same).
-- eighth (small, large): the quarter's y >= 0 half with u_y = 0 on y = 0 (exact for the
-  y-symmetric solution when the walls do not touch; half the DOFs of the quarter).
+Models (symmetry reductions; quarter and eighth are checked against each other and against
+the full tube by test_reference.py):
+- quarter: x >= 0, z <= 0.05, symmetry planes x = 0 (u_x = 0) and z = 0.05 (u_z = 0).  Both
+  tips and both halves of the inner wall are in the model; the y-symmetry is not imposed but
+  checked (the two tips must move the same).  Used by `closure --closure-model quarter`: a
+  genuine contact pair between the upper and lower halves of the inner wall.
+- eighth (small, large, closure by default): the quarter's y >= 0 half with u_y = 0 on
+  y = 0, half the DOFs.  For closure the lower half is the mirror image of the upper one, so
+  the upper inner wall meets the symmetry plane: contact with a fixed (rigid) plate whose
+  top face is y = 0.  Frictionless, this is the same problem as the pair, restricted to
+  y-symmetric solutions.  (The quarter pair model stalls on meshes finer than level 2 near
+  F = 0.011 N, below contact, where the eighth model does not: see the report in
+  docs/reference_convergence.csv, rows 'neohooke-pair'.)
 Loads on the model are F/4 per (quarter) tip; all reported quantities are those of the full
 tube (the inner-wall CSV is mirrored out to the full tube).  Symmetric (non-bifurcated)
 solutions only: a mode breaking the x-, y- or z-symmetry is excluded by construction.
@@ -71,16 +80,19 @@ large   : NLGEOM, two steps F = 0.01 then 0.02 N (each ramped in increments <= 0
           step), (a) compressible Neo-Hookean, C10 = mu/2, D1 = 2/K (ccx: W = C10 (I1b - 3)
           + (J - 1)^2 / D1), mu = E / (2 (1 + nu)), K = E / (3 (1 - 2 nu)); (b) the linear
           material under NLGEOM = St Venant-Kirchhoff.  Levels 1..4.
-closure : NLGEOM Neo-Hookean, quarter model, two steps: F = 0.02 N (first contact) then
-          --closure-force (default 0.03 N), increments <= 0.1 of a step.  Frictionless
-          surface-to-surface penalty contact (ccx TYPE=SURFACE TO SURFACE), slave = lower,
-          master = upper half of the inner wall, each restricted to reference |theta| >= 30
-          deg (faces near theta = 0 join the two halves and must not be paired), linear
-          pressure-overclosure with slope K = --penalty (default 1e8 Pa/m, about 10 E/h at the
-          finest tip elements), checked by one run at 10 K on the finest level (material
-          'neohooke-K10').  contact_force_N = |normal force| on the slave surface from ccx's
-          *CONTACT PRINT CF output ("area, normal force and shear force"), x 4 for the full
-          tube; contact_area_m2 = ccx's slave contact area x 4.
+closure : NLGEOM Neo-Hookean, two steps: F = 0.02 N (about first contact) then
+          --closure-force (default 0.03 N); increments: step 1 initial 0.2, max 0.5; step 2
+          initial 0.05, max 0.1.  Frictionless surface-to-surface penalty contact (ccx TYPE=
+          SURFACE TO SURFACE), slave = the upper half of the inner wall with reference
+          theta >= 30 deg (faces near theta = 0, where the halves join, must not be paired),
+          master = the rigid plate y = 0 (eighth) or the lower half (quarter, slave = lower,
+          master = upper, both |theta| >= 30 deg).  Linear pressure-overclosure, slope K =
+          --penalty (default 1e8 Pa/m, about 10 E/h at the finest tip elements), checked by one
+          run at 10 K on the finest level (material '...-K10').  contact_force_N = |normal
+          force| on the slave surface from ccx's *CONTACT PRINT CF output ("area, normal force
+          (+ = tension) and shear force"), x 4 for the full tube; contact_area_m2 = ccx's slave
+          contact area x 4.  first_contact_N = the load at which opening_min first reaches 0
+          (linear interpolation between increments; the load ramps linearly in a step).
 
 Refinement: levels 1, 2, 3, ...; stop when the tip displacement of every force changes by
 < 1% between the last two levels (from level 3 on), when a run fails, or after a run took
@@ -137,6 +149,7 @@ def doubled(c):
 
 class Mesh:
     def __init__(self, level, tiny=False, full=False, eighth=False):
+        self.level = level
         if tiny:
             nth, nz, nr = 2, 3, 1
         elif isinstance(level, tuple):
@@ -331,14 +344,45 @@ def write_inp(path, mesh, case, forces, material, nlgeom, penalty=None, one_tip=
         L.append("*ELASTIC")
         L.append("%.12e, %.12e" % (E_MOD, NU))
     L.append("*SOLID SECTION, ELSET=EALL, MATERIAL=MAT")
+    slave, master = "SLO", "SUP"
+    if penalty and mesh.eighth:
+        # eighth model: the lower half is the mirror image, so the upper inner wall meets the
+        # symmetry plane y = 0: a fixed (rigid) plate of C3D8 elements, y in [-2 mm, 0], whose
+        # top face is the master surface
+        slave, master = "SUP", "SPLANE"
+        n0, e0 = len(mesh.nid), len(mesh.elements)
+        xs = [-0.002 + 0.002 * i for i in range(12)]          # -2 .. 20 mm
+        zs = [-0.002 + 0.002 * k for k in range(28)]          # -2 .. 52 mm
+        pid = lambda i, k, top: n0 + 1 + i + len(xs) * (k + len(zs) * top)
+        L.append("*NODE, NSET=NPLANE")
+        for top, y in ((0, -0.002), (1, 0.0)):
+            for k, z in enumerate(zs):
+                for i, x in enumerate(xs):
+                    L.append("%d, %.12e, %.12e, %.12e" % (pid(i, k, top), x, y, z))
+        L.append("*ELEMENT, TYPE=C3D8, ELSET=EPLANE")
+        faces = []
+        for k in range(len(zs) - 1):
+            for i in range(len(xs) - 1):
+                e = e0 + 1 + len(faces)
+                q = [(i, k), (i, k + 1), (i + 1, k + 1), (i + 1, k)]   # (z, x) order: positive volume
+                L.append("%d, %s" % (e, ", ".join(str(pid(a, b, t)) for t in (0, 1) for a, b in q)))
+                faces.append(e)
+        L.append("*SURFACE, NAME=SPLANE, TYPE=ELEMENT")
+        L += ["%d, S2" % e for e in faces]
+        L.append("*MATERIAL, NAME=RIGID")
+        L.append("*ELASTIC")
+        L.append("1e9, 0.3")
+        L.append("*SOLID SECTION, ELSET=EPLANE, MATERIAL=RIGID")
     if penalty:
         L.append("*SURFACE INTERACTION, NAME=SI")
         L.append("*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR")
         L.append("%.6e, %.6e" % (penalty, 1.0))
         L.append("*CONTACT PAIR, INTERACTION=SI, TYPE=SURFACE TO SURFACE")
-        L.append("SLO, SUP")
+        L.append("%s, %s" % (slave, master))
     L.append("*BOUNDARY")
     L.append("NFIX, 1, 3")
+    if penalty and mesh.eighth:
+        L.append("NPLANE, 1, 3")
     if not mesh.full:
         L.append("NSYMZ, 3, 3")
         L.append("NSYMX, 1, 1")
@@ -347,7 +391,9 @@ def write_inp(path, mesh, case, forces, material, nlgeom, penalty=None, one_tip=
     top, bot = mesh.tips
     for F in forces:
         if nlgeom:
-            inc0, incmax = (0.2, 0.5) if not penalty else (0.05, 0.1)
+            # contact-free ramps: initial 0.2, max 0.5 of the step; the step in which the walls
+            # touch (F above first contact, ~0.0195 N): initial 0.05, max 0.1
+            inc0, incmax = (0.05, 0.1) if (penalty and F > 0.02) else (0.2, 0.5)
             L.append("*STEP, NLGEOM, INC=1000")
             L.append("*STATIC")
             L.append("%g, 1.0, 1e-6, %g" % (inc0, incmax))
@@ -370,7 +416,7 @@ def write_inp(path, mesh, case, forces, material, nlgeom, penalty=None, one_tip=
         L.append("*NODE PRINT, NSET=NFIX, TOTALS=ONLY")
         L.append("RF")
         if penalty:
-            L.append("*CONTACT PRINT, SLAVE=SLO, MASTER=SUP")
+            L.append("*CONTACT PRINT, SLAVE=%s, MASTER=%s" % (slave, master))
             L.append("CF")
         L.append("*END STEP")
     # the tip set must precede the steps: insert it before the material
@@ -382,15 +428,22 @@ def write_inp(path, mesh, case, forces, material, nlgeom, penalty=None, one_tip=
 
 
 # ----------------------------------------------------------------------------- run/parse
-def run_ccx(workdir, job, timeout=900):
+RUN_TIMEOUT = 480.0
+
+
+def run_ccx(workdir, job):
+    """Run ccx on one core; a run longer than RUN_TIMEOUT s is killed (its completed steps are kept)."""
     env = dict(os.environ, OMP_NUM_THREADS="1", CCX_NPROC_EQUATION_SOLVER="1")
     t0 = time.monotonic()
     with open(os.path.join(workdir, job + ".log"), "w") as log:
-        p = subprocess.run([CCX, "-i", job], cwd=workdir, env=env, stdout=log, stderr=subprocess.STDOUT,
-                           timeout=timeout)
+        try:
+            rc = subprocess.run([CCX, "-i", job], cwd=workdir, env=env, stdout=log, stderr=subprocess.STDOUT,
+                                timeout=RUN_TIMEOUT).returncode
+        except subprocess.TimeoutExpired:
+            rc = -9
     dt = time.monotonic() - t0
     logtxt = open(os.path.join(workdir, job + ".log")).read()
-    return dt, p.returncode, logtxt
+    return dt, rc, logtxt
 
 
 NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[EeDd][-+]?\d+)?"
@@ -510,7 +563,10 @@ def parse_contact(blocks, nsteps):
         # the area line is the last numeric line with 3 numbers
         three = [v for v in nums if len(v) == 3]
         area, fn = (three[-1][0], three[-1][1]) if three else (None, None)
-        out.append((abs(fn) * 4 if fn is not None else None, area * 4 if area is not None else None))
+        if fn is None or math.isnan(fn) or area is None or math.isnan(area) or area == 0.0:
+            out.append((0.0, 0.0))        # no contact element (ccx prints NaN)
+        else:
+            out.append((abs(fn) * 4, area * 4))
     return out
 
 
@@ -556,18 +612,21 @@ def solve(level, forces, material, nlgeom, workdir, tiny=False, penalty=None, on
         r = {"force": forces[s], "dofs": mesh.dofs, "seconds": dt, "status": "ok", "first_contact": first_contact}
         if inner[s] is None or tip[s] is None:
             last = max([b["time"] for b in blocks] or [0.0])
-            r["status"] = "failed(reached F=%.4g N)" % load_at(last, forces)
+            r["status"] = "%s(reached F=%.4g N)" % ("timeout" if rc == -9 else "failed", load_at(last, forces))
             results.append(r)
             continue
         r.update(measures(mesh, inner[s]["rows"], tip[s]["rows"]))
         r["inner"] = inner[s]["rows"]
         r["rf"] = rf[s]["nums"][0] if rf[s] and rf[s].get("nums") else None
         r["contact_force"], r["contact_area"] = cont[s]
+        if penalty and r["opening_min"] < 0 and not r["contact_force"]:
+            # the walls cross but ccx generated no contact element (seen on the coarsest mesh)
+            r["status"] = "no_contact_detected"
         results.append(r)
     return mesh, results, log
 
 
-def inner_csv(path, mesh, U, command):
+def inner_csv(path, mesh, U, command, what=""):
     """Inner-wall nodes of the full tube (quarter mirrored in x and z), reference coordinates
     and displacement."""
     rows = {}
@@ -584,6 +643,8 @@ def inner_csv(path, mesh, U, command):
                     rows[key] = (X, Y, Z, sx * ux, sy * uy, sz * uz)
     with open(path, "w") as fh:
         fh.write("# command: %s\n" % command)
+        fh.write("# %s; level %s, %d DOFs; inner wall (r = %g m) of the full tube, reference coordinates "
+                 "and displacement\n" % (what, mesh.level, mesh.dofs, RI))
         fh.write("x_m,y_m,z_m,ux_m,uy_m,uz_m\n")
         for k in sorted(rows, key=lambda k: (k[2], math.atan2(k[1], k[0]))):
             fh.write(",".join("%.6e" % v for v in rows[k]) + "\n")
@@ -603,16 +664,16 @@ def fmt(v):
 
 
 def write_convergence(path, rows, cases, command):
-    old = []
+    """Rows of the (case, material, force) just run replace the old ones; others are kept."""
+    done = {(r["case"], r["material"], fmt(r["force_N"])) for r in rows}
+    old, prev_cmd = [], []
     if os.path.exists(path):
         with open(path) as fh:
             lines = [l.rstrip("\n") for l in fh if not l.startswith("#")]
         if lines and lines[0].split(",") == FIELDS:
-            old = [l for l in lines[1:] if l and l.split(",")[0] not in cases]
-    prev_cmd = []
-    if os.path.exists(path):
+            old = [l for l in lines[1:] if l and (lambda f: (f[0], f[2], f[1]))(l.split(",")) not in done]
         prev_cmd = [l.rstrip("\n") for l in open(path) if l.startswith("# command:")]
-        prev_cmd = [c for c in prev_cmd if not any((" %s" % c2) in c for c2 in cases)]
+        prev_cmd = [c for c in prev_cmd if c != "# command: %s" % command]
     with open(path, "w") as fh:
         for c in prev_cmd:
             fh.write(c + "\n")
@@ -628,16 +689,20 @@ def rel(a, b):
     return abs(a - b) / abs(b) if (a is not None and b not in (None, 0)) else None
 
 
-def run_series(case, levels, forces, material, nlgeom, args, penalty=None, tag=None, eighth=False):
+def run_series(case, levels, forces, material, nlgeom, args, penalty=None, tag=None, eighth=False,
+               all_steps=False):
     """Refine over `levels`; stop early when converged (< 1%) at every force, or when a run fails
     or exceeds the time budget.  Returns rows and the finest successful (mesh, results)."""
-    rows, finest, prev = [], None, None
-    for lv in levels:
-        mesh, res, log = solve(lv, forces, material, nlgeom, os.path.join(args.work, "%s_%s_L%d" % (
-            case, tag or material, lv)), tiny=args.tiny, penalty=penalty, eighth=eighth)
+    rows, finest, prev, finest_all = [], None, None, None
+    for count, lv in enumerate(levels, 1):
+        label = "x".join(map(str, lv)) if isinstance(lv, tuple) else str(lv)
+        if QTH != 6.0 or QZ != 12.0:
+            label += "_q%gx%g" % (QTH, QZ)
+        mesh, res, log = solve(lv, forces, material, nlgeom, os.path.join(args.work, "%s_%s_L%s" % (
+            case, tag or material, label)), tiny=args.tiny, penalty=penalty, eighth=eighth)
         for r in res:
             row = {"case": case, "force_N": r["force"], "material": tag or material, "nlgeom": int(nlgeom),
-                   "level": "tiny" if args.tiny else lv, "dofs": r["dofs"], "tip_displacement_m": r.get("tip"),
+                   "level": "tiny" if args.tiny else label, "dofs": r["dofs"], "tip_displacement_m": r.get("tip"),
                    "opening_m": r.get("opening"), "contact_force_N": r.get("contact_force"),
                    "contact_area_m2": r.get("contact_area"), "ccx_seconds": round(r["seconds"], 2),
                    "tip_bottom_m": r.get("tip_bottom"), "opening_min_m": r.get("opening_min"),
@@ -648,12 +713,15 @@ def run_series(case, levels, forces, material, nlgeom, args, penalty=None, tag=N
                 case, tag or material, r["force"], row["level"], r["dofs"], fmt(r.get("tip")),
                 fmt(r.get("opening")), fmt(r.get("contact_force")), fmt(r.get("contact_area")),
                 r["seconds"], r["status"]), flush=True)
-        ok = all(r["status"] == "ok" for r in res)
+        ok = res[0]["status"] == "ok"      # refine on while the first load is reached
+        if all(r["status"] == "ok" for r in res):
+            finest_all = (mesh, res)
         if ok:
-            changes = [rel(r["tip"], p["tip"]) for r, p in zip(res, prev)] if prev else None
+            changes = [rel(r["tip"], p["tip"]) for r, p in zip(res, prev) if r["status"] == "ok"
+                       and p["status"] == "ok"] if prev else None
             finest = (mesh, res)
             prev = res
-            if changes and all(c is not None and c < 0.01 for c in changes) and lv >= 3 and not args.all_levels:
+            if changes and all(c is not None and c < 0.01 for c in changes) and count >= 3 and not args.all_levels:
                 print("  converged: tip change %s" % ", ".join("%.3f%%" % (100 * c) for c in changes), flush=True)
                 break
             if changes:
@@ -665,10 +733,11 @@ def run_series(case, levels, forces, material, nlgeom, args, penalty=None, tag=N
             print("  stopping refinement: last run took %.0f s (budget %.0f s)" % (res[0]["seconds"], args.budget),
                   flush=True)
             break
-    return rows, finest
+    return rows, (finest_all if all_steps else finest)
 
 
 def main(argv=None):
+    global QTH, QZ, RUN_TIMEOUT
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("case", choices=["small", "large", "closure", "all"])
     ap.add_argument("--tiny", action="store_true")
@@ -676,11 +745,18 @@ def main(argv=None):
     ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "docs"))
     ap.add_argument("--work", default="/tmp/lumen_ccx_reference")
     ap.add_argument("--closure-force", type=float, default=0.03)
+    ap.add_argument("--closure-model", choices=["eighth", "quarter"], default="eighth",
+                    help="eighth: contact with the symmetry plane y = 0; quarter: upper/lower wall pair")
     ap.add_argument("--penalty", type=float, default=1e8)
+    ap.add_argument("--large-forces", type=lambda v: [float(x) for x in v.split(",")], default=[0.01, 0.02])
+    ap.add_argument("--grading", default="6,12", help="QTH,QZ: largest/smallest element ratios in theta, z")
+    ap.add_argument("--timeout", type=float, default=RUN_TIMEOUT, help="kill a ccx run after this many s")
     ap.add_argument("--all-levels", action="store_true", help="run every level even when converged earlier")
     ap.add_argument("--budget", type=float, default=200.0, help="stop refining after a run longer than this (s)")
     ap.add_argument("--materials", default="neohooke,svk")
     args = ap.parse_args(argv)
+    RUN_TIMEOUT = args.timeout
+    QTH, QZ = (float(v) for v in args.grading.split(","))
     if shutil.which(CCX) is None:
         print("ccx not found", file=sys.stderr)
         return 2
@@ -696,9 +772,9 @@ def main(argv=None):
         if args.tiny:
             levels = [1]
         elif args.levels:
-            levels = [int(v) for v in args.levels.split(",")]
+            levels = [tuple(int(x) for x in v.split("x")) if "x" in v else int(v) for v in args.levels.split(",")]
         else:
-            levels = {"small": [1, 2, 3, 4, 5], "large": [1, 2, 3, 4], "closure": [1, 2, 3, 4]}[case]
+            levels = {"small": [1, 2, 3, 4, 5], "large": [1, 2, 3, 4], "closure": [1, 2, (10, 12, 3), 3]}[case]
         if case == "small":
             rows, fin = run_series(case, levels, [0.002], "linear", False, args, eighth=True)
             finals = [(fin, 0)]
@@ -706,7 +782,7 @@ def main(argv=None):
             rows, finals = [], []
             mats = args.materials.split(",") if not args.tiny else ["neohooke"]
             for mat in mats:
-                r, fin = run_series(case, levels, [0.01] if args.tiny else [0.01, 0.02],
+                r, fin = run_series(case, levels, [0.01] if args.tiny else args.large_forces,
                                     "neohooke" if mat == "neohooke" else "linear", True, args, tag=mat,
                                     eighth=True)
                 rows += r
@@ -714,18 +790,21 @@ def main(argv=None):
                     finals = [(fin, 0)]
         else:
             F = [0.02, args.closure_force]
-            rows, fin = run_series(case, levels, F, "neohooke", True, args, penalty=args.penalty, tag="neohooke")
+            e8 = args.closure_model == "eighth"
+            tag = "neohooke" if e8 else "neohooke-pair"
+            rows, fin = run_series(case, levels, F, "neohooke", True, args, penalty=args.penalty, tag=tag,
+                                   all_steps=True, eighth=e8)
             finals = [(fin, 1)]
             if fin is not None and not args.tiny:
-                lv = [r for r in rows if r["status"] == "ok"][-1]["level"]
+                lv = fin[0].level
                 r2, _ = run_series(case, [lv], F, "neohooke", True, args, penalty=10 * args.penalty,
-                                   tag="neohooke-K10")
+                                   tag=tag + "-K10", eighth=e8)
                 rows += r2
         allrows += rows
         for fin, s in finals:
             if fin is not None and fin[1][s]["status"] == "ok":
                 inner_csv(os.path.join(out, "reference_inner_wall_%s%s.csv" % (case, sfx)), fin[0],
-                          fin[1][s]["inner"], command)
+                          fin[1][s]["inner"], command, "case %s, F = %g N per tip" % (case, fin[1][s]["force"]))
     write_convergence(os.path.join(out, "reference_convergence%s.csv" % sfx), allrows, cases, command)
     return 0
 
