@@ -44,9 +44,10 @@ def rel(a, b):
 
 def read_csv(path):
     with open(path) as fh:
-        first = fh.readline()
-        rows = list(csv.DictReader(fh))
-    return first, rows
+        lines = fh.read().splitlines()
+    comments = [l for l in lines if l.startswith("#")]
+    rows = list(csv.DictReader(l for l in lines if not l.startswith("#")))
+    return (comments[0] if comments else ""), rows
 
 
 def cloads(inp):
