@@ -738,7 +738,7 @@ def run_series(case, levels, forces, material, nlgeom, args, penalty=None, tag=N
 
 
 def main(argv=None):
-    global QTH, QZ, RUN_TIMEOUT
+    global QTH, QZ, RUN_TIMEOUT, TIP_R
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("case", choices=["small", "large", "closure", "all"])
     ap.add_argument("--tiny", action="store_true")
@@ -755,7 +755,9 @@ def main(argv=None):
     ap.add_argument("--all-levels", action="store_true", help="run every level even when converged earlier")
     ap.add_argument("--budget", type=float, default=200.0, help="stop refining after a run longer than this (s)")
     ap.add_argument("--materials", default="neohooke,svk")
+    ap.add_argument("--tip-radius", type=float, default=TIP_R, help="radius of each tip's disc, metres")
     args = ap.parse_args(argv)
+    TIP_R = args.tip_radius
     RUN_TIMEOUT = args.timeout
     QTH, QZ = (float(v) for v in args.grading.split(","))
     if shutil.which(CCX) is None:
