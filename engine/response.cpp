@@ -135,18 +135,22 @@ void solve_paper(const Model& model, State& state, const Points& x_free, const E
 void solve_constraint(const Model& model, State& state, const Points& x1, const Eigen::VectorXd& u_free,
                       ResponseRounds& rr) {
   std::vector<int> warm;
-  Eigen::VectorXd lambda0(static_cast<Eigen::Index>(rr.active.size()));
   for (const auto& [key, c] : rr.active) {
-    const auto carried = rr.carried.find(key);
-    lambda0[static_cast<Eigen::Index>(rr.rows.size())] = carried == rr.carried.end() ? 0.0 : carried->second;
     if (rr.pushing.count(key)) warm.push_back(static_cast<int>(rr.rows.size()));
     rr.rows.push_back(contact_row(c, model.mesh.rest, state.x, x1, model.collision.gap));
   }
   if (model.collision.lcp == LcpSolver::kNncg) {
+    // Warm start: last frame's multiplier of each contact still held (0 for a new one).
     physics::IterativeLcpOptions o;
     o.max_sweeps = model.collision.lcp_sweeps;
     o.tolerance = kIterativeToleranceGapFraction * model.collision.gap;
-    o.warm = lambda0;
+    o.warm = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(rr.active.size()));
+    Eigen::Index r = 0;
+    for (const auto& entry : rr.active) {
+      const auto carried = rr.carried.find(entry.first);
+      if (carried != rr.carried.end()) o.warm[r] = carried->second;
+      ++r;
+    }
     rr.solved = physics::solve_contacts_iterative(*state.compliance, rr.rows, u_free, o, false,
                                                   model.integrator->held_points());
   } else {

@@ -54,8 +54,7 @@ render::FrameView frame_view(const Model& model, const State& state) {
   view.force_scale = model.render.force_scale;
   for (size_t p = 0; p < state.samples.size(); ++p) {
     render::ProbeGlyph g;
-    const SurfacePoint& sp = model.probe_points[p];
-    for (int k = 0; k < 3; ++k) g.point += sp.weight[k] * state.x.row(sp.node[k]).transpose();
+    g.point = point_of(state.x, model.probe_points[p]);
     g.force = state.samples[p].force;
     view.probes.push_back(g);
   }

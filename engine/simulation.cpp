@@ -41,6 +41,12 @@ Eigen::VectorXd twist_displacement(const Model& model, double degrees) {
   return physics::combine_columns(model.prescribed.basis, twist_coefficients(model, degrees));
 }
 
+Eigen::Vector3d point_of(const Eigen::Ref<const Points>& x, const SurfacePoint& sp) {
+  Eigen::Vector3d q = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) q += sp.weight[k] * x.row(sp.node[k]).transpose();
+  return q;
+}
+
 SurfacePoint snap_to_surface(const Points& x, const Tris& tris, const Eigen::Vector3d& p) {
   SurfacePoint best;
   double best_d2 = std::numeric_limits<double>::infinity();
@@ -79,9 +85,9 @@ physics::TetMesh build_mesh(const Scene& scene, std::unique_ptr<physics::Quadrat
 
 // Index of the mesh's surface of that name (the generator's names; a missing one is a bug, not a user's mistake).
 int surface_index(const physics::TetMesh& mesh, const char* name) {
-  for (size_t i = 0; i < mesh.surfaces.size(); ++i)
-    if (mesh.surfaces[i].name == name) return static_cast<int>(i);
-  throw std::logic_error(std::string("compile_model: the mesh has no surface \"") + name + "\"");
+  const physics::MeshSurface* s = physics::find_named(mesh.surfaces, name);
+  if (!s) throw std::logic_error(std::string("compile_model: the mesh has no surface \"") + name + "\"");
+  return static_cast<int>(s - mesh.surfaces.data());
 }
 
 // The walls by role, and what is drawn of the mesh (outermost first: outer wall, end caps, lumen wall).
@@ -133,13 +139,6 @@ void add_twist(const Scene& scene, Model& m) {
     pm.basis.block<3, 1>(3 * node, 1) = a.cross(r);
   }
   m.fixed_nodes.insert(m.fixed_nodes.end(), pm.nodes.begin(), pm.nodes.end());
-}
-
-// Position of a surface point at positions x.
-Eigen::Vector3d point_of(const Points& x, const SurfacePoint& sp) {
-  Eigen::Vector3d q = Eigen::Vector3d::Zero();
-  for (int k = 0; k < 3; ++k) q += sp.weight[k] * x.row(sp.node[k]).transpose();
-  return q;
 }
 
 // Probe attachment points on the outer wall; a point far from the wall is refused (the one check that needs the
@@ -366,11 +365,8 @@ void feed_back(Inputs& inputs, const State& state, double t1, FrameRecord& rec) 
     const Eigen::Vector3d reaction = -state.samples[i].force;
     rec.reactions.push_back(reaction);
     inputs.sources[i]->feedback(t1, reaction);
-    const SurfacePoint& at = state.load_points[i];
-    Eigen::Vector3d d = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k)
-      if (at.node[k] >= 0) d += at.weight[k] * state.sim.u.segment<3>(3 * at.node[k]);
-    rec.probe_displacement.push_back(d);
+    const Eigen::Map<const Points> u(state.sim.u.data(), state.sim.u.size() / 3, 3);
+    rec.probe_displacement.push_back(point_of(u, state.load_points[i]));
   }
 }
 

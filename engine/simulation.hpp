@@ -29,6 +29,9 @@ constexpr double kProbeSnapWallFraction = 0.25;
 // warped stiffness (on the second core) for the following solves.
 constexpr int kRefactorCgIterations = 5;
 
+// The value at a surface point of a per-node field (positions, or displacements as n x 3): the barycentric sum
+// over its nodes.
+Eigen::Vector3d point_of(const Eigen::Ref<const Points>& x, const SurfacePoint& sp);
 // Nearest point of a surface (positions x, triangles tris) to `p`, brute force over the triangles.
 SurfacePoint snap_to_surface(const Points& x, const Tris& tris, const Eigen::Vector3d& p);
 
