@@ -208,17 +208,26 @@ double mean_edge_length(const CollisionSurface& s, const PointsRef& x0) {
   return s.num_edges() > 0 ? sum / s.num_edges() : 0.0;
 }
 
+// Boxes at x0 of `count` primitives (primitive i: the `corners` vertex ids at ids_of(i)), metres, each inserted
+// into the grid under its index; the grid is finished.
+template <class IdsOf>
+std::vector<std::pair<Vec3, Vec3>> insert_boxes(SpatialHash& grid, const PointsRef& x0, int count, IdsOf ids_of,
+                                                int corners) {
+  std::vector<std::pair<Vec3, Vec3>> boxes(static_cast<std::size_t>(count));
+  for (int i = 0; i < count; ++i) {
+    auto& b = boxes[static_cast<std::size_t>(i)];
+    b = box(x0, ids_of(i), corners);
+    grid.insert(grid.range(b.first, b.second, 0.0), i);
+  }
+  grid.finish();
+  return boxes;
+}
+
 // Vertex-face pairs within r: triangles hashed by their boxes, each vertex queries its r-box; a triangle whose
 // box is more than r away is skipped before the exact distance.
 void hash_vertex_face(const CollisionSurface& s, const PointsRef& x0, double r, double h, PairDistances& pd) {
   SpatialHash grid(x0, s.used_vertices(), h);
-  std::vector<std::pair<Vec3, Vec3>> boxes(static_cast<std::size_t>(s.num_triangles()));  // per triangle, metres
-  for (int t = 0; t < s.num_triangles(); ++t) {
-    auto& b = boxes[static_cast<std::size_t>(t)];
-    b = box(x0, s.triangle(t), 3);
-    grid.insert(grid.range(b.first, b.second, 0.0), t);
-  }
-  grid.finish();
+  const auto boxes = insert_boxes(grid, x0, s.num_triangles(), [&](int t) { return s.triangle(t); }, 3);
   std::vector<int> seen(static_cast<std::size_t>(s.num_triangles()), -1);  // last vertex that visited t
   for (int p : s.used_vertices()) {
     const Vec3 xp = point(x0, p);
@@ -235,13 +244,7 @@ void hash_vertex_face(const CollisionSurface& s, const PointsRef& x0, double r, 
 // edge whose box is more than r away is skipped before the exact distance.
 void hash_edge_edge(const CollisionSurface& s, const PointsRef& x0, double r, double h, PairDistances& pd) {
   SpatialHash grid(x0, s.used_vertices(), h);
-  std::vector<std::pair<Vec3, Vec3>> boxes(static_cast<std::size_t>(s.num_edges()));  // per edge, metres
-  for (int e = 0; e < s.num_edges(); ++e) {
-    auto& b = boxes[static_cast<std::size_t>(e)];
-    b = box(x0, s.edge(e), 2);
-    grid.insert(grid.range(b.first, b.second, 0.0), e);
-  }
-  grid.finish();
+  const auto boxes = insert_boxes(grid, x0, s.num_edges(), [&](int e) { return s.edge(e); }, 2);
   std::vector<int> seen(static_cast<std::size_t>(s.num_edges()), -1);  // last edge that visited g
   for (int e = 0; e < s.num_edges(); ++e) {
     const auto& a = boxes[static_cast<std::size_t>(e)];
