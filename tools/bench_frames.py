@@ -12,6 +12,8 @@ import statistics
 import subprocess
 import sys
 
+from csv_out import write_csv
+
 STAGES = ["input", "physics", "collision", "response", "render", "total"]
 STATS = ["median_ms", "p95_ms", "p99_ms", "max_ms"]
 
@@ -44,17 +46,10 @@ def main():
         print(f"{row['scene']}: total median {row['total_median_ms']} ms, p99 {row['total_p99_ms']} ms, "
               f"physics median {row['physics_median_ms']} ms, over budget (max of runs) {row['over_budget_frames_max']}",
               file=sys.stderr)
-    tmp = a.out + ".tmp"
-    os.makedirs(os.path.dirname(a.out) or ".", exist_ok=True)
-    with open(tmp, "w") as f:
-        f.write(f"# made by: tools/bench_frames.py --runs {a.runs} {' '.join(a.scenes)}"
-                f"{' --extra ' + repr(a.extra) if a.extra else ''}\n")
-        f.write(f"# machine: {platform.machine()}, {os.cpu_count()} cores; statistic = median over runs of each per-run statistic\n")
-        keys = list(rows[0].keys())
-        f.write(",".join(keys) + "\n")
-        for r in rows:
-            f.write(",".join(str(r[k]) for k in keys) + "\n")
-    os.replace(tmp, a.out)
+    write_csv(a.out, [f"made by: tools/bench_frames.py --runs {a.runs} {' '.join(a.scenes)}"
+                      f"{' --extra ' + repr(a.extra) if a.extra else ''}",
+                      f"machine: {platform.machine()}, {os.cpu_count()} cores; statistic = median over runs of each per-run statistic"],
+              rows)
 
 
 if __name__ == "__main__":

@@ -20,6 +20,8 @@ import subprocess
 import sys
 import tempfile
 
+from csv_out import write_csv
+
 
 def run_once(lumen, scene_path, out_dir):
     subprocess.run([lumen, "run", scene_path, "--no-render", "--check", "--out", out_dir], check=True,
@@ -86,16 +88,9 @@ def main():
                       f"max contacts {row['max_contacts']}, fallbacks {row['fallback_frames']}, "
                       f"intersecting frames {row['frames_with_intersections']}, "
                       f"max residual {row['max_contact_residual_m']:.3g} m", file=sys.stderr)
-    tmp_out = a.out + ".tmp"
-    os.makedirs(os.path.dirname(a.out) or ".", exist_ok=True)
-    with open(tmp_out, "w") as f:
-        f.write(f"# made by: tools/bench_lcp.py --runs {a.runs} --sweeps {a.sweeps} {' '.join(a.scenes)}\n")
-        f.write(f"# machine: {platform.machine()}, {os.cpu_count()} cores; ms = median over runs; counts = max over runs\n")
-        keys = list(rows[0].keys())
-        f.write(",".join(keys) + "\n")
-        for r in rows:
-            f.write(",".join(str(r[k]) for k in keys) + "\n")
-    os.replace(tmp_out, a.out)
+    write_csv(a.out, [f"made by: tools/bench_lcp.py --runs {a.runs} --sweeps {a.sweeps} {' '.join(a.scenes)}",
+                      f"machine: {platform.machine()}, {os.cpu_count()} cores; ms = median over runs; counts = max over runs"],
+              rows)
 
 
 if __name__ == "__main__":

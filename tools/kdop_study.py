@@ -10,10 +10,11 @@ usage: tools/kdop_study.py [--runs 3] [--out docs/kdop_study.csv] [--lumen build
 """
 import argparse
 import json
-import os
 import statistics
 import subprocess
 import sys
+
+from csv_out import write_csv
 
 
 def bench(lumen, scene, k, classify):
@@ -49,14 +50,7 @@ def main():
             print(f"{rows[-1]['scene']:28s} k={k:2d} overlaps {c['bv_overlaps']:9d} false positives {fp:9d} "
                   f"({rows[-1]['fp_vs_aabb']} of AABB); non-neighbour false positives {sfp:8d} "
                   f"({rows[-1]['separate_fp_vs_aabb']} of AABB); collision median {coll:.3f} ms", file=sys.stderr)
-    tmp = a.out + ".tmp"
-    os.makedirs(os.path.dirname(a.out) or ".", exist_ok=True)
-    with open(tmp, "w") as f:
-        f.write(f"# made by: tools/kdop_study.py --runs {a.runs} {' '.join(a.scenes)}\n")
-        f.write(",".join(rows[0].keys()) + "\n")
-        for r in rows:
-            f.write(",".join(str(v) for v in r.values()) + "\n")
-    os.replace(tmp, a.out)
+    write_csv(a.out, [f"made by: tools/kdop_study.py --runs {a.runs} {' '.join(a.scenes)}"], rows)
 
 
 if __name__ == "__main__":
