@@ -757,6 +757,8 @@ def main(argv=None):
     ap.add_argument("--materials", default="neohooke,svk")
     ap.add_argument("--tip-radius", type=float, default=TIP_R, help="radius of each tip's disc, metres")
     args = ap.parse_args(argv)
+    if not 0.0 < args.tip_radius < ZMID:
+        ap.error(f"--tip-radius: must be in (0, {ZMID}) m (value {args.tip_radius})")
     TIP_R = args.tip_radius
     RUN_TIMEOUT = args.timeout
     QTH, QZ = (float(v) for v in args.grading.split(","))
