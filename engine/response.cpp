@@ -101,6 +101,7 @@ struct ResponseRounds {
   int iterations = 0;
   int lcp_iterations = 0;                           // pivots / rounds / sweeps over the solves
   std::map<FeatureKey, double> carried;             // last frame's multipliers (NNCG's warm start)
+  std::map<FeatureKey, double> in_solve;            // coupling "carried": each carried row's force in the solve
 };
 
 // The paper's response (Sec. 3.4): hold every colliding vertex, and the probe points, at their time-of-contact
@@ -202,12 +203,16 @@ void keep_for_next_frame(const Model& model, State& state, const ResponseRounds&
   state.last_correction = u - u_free;
   state.active.clear();
   state.active_lambda.clear();
+  state.active_total.clear();
   int r = 0;
   for (const auto& [key, c] : rr.active) {
     const double lambda = r < rr.solved.lambda.size() ? rr.solved.lambda[r] : 0.0;
-    if (model.collision.response == ResponseKind::kPaper || lambda > 0.0) {
+    const auto solve = rr.in_solve.find(key);
+    const double total = lambda + (solve == rr.in_solve.end() ? 0.0 : solve->second);
+    if (model.collision.response == ResponseKind::kPaper || total > 0.0) {
       state.active.push_back(c);
       state.active_lambda.push_back(lambda);
+      state.active_total.push_back(total);
     }
     ++r;
   }
@@ -249,6 +254,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
       rr.active.emplace(key, state.active[i]);
       rr.pushing.insert(key);
       if (i < state.active_lambda.size()) rr.carried[key] = state.active_lambda[i];
+      if (static_cast<Eigen::Index>(i) < state.carried_lambda.size()) rr.in_solve[key] = state.carried_lambda[i];
     }
   std::vector<collision::Contact> found = state.contacts;
   bool resolved = found.empty() && rr.active.empty();
@@ -279,6 +285,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   if (rr.iterations > 0) {
     // Total normal force the walls carry (the constraint response's multipliers are contact forces).
     if (!paper) rec.contact_force = rr.solved.lambda.sum();
+    for (const auto& [key, lambda] : rr.in_solve) rec.contact_force += lambda;
     rec.contact_residual = rr.solved.residual;
     rec.lcp_iterations = rr.lcp_iterations;
     add_contact_to_probe_forces(model, state, rr);

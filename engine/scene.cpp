@@ -19,6 +19,7 @@ constexpr const char* kElementNames[] = {"tet4", "tet10"};
 constexpr const char* kSolverNames[] = {"quasi_static", "dynamic"};
 constexpr const char* kResponseNames[] = {"paper", "constraint"};
 constexpr const char* kLcpSolverNames[] = {"active_set", "nncg"};
+constexpr const char* kCouplingNames[] = {"correct", "carried"};
 constexpr const char* kTwistEndNames[] = {"", "start", "stop"};
 constexpr const char* kNodeSetNames[] = {"ends", "start", "stop"};
 constexpr const char* kCameraNames[] = {"side", "diagonal", "endoscope"};
@@ -201,7 +202,8 @@ void read_render(const Reader& r, const json& m, RenderSpec& spec) {
 }
 
 void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
-  r.only_keys(m, "collision", {"self", "kdop", "response", "gap", "max_iterations", "surfaces", "lcp", "lcp_sweeps"});
+  r.only_keys(m, "collision", {"self", "kdop", "response", "gap", "max_iterations", "surfaces", "lcp", "lcp_sweeps",
+                               "coupling"});
   if (m.contains("surfaces")) {
     const json& list = m.at("surfaces");
     if (!list.is_array() || list.empty()) r.fail("collision.surfaces", "must be a non-empty array of wall names", &list);
@@ -224,6 +226,8 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
   if (m.contains("gap")) spec.gap = r.number_in(m.at("gap"), "collision.gap", 0.0, 0.01, false, false);
   if (m.contains("max_iterations"))
     spec.max_iterations = r.integer_in(m.at("max_iterations"), "collision.max_iterations", 1, 100);
+  if (m.contains("coupling"))
+    spec.coupling = r.choice<ContactCoupling>(m.at("coupling"), "collision.coupling", kCouplingNames);
   if (m.contains("lcp_sweeps")) spec.lcp_sweeps = r.integer_in(m.at("lcp_sweeps"), "collision.lcp_sweeps", 2, 100000);
 }
 
@@ -282,6 +286,15 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   if (s.collision.lcp == LcpSolver::kNncg && s.collision.response != ResponseKind::kConstraint)
     r.fail("collision.lcp", "\"nncg\" needs collision.response \"constraint\" (got \"paper\")",
            &root.at("collision").at("lcp"));
+  // Carried contacts enter the corotational quasi-static solve's equilibrium, with the constraint response.
+  if (s.collision.coupling == ContactCoupling::kCarried) {
+    const json* at = &root.at("collision").at("coupling");
+    if (s.material.model != MaterialModel::kCorotational || s.solver.type != SolverType::kQuasiStatic)
+      r.fail("collision.coupling", std::string("\"carried\" needs material.model \"corotational\" and solver.type "
+             "\"quasi_static\" (got \"") + name_of(s.material.model) + "\", \"" + name_of(s.solver.type) + "\")", at);
+    if (s.collision.response != ResponseKind::kConstraint)
+      r.fail("collision.coupling", "\"carried\" needs collision.response \"constraint\" (got \"paper\")", at);
+  }
   // Displacement-driven probes (held points) are solved on the linear quasi-static model's probe compliance.
   int held = -1;
   for (size_t i = 0; i < s.probes.size() && held < 0; ++i)
@@ -307,6 +320,7 @@ const char* name_of(ElementType v) { return kElementNames[static_cast<int>(v)]; 
 const char* name_of(SolverType v) { return kSolverNames[static_cast<int>(v)]; }
 const char* name_of(ResponseKind v) { return kResponseNames[static_cast<int>(v)]; }
 const char* name_of(LcpSolver v) { return kLcpSolverNames[static_cast<int>(v)]; }
+const char* name_of(ContactCoupling v) { return kCouplingNames[static_cast<int>(v)]; }
 const char* name_of(TwistEnd v) { return kTwistEndNames[static_cast<int>(v)]; }
 const char* name_of(render::CameraPreset v) { return kCameraNames[static_cast<int>(v)]; }
 

@@ -44,6 +44,7 @@ enum class ElementType { kTet4, kTet10 };             // "tet4" | "tet10"
 enum class SolverType { kQuasiStatic, kDynamic };     // "quasi_static" | "dynamic"
 enum class ResponseKind { kPaper, kConstraint };      // "paper" | "constraint"
 enum class LcpSolver { kActiveSet, kNncg };           // "active_set" | "nncg"
+enum class ContactCoupling { kCorrect, kCarried };    // "correct" | "carried"
 enum class TwistEnd { kNone, kStart, kStop };         // (no twist) | "start" | "stop"
 enum class NodeSetName { kEnds, kStart, kStop };      // "ends" | "start" | "stop"
 // The JSON name of a choice (what the scene file says and report.json repeats).
@@ -52,6 +53,7 @@ const char* name_of(ElementType v);
 const char* name_of(SolverType v);
 const char* name_of(ResponseKind v);
 const char* name_of(LcpSolver v);
+const char* name_of(ContactCoupling v);
 const char* name_of(TwistEnd v);
 const char* name_of(render::CameraPreset v);
 
@@ -83,6 +85,11 @@ struct CollisionSpec {
   // matrix, warm-started from last frame's multipliers, at most lcp_sweeps sweeps; its residual is reported).
   LcpSolver lcp = LcpSolver::kActiveSet;
   int lcp_sweeps = 200;            // "nncg": sweep budget per solve, >= 2
+  // How the contacts meet a corotational quasi-static solve (key "coupling"): "correct" (the contact-free
+  // solution is corrected on the rest compliance) or "carried" (the last frame's contacts, re-linearised at the
+  // frame's start, enter the nonlinear equilibrium by an augmented Lagrangian; the response then corrects what
+  // is left, and the sum of both multipliers is carried to the next frame).
+  ContactCoupling coupling = ContactCoupling::kCorrect;
 };
 
 // How a frame is solved: quasi-statically (equilibrium with the frame's loads) or by one implicit dynamic step.

@@ -220,7 +220,8 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
   r["model"] = {{"material", name_of(model.material)}, {"element", name_of(model.element)},
                 {"solver", name_of(model.solver)}, {"compile_seconds", model.compile_seconds}};
   r["collision"] = {{"self", model.collision.self}, {"kdop", model.collision.kdop},
-                    {"response", name_of(model.collision.response)}, {"lcp", name_of(model.collision.lcp)}, {"gap_m", model.collision.gap},
+                    {"response", name_of(model.collision.response)}, {"lcp", name_of(model.collision.lcp)},
+                    {"coupling", name_of(model.collision.coupling)}, {"gap_m", model.collision.gap},
                     {"surfaces", model.collision.outer_wall ? nlohmann::json{"inner", "outer"} : nlohmann::json{"inner"}}};
   r["render"] = {{"enabled", opt.render}, {"width", rs.width}, {"height", rs.height}, {"camera", name_of(rs.camera)}};
   r["stages"] = stages_json(result.frames);

@@ -218,6 +218,24 @@ std::unique_ptr<physics::Integrator> make_integrator(const Scene& scene, const M
   return std::make_unique<physics::LinearQuasiStatic>(K, m.fixed_nodes, m.probe_points, m.probe_held, m.prescribed);
 }
 
+// The carried contacts' penalty: kCouplingStiffnessScale times the mean diagonal of the rest stiffness over the
+// colliding walls' free DOFs (the scene's checks allow "carried" with the corotational quasi-static model only).
+double coupling_stiffness(const Model& m) {
+  const auto* corotational = dynamic_cast<const physics::CorotationalQuasiStatic*>(m.integrator.get());
+  assert(corotational);
+  const Eigen::SparseMatrix<double>& K = corotational->model().stiffness();
+  double sum = 0.0;
+  int count = 0;
+  for (int v : m.collision_nodes)
+    for (int axis = 0; axis < 3; ++axis) {
+      const int d = 3 * v + axis;
+      if (corotational->is_fixed_dof(d)) continue;
+      sum += K.coeff(d, d);
+      ++count;
+    }
+  return count > 0 ? kCouplingStiffnessScale * sum / count : 0.0;
+}
+
 }  // namespace
 
 std::unique_ptr<Model> compile_model(const Scene& scene) {
@@ -244,6 +262,8 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   attach_probes(scene, *m);
   build_collision_topology(scene, *m);
   m->integrator = make_integrator(scene, *m, quadratic.get());
+  if (m->collision_surface && scene.collision.coupling == ContactCoupling::kCarried)
+    m->coupling_stiffness = coupling_stiffness(*m);
   m->compile_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   return m;
 }
@@ -356,6 +376,18 @@ void commit_frame(const Model& model, State& state, const Eigen::VectorXd& u, bo
     rec.max_displacement = std::max(rec.max_displacement, state.sim.u.segment<3>(3 * i).norm());
 }
 
+// The contacts held at the end of the last frame as rows at the frame's start positions, with their whole
+// multipliers: the loads the corotational solve carries (collision.coupling "carried").
+const physics::AugmentedContacts& carry_contacts(const Model& model, State& state) {
+  physics::AugmentedContacts& c = state.carried;
+  c.rows.clear();
+  for (const collision::Contact& contact : state.active)
+    c.rows.push_back(contact_row(contact, model.mesh.rest, state.x, state.x, model.collision.gap));
+  c.lambda = Eigen::Map<const Eigen::VectorXd>(state.active_total.data(), static_cast<Eigen::Index>(state.active_total.size()));
+  c.stiffness = model.coupling_stiffness;
+  return c;
+}
+
 // Reaction at each probe point (a probe in equilibrium: equal and opposite to its force), handed back; the
 // point's displacement recorded.
 void feed_back(Inputs& inputs, const State& state, double t1, FrameRecord& rec) {
@@ -394,6 +426,7 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   clock = Clock::now();
   rec.twist_degrees = twist_degrees(model.twist, t1);
   physics::FrameLoads loads = frame_loads(model, state, input.all_fixed);
+  if (model.coupling_stiffness > 0.0 && !state.active.empty()) loads.contacts = &carry_contacts(model, state);
   Eigen::VectorXd u;
   const physics::Prediction pred =
       model.integrator->predict(loads, twist_coefficients(model, rec.twist_degrees), state.sim, state.work, u);
@@ -402,6 +435,8 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   rec.physics_converged = pred.converged;
   rec.refactorisations = pred.refactorisations;
   rec.preconditioner_failures = pred.preconditioner_failures;
+  state.carried_lambda = loads.contacts ? pred.contact_lambda : Eigen::VectorXd();
+  if (!loads.contacts) state.carried.rows.clear();
   rec.ms[kPhysics] = ms_since(clock);
 
   // Collide and respond: contacts constrain the solve on the contact compliance, CCD re-checks.
@@ -411,6 +446,8 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
 
   // Commit (or keep the last good frame), then hand the reactions back to the sources.
   commit_frame(model, state, u, pred.finite, input.bad_input, rec);
+  // Carried contacts: the next solve starts where this frame ended (its loads include the contacts).
+  if (model.coupling_stiffness > 0.0 && !rec.numerical_failure) state.work.corotational.u = state.sim.u;
   feed_back(inputs, state, t1, rec);
   state.frame += 1;
   state.t = t1;

@@ -28,6 +28,8 @@ constexpr double kProbeSnapWallFraction = 0.25;
 // Large deformation: a corotational linear solve that takes more PCG iterations than this refactorises the
 // warped stiffness (on the second core) for the following solves.
 constexpr int kRefactorCgIterations = 5;
+// Carried contacts: the augmented Lagrangian's penalty per unit of the walls' mean diagonal stiffness.
+constexpr double kCouplingStiffnessScale = 1.0;
 
 // The value at a surface point of a per-node field (positions, or displacements as n x 3): the barycentric sum
 // over its nodes.
@@ -77,6 +79,9 @@ struct Model {
   // null when self-collision is off.
   std::shared_ptr<const collision::CollisionSurface> collision_surface;
   std::vector<int> collision_nodes;                // their node ids (sorted): the contact compliance's nodes
+  // collision.coupling "carried": the augmentation penalty of the contacts carried into the corotational solve,
+  // kCouplingStiffnessScale times the mean diagonal of K over the colliding walls' free DOFs, N/m (0 otherwise).
+  double coupling_stiffness = 0.0;
   double time_step = 0.025;                        // 1 / fps, seconds
   double budget_ms = 25.0;                         // 1000 / fps
   double compile_seconds = 0.0;                    // wall time to build the model
@@ -122,6 +127,11 @@ struct State {
   std::unique_ptr<physics::SurfaceCompliance> compliance;  // contact compliance on the colliding walls
   std::vector<collision::Contact> active;             // contacts held at the end of the last frame (warm start)
   std::vector<double> active_lambda;                  // their multipliers at the end of the last frame, newtons
+  // coupling "carried": each held contact's whole multiplier (the solve's and the response's), newtons; and this
+  // frame's carried rows (the held contacts at the frame's start) with the multipliers the solve gave them.
+  std::vector<double> active_total;
+  physics::AugmentedContacts carried;
+  Eigen::VectorXd carried_lambda;
   Eigen::VectorXd last_correction;                    // last frame's contact correction u - u_free, 3n, metres
   int failures = 0;                                   // frames where the last good state was kept
 };

@@ -299,11 +299,25 @@ class WarpedOperator : public Eigen::EigenBase<WarpedOperator> {
     system_.elements->warped_product(*system_.rotations, p, y);
     y *= system_.c_stiffness;
     if (system_.c_mass != 0.0) y.array() += system_.c_mass * system_.mass->array() * p.array();
+    if (system_.contacts) add_contact_stiffness(p, y);
     for (Eigen::Index i = 0; i < y.size(); ++i)
       if (fixed_[i]) y[i] = 0.0;
   }
 
  private:
+  // y += stiffness h_r (h_r . p) for every pushing contact row.
+  void add_contact_stiffness(const Eigen::VectorXd& p, Eigen::VectorXd& y) const {
+    const AugmentedContacts& c = *system_.contacts;
+    for (size_t r = 0; r < c.rows.size(); ++r) {
+      if (!(*system_.pushing)[r]) continue;
+      const ContactRow& row = c.rows[r];
+      double hp = 0.0;
+      for (int k = 0; k < 4; ++k)
+        if (row.node[k] >= 0) hp += row.weight[k] * row.n.dot(p.segment<3>(3 * row.node[k]));
+      for (int k = 0; k < 4; ++k)
+        if (row.node[k] >= 0) y.segment<3>(3 * row.node[k]) += (c.stiffness * hp * row.weight[k]) * row.n;
+    }
+  }
   const WarpedSystem& system_;
   const std::vector<char>& fixed_;
 };
@@ -391,6 +405,8 @@ PcgResult solve_pcg(const WarpedSystem& system, const StaticSolver& precondition
     if (!system.mass) throw std::invalid_argument("solve_pcg: system.mass must not be null when c_mass > 0");
     check_vector(where, "system.mass", *system.mass, n);
   }
+  if (system.contacts && (!system.pushing || system.pushing->size() != system.contacts->rows.size()))
+    throw std::invalid_argument("solve_pcg: system.pushing must hold one flag per contact row");
   if (preconditioner.n_dofs() != n) {
     detail::fail_must(where, "preconditioner.n_dofs()", ("be " + std::to_string(n)).c_str(), preconditioner.n_dofs());
   }
@@ -460,8 +476,8 @@ namespace {
 class CorotationalResidual {
  public:
   CorotationalResidual(const CorotationalElements& el, CorotationalState& state, const Eigen::VectorXd& f,
-                       const std::vector<char>& fixed)
-      : el_(el), state_(state), f_(f), fixed_(fixed), r_(f.size()) {}
+                       const std::vector<char>& fixed, const AugmentedContacts* contacts)
+      : el_(el), state_(state), f_(f), fixed_(fixed), contacts_(contacts), r_(f.size()) {}
 
   double evaluate() {
     const int n = static_cast<int>(f_.size());
@@ -474,18 +490,40 @@ class CorotationalResidual {
     }
     for (int d = 0; d < n; ++d) r_[d] = fixed_[d] ? 0.0 : f_[d] - state_.f_int[d];
     scale_ = std::max(f_.norm(), detail::reaction_norm(state_.f_int, fixed_));
+    if (contacts_) add_contact_forces();
     rnorm_ = r_.norm();
     return rnorm_ == 0.0 ? 0.0 : (scale_ > 0.0 ? rnorm_ / scale_ : INFINITY);
   }
   const Eigen::VectorXd& r() const { return r_; }
   double scale() const { return scale_; }  // force scale, newtons
   double norm() const { return rnorm_; }   // |r|, newtons
+  const Eigen::VectorXd& contact_lambda() const { return lambda_eff_; }  // lambda_eff per carried row, newtons
+  const std::vector<char>& pushing() const { return pushing_; }           // per carried row: lambda_eff > 0
 
  private:
+  // The carried contacts' forces H^T lambda_eff at state.u join the residual (and its force scale).
+  void add_contact_forces() {
+    const AugmentedContacts& c = *contacts_;
+    const Eigen::VectorXd h = row_values(c.rows, state_.u);
+    lambda_eff_.resize(static_cast<Eigen::Index>(c.rows.size()));
+    pushing_.assign(c.rows.size(), 0);
+    for (size_t r = 0; r < c.rows.size(); ++r) {
+      const Eigen::Index i = static_cast<Eigen::Index>(r);
+      lambda_eff_[i] = std::max(0.0, c.lambda[i] + c.stiffness * (c.rows[r].g - h[i]));
+      pushing_[r] = lambda_eff_[i] > 0.0 ? 1 : 0;
+    }
+    const Eigen::VectorXd fc = contact_force(c.rows, lambda_eff_, static_cast<int>(r_.size()));
+    for (Eigen::Index d = 0; d < r_.size(); ++d)
+      if (!fixed_[d]) r_[d] += fc[d];
+    scale_ = std::max(scale_, fc.norm());
+  }
   const CorotationalElements& el_;
   CorotationalState& state_;
   const Eigen::VectorXd& f_;
   const std::vector<char>& fixed_;
+  const AugmentedContacts* contacts_;
+  Eigen::VectorXd lambda_eff_;
+  std::vector<char> pushing_;
   Eigen::VectorXd r_;
   double scale_ = 0.0, rnorm_ = 0.0;
 };
@@ -530,6 +568,23 @@ double extrapolate_start(CorotationalState& state, CorotationalResidual& residua
   return residual.evaluate();  // cached: no new evaluation
 }
 
+// Carried contacts: a positive finite stiffness, one finite multiplier >= 0 per row, row nodes in the mesh.
+void validate_contacts(const char* where, const AugmentedContacts& c, int n_nodes) {
+  if (!(c.stiffness > 0.0) || !std::isfinite(c.stiffness))
+    detail::fail_must(where, "contacts.stiffness", "be > 0 and finite", c.stiffness);
+  if (c.lambda.size() != static_cast<Eigen::Index>(c.rows.size()))
+    detail::fail_must(where, "contacts.lambda.size()", ("be rows = " + std::to_string(c.rows.size())).c_str(),
+                      c.lambda.size());
+  for (Eigen::Index r = 0; r < c.lambda.size(); ++r)
+    if (!(c.lambda[r] >= 0.0) || !std::isfinite(c.lambda[r]))
+      detail::fail_must(where, "contacts.lambda[" + std::to_string(r) + "]", "be >= 0 and finite", c.lambda[r]);
+  for (size_t r = 0; r < c.rows.size(); ++r)
+    for (int k = 0; k < 4; ++k)
+      if (c.rows[r].node[k] >= n_nodes)
+        detail::fail_must(where, "contacts.rows[" + std::to_string(r) + "].node[" + std::to_string(k) + "]",
+                          ("be a node id < " + std::to_string(n_nodes)).c_str(), c.rows[r].node[k]);
+}
+
 // A background factorisation that has finished becomes the preconditioner; one that failed is dropped, keeps the
 // current preconditioner and is counted (never silently).
 void adopt_finished_factorisation(CorotationalState& state, CorotationalResult& result) {
@@ -565,13 +620,14 @@ void start_factorisation(const CorotationalModel& model, const CorotationalOptio
 
 CorotationalResult solve_corotational(const CorotationalModel& model, const Eigen::VectorXd& f_ext,
                                       CorotationalState& state, const CorotationalOptions& options,
-                                      const Eigen::VectorXd& u_fixed) {
+                                      const Eigen::VectorXd& u_fixed, const AugmentedContacts* contacts) {
   const char* where = "solve_corotational";
   validate_options(options);
   const CorotationalElements& el = model.elements();
   const int n = model.n_dofs();
   check_vector(where, "f_ext", f_ext, n);
   if (u_fixed.size() != 0) check_vector(where, "u_fixed", u_fixed, n);
+  if (contacts) validate_contacts(where, *contacts, el.n_nodes());
   if (state.u.size() == 0) state.u.setZero(n);
   check_vector(where, "state.u", state.u, n);
   const bool can_extrapolate = options.extrapolate && state.u_previous.size() == n;
@@ -583,7 +639,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
   Eigen::VectorXd f;
   prescribe(model, f_ext, u_fixed, state, fixed, f);
   CorotationalResult result;
-  CorotationalResidual residual(el, state, f, fixed);
+  CorotationalResidual residual(el, state, f, fixed, contacts);
   result.residual = residual.evaluate();
   if (can_extrapolate && result.residual > options.tolerance)
     result.residual = extrapolate_start(state, residual, fixed, u_before, result.residual);
@@ -600,7 +656,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     // accurate than needed.
     const StaticSolver& preconditioner = state.preconditioner ? *state.preconditioner : model.solver();
     const bool rotate = options.rotate_preconditioner && !state.preconditioner;
-    const WarpedSystem system{&el, &state.rotations, nullptr, 0.0, 1.0};
+    const WarpedSystem system{&el, &state.rotations, nullptr, 0.0, 1.0, contacts, &residual.pushing()};
     if (rotate) el.node_rotations(state.rotations, node_R);
     const double cg_tol =
         std::max(options.cg_tolerance, std::min(0.5, 0.5 * options.tolerance * residual.scale() / residual.norm()));
@@ -616,6 +672,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     state.u += du;
     result.residual = residual.evaluate();
   }
+  if (contacts) result.contact_lambda = residual.contact_lambda();
   return result;
 }
 

@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include "physics/contact_rows.hpp"
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
 
@@ -72,14 +73,28 @@ class CorotationalElements {
   double lambda_ = 0.0, mu_ = 0.0;         // Lame parameters, pascals
 };
 
-// A symmetric positive definite system A = c_mass diag(mass) + c_stiffness K_w(R) on the free DOFs of a
-// preconditioner's factorisation. R = identity rotations gives the linear stiffness K.
+// Contacts carried into the nonlinear equilibrium by an augmented Lagrangian (the method of multipliers): rows
+// (H u)_r >= g_r with multiplier estimates lambda_r. The solve adds the contact force H^T lambda_eff, with
+// lambda_eff_r = max(0, lambda_r + stiffness (g_r - (H u)_r)), and the stiffness h_r h_r^T of each row that pushes
+// (lambda_eff_r > 0) to its tangent. With lambda_r the converged multipliers the rows hold exactly; otherwise a
+// row is off by (lambda_eff_r - lambda_r) / stiffness.
+struct AugmentedContacts {
+  std::vector<ContactRow> rows;
+  Eigen::VectorXd lambda;  // rows, newtons, >= 0
+  double stiffness = 0.0;  // augmentation penalty, N/m, > 0
+};
+
+// A symmetric positive definite system A = c_mass diag(mass) + c_stiffness K_w(R) + P on the free DOFs of a
+// preconditioner's factorisation, P = stiffness sum h_r h_r^T over the contact rows that push (none when
+// contacts is null). R = identity rotations gives the linear stiffness K.
 struct WarpedSystem {
   const CorotationalElements* elements = nullptr;
   const std::vector<Eigen::Matrix3d>* rotations = nullptr;  // per tet, n_tets
   const Eigen::VectorXd* mass = nullptr;                     // lumped mass, 3n, kg; nullptr when c_mass = 0
   double c_mass = 0.0;                                       // >= 0
   double c_stiffness = 1.0;                                  // > 0
+  const AugmentedContacts* contacts = nullptr;               // rows and penalty of P, or null
+  const std::vector<char>* pushing = nullptr;                // per row of contacts: 1 when in P
 };
 
 // Result of one preconditioned CG solve.
@@ -172,13 +187,16 @@ struct CorotationalResult {
   int refactorisations = 0;  // warped preconditioner factorisations this solve started
   int refactor_failures = 0; // factorisations that failed (not positive definite, out of memory): the solve went
                              // on with the previous preconditioner
+  Eigen::VectorXd contact_lambda;  // with carried contacts: lambda_eff per row at the returned u, newtons
 };
 
-// Quasi-static equilibrium f_int(u) = f_ext (f_ext: 3n newtons, entries of fixed DOFs ignored), starting from
-// state.u. Fixed DOFs take u_fixed (3n, metres; empty = 0). state.u holds the last iterate even when not
-// converged (never NaN).
+// Quasi-static equilibrium f_int(u) = f_ext (+ H^T lambda_eff(u) with carried contacts; f_ext: 3n newtons,
+// entries of fixed DOFs ignored), starting from state.u. Fixed DOFs take u_fixed (3n, metres; empty = 0).
+// state.u holds the last iterate even when not converged (never NaN). Throws std::invalid_argument for contacts
+// with a non-positive stiffness, a negative or non-finite multiplier, or a row node out of range.
 CorotationalResult solve_corotational(const CorotationalModel& model, const Eigen::VectorXd& f_ext,
                                       CorotationalState& state, const CorotationalOptions& options = {},
-                                      const Eigen::VectorXd& u_fixed = Eigen::VectorXd());
+                                      const Eigen::VectorXd& u_fixed = Eigen::VectorXd(),
+                                      const AugmentedContacts* contacts = nullptr);
 
 }  // namespace lumen::physics

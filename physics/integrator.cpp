@@ -118,13 +118,14 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
   // Nonlinear equilibrium from the nodal loads, warm-started from the last frame's free solution.
   const Eigen::VectorXd f = nodal_forces(loads, model_.n_dofs());
   const Eigen::VectorXd u_fixed = prescribed_.empty() ? Eigen::VectorXd() : combine_columns(prescribed_.basis, prescribed_c);
-  const CorotationalResult r = solve_corotational(model_, f, work.corotational, options_, u_fixed);
+  const CorotationalResult r = solve_corotational(model_, f, work.corotational, options_, u_fixed, loads.contacts);
   u1 = work.corotational.u;
   Prediction p;
   p.iterations = r.iterations;
   p.converged = r.converged;
   p.refactorisations = r.refactorisations;
   p.preconditioner_failures = r.refactor_failures;
+  p.contact_lambda = r.contact_lambda;
   return p;
 }
 

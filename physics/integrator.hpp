@@ -40,6 +40,9 @@ struct PointLoad {
 struct FrameLoads {
   std::vector<PointLoad> points;
   bool at_compiled_points = true;  // every point is where it was at compile time (precomputed responses apply)
+  // Contacts carried into the solve as loads of its equilibrium (the corotational quasi-static solve reads them;
+  // the other integrators ignore them), or null.
+  const AugmentedContacts* contacts = nullptr;
 };
 
 // Displacements prescribed on some nodes (e.g. a turned end ring): basis * c on them, c given per frame.
@@ -59,6 +62,7 @@ struct Prediction {
   bool finite = true;     // false: the solve failed (non-finite values); the frame must be rejected
   int refactorisations = 0;         // lagged factorisations started (corotational quasi-static)
   int preconditioner_failures = 0;  // lagged factorisations that failed (the solve kept the previous one)
+  Eigen::VectorXd contact_lambda;   // with FrameLoads::contacts: each carried row's force in the solve, newtons
 };
 
 // Mutable data an integrator keeps between frames besides SimState (warm starts, lagged preconditioners).

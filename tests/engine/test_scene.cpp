@@ -207,6 +207,24 @@ TEST(Scene, LcpSolverKeys) {
   EXPECT_EQ(error_of(s), "dir/s.json: collision.lcp: \"nncg\" needs collision.response \"constraint\" (got \"paper\") (value \"nncg\")");
 }
 
+TEST(Scene, CouplingKey) {
+  json s = good_scene();
+  s["material"]["model"] = "corotational";
+  s["collision"] = {{"self", true}, {"coupling", "carried"}};
+  EXPECT_EQ(parse_scene(s.dump(), "dir/s.json").collision.coupling, lumen::engine::ContactCoupling::kCarried);
+  EXPECT_EQ(parse_scene(good_scene().dump(), "dir/s.json").collision.coupling, lumen::engine::ContactCoupling::kCorrect);
+  s["collision"]["coupling"] = "warped";
+  EXPECT_EQ(error_of(s), "dir/s.json: collision.coupling: must be one of correct, carried (value \"warped\")");
+  s["collision"]["coupling"] = "carried";
+  s["material"]["model"] = "linear";
+  EXPECT_EQ(error_of(s), "dir/s.json: collision.coupling: \"carried\" needs material.model \"corotational\" and "
+                         "solver.type \"quasi_static\" (got \"linear\", \"quasi_static\") (value \"carried\")");
+  s["material"]["model"] = "corotational";
+  s["collision"]["response"] = "paper";
+  EXPECT_EQ(error_of(s), "dir/s.json: collision.coupling: \"carried\" needs collision.response \"constraint\" "
+                         "(got \"paper\") (value \"carried\")");
+}
+
 TEST(Scene, UnreadableFile) {
   try {
     lumen::engine::load_scene("/nonexistent/scene.json");

@@ -1,0 +1,107 @@
+// How the contacts meet the corotational solve (collision.coupling): "correct" corrects the contact-free solution
+// on the rest compliance; "carried" puts the last frame's contacts into the nonlinear equilibrium (augmented
+// Lagrangian) and corrects what is left. Checked on a corotational squeeze past closure: every frame
+// intersection-free (exact check), and the committed state against the nonlinear equilibrium with the contact
+// forces, f_int(u) = f_probes + H^T lambda, evaluated independently here (element forces at u, rows rebuilt at the
+// committed positions, lambda the contacts' whole multipliers).
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "collision/self_collision.hpp"
+#include "engine/response.hpp"
+#include "engine/simulation.hpp"
+#include "physics/contact_rows.hpp"
+#include "physics/corotational.hpp"
+#include "physics/integrator.hpp"
+
+using namespace lumen;
+
+namespace {
+
+// Optimised builds run a finer tube; the Debug + sanitizer build a coarse one.
+#ifdef NDEBUG
+constexpr bool kOptimised = true;
+#else
+constexpr bool kOptimised = false;
+#endif
+// The shipped full closure's force times this: the walls meet over a large area, then hold.
+constexpr double kForceFactor = 1.0;
+
+engine::Scene squeeze(engine::ContactCoupling coupling) {
+  engine::Scene s = engine::load_scene(std::string(LUMEN_SOURCE_DIR) + "/scenes/full-closure.json");
+  s.mesh.segments_around = kOptimised ? 16 : 12;
+  s.mesh.segments_along = kOptimised ? 10 : 8;
+  s.mesh.layers = 2;
+  s.mesh.length = 0.06;
+  for (engine::ProbeSpec& p : s.probes) {
+    p.point.z() = 0.03;
+    const Eigen::Vector3d f = kForceFactor * p.track.back().value;
+    p.track = {engine::TrackKey{0.0, Eigen::Vector3d::Zero()}, engine::TrackKey{0.5, f}, engine::TrackKey{1.0, f}};
+  }
+  s.material.model = engine::MaterialModel::kCorotational;
+  s.solver.tolerance = 1e-6;
+  s.solver.max_iterations = 40;
+  s.solver.background_factorisation = false;
+  s.collision.coupling = coupling;
+  return s;
+}
+
+struct Outcome {
+  double residual = 0.0;       // |f_int(u) - f_probes - H^T lambda| on the free DOFs / |f_probes|
+  double contact_force = 0.0;  // sum of the whole multipliers at the end, newtons
+  int fallbacks = 0, intersecting_frames = 0, failures = 0;
+};
+
+Outcome run(engine::ContactCoupling coupling, int frames) {
+  const engine::Scene scene = squeeze(coupling);
+  const auto m = engine::compile_model(scene);
+  engine::Inputs in = engine::make_inputs(scene);
+  engine::State s = engine::make_state(*m);
+  engine::FrameRecord rec;
+  Outcome o;
+  for (int i = 0; i < frames; ++i) {
+    engine::step(*m, in, s, rec);
+    o.fallbacks += rec.fallback;
+    o.failures += rec.numerical_failure;
+    o.intersecting_frames += collision::count_intersecting_pairs(s.x, m->inner_wall()) > 0;
+  }
+  // The equilibrium with the contact forces at the committed state.
+  const auto& corot = dynamic_cast<const physics::CorotationalQuasiStatic&>(*m->integrator).model();
+  std::vector<Eigen::Matrix3d> R;
+  corot.elements().rotations(s.sim.u, R);
+  Eigen::VectorXd f_int;
+  corot.elements().elastic_forces(s.sim.u, R, f_int);
+  const Eigen::VectorXd f_probes = engine::nodal_loads(*m, s);
+  std::vector<physics::ContactRow> rows;
+  for (const auto& c : s.active) rows.push_back(engine::contact_row(c, m->mesh.rest, s.x, s.x, m->collision.gap));
+  const Eigen::VectorXd lambda = Eigen::Map<const Eigen::VectorXd>(s.active_total.data(), s.active_total.size());
+  Eigen::VectorXd r = f_int - f_probes - physics::contact_force(rows, lambda, static_cast<int>(f_int.size()));
+  for (int d = 0; d < r.size(); ++d)
+    if (corot.is_fixed_dof(d)) r[d] = 0.0;
+  o.residual = r.norm() / f_probes.norm();
+  o.contact_force = lambda.sum();
+  return o;
+}
+
+}  // namespace
+
+TEST(Coupling, CarriedContactsStayInTheNonlinearEquilibrium) {
+  const int frames = 30;  // the ramp (20 frames) and a third of the hold
+  const Outcome correct = run(engine::ContactCoupling::kCorrect, frames);
+  const Outcome carried = run(engine::ContactCoupling::kCarried, frames);
+  for (const auto& [name, o] : {std::pair{"correct", &correct}, std::pair{"carried", &carried}})
+    std::printf("%s: residual %.3e  contact force %.4f N  fallbacks %d  intersecting frames %d\n", name, o->residual,
+                o->contact_force, o->fallbacks, o->intersecting_frames);
+  for (const Outcome* o : {&correct, &carried}) {
+    EXPECT_EQ(o->failures, 0);
+    EXPECT_EQ(o->intersecting_frames, 0);
+    EXPECT_GT(o->contact_force, 0.0);  // the walls do meet
+  }
+  // The contacts carried into the solve leave the committed state nearer its equilibrium than a correction of
+  // the contact-free solution on the rest compliance (measured: 2.6 against 12 in Release; neither is converged:
+  // the corotational solve itself stops at its iteration bound once the wall folds).
+  EXPECT_LT(carried.residual, correct.residual);
+}

@@ -1,0 +1,131 @@
+// Contacts carried into the corotational equilibrium by an augmented Lagrangian (AugmentedContacts): the
+// method of multipliers on one contact row against the exact answer of the linear model at a load small enough
+// that the two models agree (the LCP of one row: lambda = (g - h_free) / C), and its input checks.
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "physics/corotational.hpp"
+#include "physics/fem.hpp"
+#include "physics/mesh.hpp"
+
+namespace lumen::physics {
+namespace {
+
+const LinearMaterial kMaterial{5000.0, 0.45};
+
+struct Pressed {
+  TetMesh mesh;
+  std::vector<int> fixed;
+  int node = -1;                // the pressed outer-wall node (the highest one at mid-length)
+  Eigen::VectorXd f;            // its load, 3n, newtons
+};
+
+// An 8 x 4 x 1 tube held at both ends, pressed down at the top of its middle ring by `force` newtons.
+Pressed pressed_tube(double force) {
+  HollowCylinderSpec s;
+  s.segments_around = 8, s.segments_along = 4, s.layers = 1, s.length = 0.04;
+  Pressed p;
+  p.mesh = make_hollow_cylinder(s);
+  p.fixed = p.mesh.node_set(kStartEnd);
+  p.fixed.insert(p.fixed.end(), p.mesh.node_set(kStopEnd).begin(), p.mesh.node_set(kStopEnd).end());
+  double best = -1.0;
+  for (int v = 0; v < p.mesh.n_nodes(); ++v)
+    if (std::abs(p.mesh.rest(v, 2) - 0.02) < 1e-9 && p.mesh.rest(v, 1) > best) best = p.mesh.rest(v, 1), p.node = v;
+  p.f = Eigen::VectorXd::Zero(3 * p.mesh.n_nodes());
+  p.f[3 * p.node + 1] = -force;
+  return p;
+}
+
+TEST(AugmentedContacts, MultipliersConvergeToTheExactContactForceOfOneRow) {
+  const Pressed p = pressed_tube(1e-7);  // displacements ~1e-6 of the wall: corotational = linear to ~1e-6
+  const CorotationalModel model(p.mesh, kMaterial, p.fixed);
+  const int dof = 3 * p.node + 1;
+  // Linear truth: the free displacement, the node's compliance C, the row u_y >= g = -d at half the free motion.
+  Eigen::VectorXd u_free, unit = Eigen::VectorXd::Zero(model.n_dofs()), c_col;
+  model.solver().solve(p.f, u_free);
+  unit[dof] = 1.0;
+  model.solver().solve(unit, c_col);
+  const double g = 0.5 * u_free[dof];
+  const double lambda_exact = (g - u_free[dof]) / c_col[dof];
+  ASSERT_GT(lambda_exact, 0.0);
+  // The method of multipliers: each solve carries lambda_k and returns lambda_eff = lambda_{k+1}.
+  AugmentedContacts contacts;
+  ContactRow row;
+  row.node[0] = p.node;
+  row.weight[0] = 1.0;
+  row.n = Eigen::Vector3d::UnitY();
+  row.g = g;
+  contacts.rows = {row};
+  contacts.lambda = Eigen::VectorXd::Zero(1);
+  contacts.stiffness = model.stiffness().coeff(dof, dof);
+  CorotationalOptions options;
+  options.tolerance = 1e-8;
+  options.max_iterations = 50;
+  CorotationalState state;
+  for (int k = 0; k < 40; ++k) {
+    const CorotationalResult r = solve_corotational(model, p.f, state, options, Eigen::VectorXd(), &contacts);
+    ASSERT_TRUE(r.converged) << "multiplier iteration " << k << " residual " << r.residual << " iterations " << r.iterations;
+    contacts.lambda = r.contact_lambda;
+  }
+  EXPECT_NEAR(contacts.lambda[0], lambda_exact, 1e-4 * lambda_exact);
+  EXPECT_NEAR(state.u[dof], g, 1e-4 * std::abs(g));
+  // Without the row the same solve moves the node by the free displacement (the row did the holding).
+  CorotationalState free_state;
+  ASSERT_TRUE(solve_corotational(model, p.f, free_state, options).converged);
+  EXPECT_NEAR(free_state.u[dof], u_free[dof], 1e-4 * std::abs(u_free[dof]));
+}
+
+TEST(AugmentedContacts, ARowThatDoesNotPushCarriesNoForce) {
+  const Pressed p = pressed_tube(1e-7);
+  const CorotationalModel model(p.mesh, kMaterial, p.fixed);
+  Eigen::VectorXd u_free;
+  model.solver().solve(p.f, u_free);
+  AugmentedContacts contacts;
+  ContactRow row;
+  row.node[0] = p.node;
+  row.weight[0] = 1.0;
+  row.n = Eigen::Vector3d::UnitY();
+  row.g = 2.0 * u_free[3 * p.node + 1];  // the free motion stays above the bound
+  contacts.rows = {row};
+  contacts.lambda = Eigen::VectorXd::Zero(1);
+  contacts.stiffness = 1.0;
+  CorotationalState state;
+  const CorotationalResult r = solve_corotational(model, p.f, state, {}, Eigen::VectorXd(), &contacts);
+  EXPECT_TRUE(r.converged);
+  EXPECT_EQ(r.contact_lambda[0], 0.0);
+}
+
+TEST(AugmentedContacts, BadContactsAreRefusedNamingTheField) {
+  const Pressed p = pressed_tube(1e-7);
+  const CorotationalModel model(p.mesh, kMaterial, p.fixed);
+  AugmentedContacts contacts;
+  ContactRow row;
+  row.node[0] = p.node;
+  row.weight[0] = 1.0;
+  row.n = Eigen::Vector3d::UnitY();
+  contacts.rows = {row};
+  contacts.lambda = Eigen::VectorXd::Zero(1);
+  auto message = [&]() -> std::string {
+    CorotationalState state;
+    try {
+      solve_corotational(model, p.f, state, {}, Eigen::VectorXd(), &contacts);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "";
+  };
+  contacts.stiffness = 0.0;
+  EXPECT_NE(message().find("contacts.stiffness"), std::string::npos) << message();
+  contacts.stiffness = 1.0;
+  contacts.lambda[0] = -1.0;
+  EXPECT_NE(message().find("contacts.lambda[0]"), std::string::npos) << message();
+  contacts.lambda[0] = 0.0;
+  contacts.rows[0].node[0] = p.mesh.n_nodes();
+  EXPECT_NE(message().find("contacts.rows[0].node[0]"), std::string::npos) << message();
+}
+
+}  // namespace
+}  // namespace lumen::physics
