@@ -233,7 +233,9 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
 
 void read_solver(const Reader& r, const json& m, SolverSpec& spec) {
   r.only_keys(m, "solver", {"type", "tolerance", "max_iterations", "rayleigh_mass", "rayleigh_stiffness",
-                            "background_factorisation"});
+                            "background_factorisation", "anderson_depth"});
+  if (m.contains("anderson_depth"))
+    spec.anderson_depth = r.integer_in(m.at("anderson_depth"), "solver.anderson_depth", 0, 20);
   if (m.contains("background_factorisation"))
     spec.background_factorisation = r.boolean(m.at("background_factorisation"), "solver.background_factorisation");
   if (m.contains("type")) spec.type = r.choice<SolverType>(m.at("type"), "solver.type", kSolverNames);

@@ -101,6 +101,8 @@ struct SolverSpec {
   // the solve that asks for it (false: slower frames, but a session gives the same result on every run; with the
   // background thread the iteration where it lands depends on timing).
   bool background_factorisation = true;
+  // Corotational quasi-static: past steps the fixed-point iterations mix (Anderson acceleration; 0 = off), 0..20.
+  int anderson_depth = 5;
   double rayleigh_mass = 0.0;         // dynamic: Rayleigh alpha (C = alpha M + beta K), 1/s, >= 0
   double rayleigh_stiffness = 0.0;    // dynamic: Rayleigh beta, s, >= 0
 };

@@ -188,6 +188,7 @@ physics::CorotationalOptions corotational_options(const Scene& scene) {
   o.extrapolate = true;
   o.rotate_preconditioner = scene.twist.enabled();
   o.refactor_cg_iterations = kRefactorCgIterations;
+  o.anderson_depth = scene.solver.anderson_depth;
   o.refactor_in_background = scene.solver.background_factorisation;
   return o;
 }

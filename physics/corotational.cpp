@@ -466,6 +466,7 @@ void validate_options(const CorotationalOptions& o) {
   if (o.max_iterations < 1) detail::fail_must(where, "max_iterations", "be >= 1", o.max_iterations);
   if (!(o.cg_tolerance > 0.0 && o.cg_tolerance < 1.0)) detail::fail_must(where, "cg_tolerance", "be in (0, 1)", o.cg_tolerance);
   if (o.max_cg_iterations < 1) detail::fail_must(where, "max_cg_iterations", "be >= 1", o.max_cg_iterations);
+  if (o.anderson_depth < 0) detail::fail_must(where, "anderson_depth", "be >= 0", o.anderson_depth);
   if (o.refactor_cg_iterations < 0) detail::fail_must(where, "refactor_cg_iterations", "be >= 0", o.refactor_cg_iterations);
 }
 
@@ -568,6 +569,54 @@ double extrapolate_start(CorotationalState& state, CorotationalResidual& residua
   return residual.evaluate();  // cached: no new evaluation
 }
 
+// Anderson acceleration (type II, Walker & Ni 2011) of the fixed-point map u -> u + du(u): the next iterate
+// u + du - (dX + dF) gamma, gamma minimising |du - dF gamma| over the last `depth` differences of iterates (dX)
+// and steps (dF). Depth 0: the plain step.
+class AndersonMixing {
+ public:
+  explicit AndersonMixing(int depth) : depth_(depth) {}
+  // Moves u by the mixed step; returns whether it mixed (false: u += du, the plain step).
+  bool mix(Eigen::VectorXd& u, const Eigen::VectorXd& du) {
+    if (depth_ == 0) {
+      u += du;
+      return false;
+    }
+    // The differences since the last iterate, the oldest dropped past the depth.
+    if (last_u_.size() == u.size()) {
+      dX_.push_back(u - last_u_);
+      dF_.push_back(du - last_du_);
+      if (static_cast<int>(dX_.size()) > depth_) dX_.erase(dX_.begin()), dF_.erase(dF_.begin());
+    }
+    last_u_ = u;
+    last_du_ = du;
+    if (dX_.empty()) {
+      u += du;
+      return false;
+    }
+    const int m = static_cast<int>(dF_.size());
+    Eigen::MatrixXd F(du.size(), m), X(du.size(), m);
+    for (int j = 0; j < m; ++j) F.col(j) = dF_[j], X.col(j) = dX_[j];
+    const Eigen::VectorXd gamma = F.colPivHouseholderQr().solve(du);
+    if (!gamma.allFinite()) {
+      u += du;
+      return false;
+    }
+    u += du - (X + F) * gamma;
+    return true;
+  }
+  // Forget the history (a mixed step that did not help).
+  void clear() {
+    dX_.clear();
+    dF_.clear();
+    last_u_.resize(0);
+  }
+
+ private:
+  int depth_;
+  std::vector<Eigen::VectorXd> dX_, dF_;  // per kept pair: iterate and step differences, 3n each
+  Eigen::VectorXd last_u_, last_du_;
+};
+
 // Carried contacts: a positive finite stiffness, one finite multiplier >= 0 per row, row nodes in the mesh.
 void validate_contacts(const char* where, const AugmentedContacts& c, int n_nodes) {
   if (!(c.stiffness > 0.0) || !std::isfinite(c.stiffness))
@@ -645,6 +694,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     result.residual = extrapolate_start(state, residual, fixed, u_before, result.residual);
 
   // Fixed-point iterations on the warped system.
+  AndersonMixing anderson(options.anderson_depth);
   Eigen::VectorXd du;
   std::vector<Eigen::Matrix3d> node_R;
   for (;;) {
@@ -669,8 +719,16 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     if (options.refactor_cg_iterations > 0 && pcg.iterations > options.refactor_cg_iterations && !state.pending.valid())
       start_factorisation(model, options, state, result);
     if (!du.allFinite()) break;  // keep the last finite iterate (not converged)
-    state.u += du;
+    // The step: the fixed-point step du, or its Anderson-mixed version when that lowers the residual.
+    const double before = result.residual;
+    const Eigen::VectorXd u_before_step = state.u;
+    const bool mixed = anderson.mix(state.u, du);
     result.residual = residual.evaluate();
+    if (mixed && !(result.residual < before)) {
+      state.u = u_before_step + du;
+      anderson.clear();
+      result.residual = residual.evaluate();
+    }
   }
   if (contacts) result.contact_lambda = residual.contact_lambda();
   return result;

@@ -154,6 +154,9 @@ struct CorotationalOptions {
   // iterations, K_w at the current rotations is factorised and preconditions the following solves (of this and
   // later frames) until the next refresh; 0 = always the rest factorisation. >= 0.
   int refactor_cg_iterations = 0;
+  // Anderson acceleration of the fixed-point iterations: the number of past steps mixed (0 = off), >= 0. A mixed
+  // step is kept only when it lowers the residual (otherwise the plain step, and the history restarts).
+  int anderson_depth = 0;
   // Factorise on a background thread (the solves go on with the previous preconditioner until it is ready)
   // rather than at once inside the solve.
   bool refactor_in_background = false;

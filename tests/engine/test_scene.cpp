@@ -270,6 +270,8 @@ TEST(Scene, SolverKeysAreValidated) {
   EXPECT_EQ(error_of(s), "dir/s.json: solver.tolerance: must be a number (value \"tight\")");
   s["solver"] = {{"max_iterations", 0}};
   EXPECT_EQ(error_of(s), "dir/s.json: solver.max_iterations: out of range [1, 10000] (value 0)");
+  s["solver"] = {{"anderson_depth", 21}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.anderson_depth: out of range [0, 20] (value 21)");
   s["solver"] = {{"max_iterations", 2.5}};
   EXPECT_EQ(error_of(s), "dir/s.json: solver.max_iterations: must be an integer (value 2.5)");
   s["solver"] = {{"type", "dynamic"}, {"rayleigh_mass", -0.1}};

@@ -1,8 +1,10 @@
-// Contacts carried into the corotational equilibrium by an augmented Lagrangian (AugmentedContacts): the
+// Contacts carried into the corotational equilibrium by an augmented Lagrangian (AugmentedContacts), and
+// Anderson mixing of its fixed-point iterations. The augmented Lagrangian: the
 // method of multipliers on one contact row against the exact answer of the linear model at a load small enough
 // that the two models agree (the LCP of one row: lambda = (g - h_free) / C), and its input checks.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -125,6 +127,44 @@ TEST(AugmentedContacts, BadContactsAreRefusedNamingTheField) {
   contacts.lambda[0] = 0.0;
   contacts.rows[0].node[0] = p.mesh.n_nodes();
   EXPECT_NE(message().find("contacts.rows[0].node[0]"), std::string::npos) << message();
+}
+
+}  // namespace
+}  // namespace lumen::physics
+
+namespace lumen::physics {
+namespace {
+
+// Anderson mixing changes the path of the fixed-point iterations, not where they end: a large pinch (the wall
+// deflects by about its thickness) solved to a tight tolerance with and without it.
+TEST(AndersonMixing, ReachesTheSameEquilibriumAsThePlainIteration) {
+  const Pressed p = pressed_tube(3e-2);
+  const CorotationalModel model(p.mesh, kMaterial, p.fixed);
+  CorotationalOptions plain;
+  plain.tolerance = 1e-9;
+  plain.max_iterations = 400;
+  CorotationalOptions mixed = plain;
+  mixed.anderson_depth = 5;
+  CorotationalState a, b;
+  const CorotationalResult ra = solve_corotational(model, p.f, a, plain);
+  const CorotationalResult rb = solve_corotational(model, p.f, b, mixed);
+  std::printf("plain: %d iterations, mixed: %d iterations, deflection %.3e m\n", ra.iterations, rb.iterations,
+              a.u[3 * p.node + 1]);
+  ASSERT_TRUE(ra.converged);
+  ASSERT_TRUE(rb.converged);
+  EXPECT_GT(-a.u[3 * p.node + 1], 1e-3);  // a large deflection: the rotations matter
+  EXPECT_LT((a.u - b.u).norm(), 1e-6 * a.u.norm());
+}
+
+TEST(AndersonMixing, ANegativeDepthIsRefused) {
+  CorotationalOptions o;
+  o.anderson_depth = -1;
+  try {
+    validate_options(o);
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("anderson_depth"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

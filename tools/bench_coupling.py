@@ -1,0 +1,108 @@
+#!/usr/bin/env python3
+"""How the contacts meet the corotational solve, side by side: two opposite tips (7 probe points each, 3 mm
+radius, the study's and the reference's tip) pinch the paper tube shut at `--force` newtons per tip (ramped over
+2 s, held 1 s, 120 frames), corotational quasi-static, self-collision on, headless with the exact intersection
+check; each variant of collision.coupling ("correct", "carried") and solver.anderson_depth (0, 5) run `--runs`
+times.
+
+usage: tools/bench_coupling.py [--runs 1] [--force 0.16] [--out docs/bench_coupling.csv] [--lumen build/lumen]
+
+Per variant (ms: median over runs of each run's statistic; counts: max over runs): physics median / p99 ms,
+collision + response median ms, frames whose nonlinear solve converged, nonlinear iterations over the session,
+fallback frames, frames with intersecting pairs, total contact force at the last frame (N), and the top tip's
+mean displacement at the last frame (mm, downwards).
+"""
+import argparse
+import json
+import math
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+
+from csv_out import write_csv
+
+TIP_RADIUS = 0.003   # metres: the tip disk's radius
+TIP_POINTS = 7       # its centre and 6 rim points
+PROBE_Z = 0.05       # metres: mid-length of the paper tube
+
+
+def tips_scene(force, coupling, anderson):
+    """The paper tube pinched by two 7-point tips, as a scene dict."""
+    root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+    with open(os.path.join(root, "scenes", "hard", "closure-5x-force.json")) as f:
+        s = json.load(f)
+    s["name"] = f"tips-{coupling}-aa{anderson}"
+    s["material"]["model"] = "corotational"
+    s["solver"] = {"background_factorisation": False, "anderson_depth": anderson}
+    s["collision"]["coupling"] = coupling
+    # Tip points at the mean radius of the faceted outer wall (20 facets), as tools/study/study.cpp places them.
+    r = 0.013 * 0.5 * (1.0 + math.cos(math.pi / s["mesh"]["segments_around"]))
+    probes = []
+    for side, sign in (("top", 1.0), ("bottom", -1.0)):
+        for k in range(TIP_POINTS):
+            arc = 0.0 if k == 0 else TIP_RADIUS * math.cos(math.pi / 3.0 * (k - 1))
+            dz = 0.0 if k == 0 else TIP_RADIUS * math.sin(math.pi / 3.0 * (k - 1))
+            a = math.pi / 2.0 - arc / r
+            f = [0.0, -sign * force / TIP_POINTS, 0.0]
+            probes.append({"name": f"{side}{k}", "point": [r * math.cos(a), sign * r * math.sin(a), PROBE_Z + dz],
+                           "track": [{"t": 0.0, "force": [0.0, 0.0, 0.0]}, {"t": 2.0, "force": f},
+                                     {"t": 3.0, "force": f}]})
+    s["probes"] = probes
+    return s
+
+
+def run_once(lumen, scene, tmp):
+    path = os.path.join(tmp, scene["name"] + ".json")
+    with open(path, "w") as f:
+        json.dump(scene, f)
+    out = os.path.join(tmp, scene["name"])
+    subprocess.run([lumen, "run", path, "--no-render", "--check", "--out", out], check=True, capture_output=True)
+    with open(os.path.join(out, "report.json")) as f:
+        return json.load(f)
+
+
+def summarise(coupling, anderson, force, runs):
+    per = [r["per_frame"] for r in runs]
+    med = lambda stage, st: round(statistics.median(r["stages"][stage][st] for r in runs), 3)
+    last = per[0][-1]
+    return {"coupling": coupling, "anderson_depth": anderson, "force_per_tip_n": force, "runs": len(runs),
+            "frames": len(per[0]), "physics_median_ms": med("physics", "median_ms"),
+            "physics_p99_ms": med("physics", "p99_ms"),
+            "collision_response_median_ms": round(statistics.median(
+                r["stages"]["collision"]["median_ms"] + r["stages"]["response"]["median_ms"] for r in runs), 3),
+            "converged_frames": min(sum(f["physics_converged"] for f in p) for p in per),
+            "nonlinear_iterations": max(sum(f["physics_iterations"] for f in p) for p in per),
+            "fallback_frames": max(r["fallback_frames"] for r in runs),
+            "frames_with_intersections": max(r["frames_with_intersections"] for r in runs),
+            "contact_force_end_n": round(last["contact_force_n"], 4),
+            "top_tip_displacement_end_mm": round(
+                -1000.0 * sum(p[1] for p in last["probe_displacement_m"][:TIP_POINTS]) / TIP_POINTS, 3)}
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--runs", type=int, default=1)
+    ap.add_argument("--force", type=float, default=0.16)
+    ap.add_argument("--out", default="docs/bench_coupling.csv")
+    ap.add_argument("--lumen", default="build/lumen")
+    a = ap.parse_args()
+    if a.runs < 1 or not a.force > 0.0:
+        sys.exit(f"bench_coupling: --runs must be >= 1 and --force > 0 (got {a.runs}, {a.force})")
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for coupling in ("correct", "carried"):
+            for anderson in (0, 5):
+                scene = tips_scene(a.force, coupling, anderson)
+                runs = [run_once(a.lumen, scene, tmp) for _ in range(a.runs)]
+                rows.append(summarise(coupling, anderson, a.force, runs))
+                print(rows[-1], flush=True)
+    header = [f"made by: tools/bench_coupling.py --runs {a.runs} --force {a.force} --out {a.out}",
+              f"machine: {platform.machine()}, {os.cpu_count()} cores; ms = median over runs; counts = max over runs"]
+    write_csv(a.out, header, rows)
+
+
+if __name__ == "__main__":
+    main()
