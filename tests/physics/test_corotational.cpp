@@ -450,6 +450,77 @@ TEST(CorotationalElements, InvertedTetGivesFiniteRestoringForceAndIsCounted) {
   }
 }
 
+// A tube of some 1500 tets under a large random displacement that inverts some
+// of its tets.
+struct InvertingTube {
+  TetMesh mesh = small_tube(16, 8, 2, 0.06);
+  CorotationalElements el{mesh, kMaterial};
+  Eigen::VectorXd u, p;
+  InvertingTube() {
+    std::mt19937 rng(21);
+    std::uniform_real_distribution<double> d(-1.5e-3, 1.5e-3);
+    u.resize(el.n_dofs());
+    p.resize(el.n_dofs());
+    for (int i = 0; i < el.n_dofs(); ++i) u[i] = d(rng), p[i] = d(rng);
+  }
+};
+
+// Largest entry of |a - b| relative to the largest entry of |b|.
+double relative_difference(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
+}
+
+// The kernels against a straightforward serial twin: per tet proper_rotation of the deformation
+// gradient, the stress formula, nodal forces scattered in tet order.
+TEST(CorotationalKernels, MatchSerialTwinWithInvertedTets) {
+  const InvertingTube tube;
+  const CorotationalElements& el = tube.el;
+  ASSERT_GE(el.n_tets(), 1000);
+  const LameParameters lame = lame_parameters(kMaterial);
+  std::vector<Eigen::Matrix3d> R_twin(el.n_tets());
+  Eigen::VectorXd f_twin = Eigen::VectorXd::Zero(el.n_dofs()), y_twin = f_twin;
+  int inverted_twin = 0;
+  for (int t = 0; t < el.n_tets(); ++t) {
+    const Eigen::Matrix3d F = el.deformation_gradient(tube.u, t);
+    bool inverted = false;
+    R_twin[t] = proper_rotation(F, &inverted);
+    inverted_twin += inverted ? 1 : 0;
+    const Eigen::Matrix3d& R = R_twin[t];
+    // Forces V R sigma(sym(R^T F) - I) grad^T on corners 1..3, minus their sum on corner 0; the same for the
+    // warped product with the displacement gradient of p.
+    Eigen::Matrix3d Dm;
+    for (int a = 0; a < 3; ++a)
+      Dm.col(a) = (tube.mesh.rest.row(el.tets()(t, a + 1)) - tube.mesh.rest.row(el.tets()(t, 0))).transpose();
+    const Eigen::Matrix3d G = Dm.inverse();
+    Eigen::Matrix3d Dp;
+    for (int a = 0; a < 3; ++a) Dp.col(a) = tube.p.segment<3>(3 * el.tets()(t, a + 1)) - tube.p.segment<3>(3 * el.tets()(t, 0));
+    const Eigen::Matrix3d strains[2] = {0.5 * (R.transpose() * F + F.transpose() * R) - Eigen::Matrix3d::Identity(),
+                                        0.5 * (R.transpose() * Dp * G + (Dp * G).transpose() * R)};
+    Eigen::VectorXd* out[2] = {&f_twin, &y_twin};
+    for (int k = 0; k < 2; ++k) {
+      const Eigen::Matrix3d sigma =
+          2.0 * lame.mu * strains[k] + lame.lambda * strains[k].trace() * Eigen::Matrix3d::Identity();
+      const Eigen::Matrix3d P = el.rest_volume(t) * R * sigma * G.transpose();
+      for (int a = 0; a < 3; ++a) out[k]->segment<3>(3 * el.tets()(t, a + 1)) += P.col(a);
+      out[k]->segment<3>(3 * el.tets()(t, 0)) -= P.rowwise().sum();
+    }
+  }
+  EXPECT_GT(inverted_twin, 0);
+  EXPECT_LT(inverted_twin, el.n_tets() / 2);
+  std::vector<Eigen::Matrix3d> R;
+  Eigen::VectorXd f, y;
+  EXPECT_EQ(el.rotations(tube.u, R), inverted_twin);
+  for (int t = 0; t < el.n_tets(); ++t) ASSERT_LE((R[t] - R_twin[t]).norm(), 1e-12) << "tet " << t;
+  el.elastic_forces(tube.u, R, f);
+  el.warped_product(R, tube.p, y);
+  EXPECT_LE(relative_difference(f, f_twin), 1e-12);
+  EXPECT_LE(relative_difference(y, y_twin), 1e-12);
+  // A non-finite deformation gradient (finite u that overflows) throws.
+  Eigen::VectorXd huge = tube.u;
+  huge[3 * el.tets()(el.n_tets() / 2, 1)] = 1e308;
+  EXPECT_THROW(el.rotations(huge, R), std::invalid_argument);
+}
+
 TEST(CorotationalSolve, ContinuesThroughInvertedElementsWithoutNaN) {
   const TetMesh m = small_tube(8, 4, 1, 0.04);
   // An inner node in the middle and the outer node beside it are prescribed to swap places (and pass each
