@@ -379,9 +379,8 @@ void commit_frame(const Model& model, State& state, const Eigen::VectorXd& u, bo
 
 // The contacts held at the end of the last frame as rows at the frame's start positions, with their whole
 // multipliers: the loads the corotational solve carries (collision.coupling "carried").
-const physics::AugmentedContacts& carry_contacts(const Model& model, State& state) {
-  physics::AugmentedContacts& c = state.carried;
-  c.rows.clear();
+physics::AugmentedContacts carry_contacts(const Model& model, const State& state) {
+  physics::AugmentedContacts c;
   for (const collision::Contact& contact : state.active)
     c.rows.push_back(contact_row(contact, model.mesh.rest, state.x, state.x, model.collision.gap));
   c.lambda = Eigen::Map<const Eigen::VectorXd>(state.active_total.data(), static_cast<Eigen::Index>(state.active_total.size()));
@@ -427,7 +426,11 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   clock = Clock::now();
   rec.twist_degrees = twist_degrees(model.twist, t1);
   physics::FrameLoads loads = frame_loads(model, state, input.all_fixed);
-  if (model.coupling_stiffness > 0.0 && !state.active.empty()) loads.contacts = &carry_contacts(model, state);
+  physics::AugmentedContacts carried;
+  if (model.coupling_stiffness > 0.0 && !state.active.empty()) {
+    carried = carry_contacts(model, state);
+    loads.contacts = &carried;
+  }
   Eigen::VectorXd u;
   const physics::Prediction pred =
       model.integrator->predict(loads, twist_coefficients(model, rec.twist_degrees), state.sim, state.work, u);
@@ -437,7 +440,6 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   rec.refactorisations = pred.refactorisations;
   rec.preconditioner_failures = pred.preconditioner_failures;
   state.carried_lambda = loads.contacts ? pred.contact_lambda : Eigen::VectorXd();
-  if (!loads.contacts) state.carried.rows.clear();
   rec.ms[kPhysics] = ms_since(clock);
 
   // Collide and respond: contacts constrain the solve on the contact compliance, CCD re-checks.

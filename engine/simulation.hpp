@@ -127,10 +127,9 @@ struct State {
   std::unique_ptr<physics::SurfaceCompliance> compliance;  // contact compliance on the colliding walls
   std::vector<collision::Contact> active;             // contacts held at the end of the last frame (warm start)
   std::vector<double> active_lambda;                  // their multipliers at the end of the last frame, newtons
-  // coupling "carried": each held contact's whole multiplier (the solve's and the response's), newtons; and this
-  // frame's carried rows (the held contacts at the frame's start) with the multipliers the solve gave them.
+  // coupling "carried": each held contact's whole multiplier (the solve's and the response's), newtons; and the
+  // force this frame's solve gave each of them (in the order of `active` at the frame's start), newtons.
   std::vector<double> active_total;
-  physics::AugmentedContacts carried;
   Eigen::VectorXd carried_lambda;
   Eigen::VectorXd last_correction;                    // last frame's contact correction u - u_free, 3n, metres
   int failures = 0;                                   // frames where the last good state was kept

@@ -305,7 +305,8 @@ class WarpedOperator : public Eigen::EigenBase<WarpedOperator> {
   }
 
  private:
-  // y += stiffness h_r (h_r . p) for every pushing contact row.
+  // y += stiffness h_r (h_r . p) for every pushing contact row (row_values and contact_force compute the same but
+  // check the rows on every call; this is the CG operator, and the rows were checked once by the solve).
   void add_contact_stiffness(const Eigen::VectorXd& p, Eigen::VectorXd& y) const {
     const AugmentedContacts& c = *system_.contacts;
     for (size_t r = 0; r < c.rows.size(); ++r) {

@@ -16,17 +16,14 @@
 #include "physics/contact_rows.hpp"
 #include "physics/corotational.hpp"
 #include "physics/integrator.hpp"
+#include "support/build.hpp"
 
 using namespace lumen;
 
 namespace {
 
-// Optimised builds run a finer tube; the Debug + sanitizer build a coarse one.
-#ifdef NDEBUG
-constexpr bool kOptimised = true;
-#else
-constexpr bool kOptimised = false;
-#endif
+// Optimised builds run a finer tube; the Debug + sanitizer build a coarse one (tests/support/build.hpp).
+using test::kOptimised;
 // The shipped full closure's force times this: the walls meet over a large area, then hold.
 constexpr double kForceFactor = 1.0;
 

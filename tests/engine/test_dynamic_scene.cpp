@@ -10,18 +10,15 @@
 #include "collision/self_collision.hpp"
 #include "engine/simulation.hpp"
 #include "physics/fem.hpp"
+#include "support/build.hpp"
 
 using namespace lumen;
 
 namespace {
 
 // Optimised builds run the paper's mesh where a test names it; the Debug + sanitizer build runs a coarse one
-// (the same checks, quickly).
-#ifdef NDEBUG
-constexpr bool kOptimised = true;
-#else
-constexpr bool kOptimised = false;
-#endif
+// (the same checks, quickly; tests/support/build.hpp).
+using test::kOptimised;
 
 // The scenes' material (pascals, dimensionless).
 constexpr double kYoungModulus = 5000.0, kPoissonRatio = 0.45;

@@ -12,6 +12,7 @@
 #include "collision/self_collision.hpp"
 #include "engine/simulation.hpp"
 #include "physics/fem.hpp"
+#include "support/build.hpp"
 
 using namespace lumen;
 
@@ -28,12 +29,9 @@ physics::LinearMaterial material_of(const engine::Model&) {
   return mat;
 }
 
-// Optimised builds run the finer meshes and every model; the Debug + sanitizer build coarse meshes (quickly).
-#ifdef NDEBUG
-constexpr bool kOptimised = true;
-#else
-constexpr bool kOptimised = false;
-#endif
+// Optimised builds run the finer meshes and every model; the Debug + sanitizer build coarse meshes (quickly;
+// tests/support/build.hpp).
+using test::kOptimised;
 
 struct TwistCase {
   std::string model = "linear";
