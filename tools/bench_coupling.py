@@ -19,7 +19,6 @@ import os
 import platform
 import statistics
 import subprocess
-import sys
 import tempfile
 
 from csv_out import write_csv
@@ -90,7 +89,7 @@ def main():
     ap.add_argument("--lumen", default="build/lumen")
     a = ap.parse_args()
     if a.runs < 1 or not a.force > 0.0:
-        sys.exit(f"bench_coupling: --runs must be >= 1 and --force > 0 (got {a.runs}, {a.force})")
+        ap.error(f"--runs must be >= 1 and --force > 0 (got --runs {a.runs}, --force {a.force})")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for coupling in ("correct", "carried"):
