@@ -103,6 +103,7 @@ nlohmann::json frame_json(const FrameRecord& r) {
   j["physics_iterations"] = r.physics_iterations;
   j["physics_converged"] = r.physics_converged;
   j["refactorisations"] = r.refactorisations;
+  j["tangent_fallbacks"] = r.tangent_fallbacks;
   j["preconditioner_failures"] = r.preconditioner_failures;
   j["twist_degrees"] = r.twist_degrees;
   j["kinetic_energy_j"] = r.kinetic_energy;

@@ -20,6 +20,7 @@ constexpr const char* kSolverNames[] = {"quasi_static", "dynamic"};
 constexpr const char* kResponseNames[] = {"paper", "constraint"};
 constexpr const char* kLcpSolverNames[] = {"active_set", "nncg"};
 constexpr const char* kCouplingNames[] = {"correct", "carried"};
+constexpr const char* kTangentNames[] = {"warped", "projected", "exact"};
 constexpr const char* kTwistEndNames[] = {"", "start", "stop"};
 constexpr const char* kNodeSetNames[] = {"ends", "start", "stop"};
 constexpr const char* kCameraNames[] = {"side", "diagonal", "endoscope"};
@@ -233,7 +234,8 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
 
 void read_solver(const Reader& r, const json& m, SolverSpec& spec) {
   r.only_keys(m, "solver", {"type", "tolerance", "max_iterations", "rayleigh_mass", "rayleigh_stiffness",
-                            "background_factorisation", "anderson_depth"});
+                            "background_factorisation", "anderson_depth", "tangent"});
+  if (m.contains("tangent")) spec.tangent = r.choice<Tangent>(m.at("tangent"), "solver.tangent", kTangentNames);
   if (m.contains("anderson_depth"))
     spec.anderson_depth = r.integer_in(m.at("anderson_depth"), "solver.anderson_depth", 0, 20);
   if (m.contains("background_factorisation"))
@@ -297,6 +299,12 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
     if (s.collision.response != ResponseKind::kConstraint)
       r.fail("collision.coupling", "\"carried\" needs collision.response \"constraint\" (got \"paper\")", at);
   }
+  // The tangent is the corotational quasi-static solve's (the other integrators have no choice of operator).
+  if (s.solver.tangent != Tangent::kWarped &&
+      (s.material.model != MaterialModel::kCorotational || s.solver.type != SolverType::kQuasiStatic))
+    r.fail("solver.tangent", std::string("needs material.model \"corotational\" and solver.type \"quasi_static\" (got \"") +
+           name_of(s.material.model) + "\", \"" + name_of(s.solver.type) + "\")",
+           &root.at("solver").at("tangent"));
   // Displacement-driven probes (held points) are solved on the linear quasi-static model's probe compliance.
   int held = -1;
   for (size_t i = 0; i < s.probes.size() && held < 0; ++i)
@@ -323,6 +331,7 @@ const char* name_of(SolverType v) { return kSolverNames[static_cast<int>(v)]; }
 const char* name_of(ResponseKind v) { return kResponseNames[static_cast<int>(v)]; }
 const char* name_of(LcpSolver v) { return kLcpSolverNames[static_cast<int>(v)]; }
 const char* name_of(ContactCoupling v) { return kCouplingNames[static_cast<int>(v)]; }
+const char* name_of(Tangent v) { return kTangentNames[static_cast<int>(v)]; }
 const char* name_of(TwistEnd v) { return kTwistEndNames[static_cast<int>(v)]; }
 const char* name_of(render::CameraPreset v) { return kCameraNames[static_cast<int>(v)]; }
 

@@ -45,6 +45,7 @@ enum class SolverType { kQuasiStatic, kDynamic };     // "quasi_static" | "dynam
 enum class ResponseKind { kPaper, kConstraint };      // "paper" | "constraint"
 enum class LcpSolver { kActiveSet, kNncg };           // "active_set" | "nncg"
 enum class ContactCoupling { kCorrect, kCarried };    // "correct" | "carried"
+enum class Tangent { kWarped, kProjected, kExact };  // "warped" | "projected" | "exact"
 enum class TwistEnd { kNone, kStart, kStop };         // (no twist) | "start" | "stop"
 enum class NodeSetName { kEnds, kStart, kStop };      // "ends" | "start" | "stop"
 // The JSON name of a choice (what the scene file says and report.json repeats).
@@ -54,6 +55,7 @@ const char* name_of(SolverType v);
 const char* name_of(ResponseKind v);
 const char* name_of(LcpSolver v);
 const char* name_of(ContactCoupling v);
+const char* name_of(Tangent v);
 const char* name_of(TwistEnd v);
 const char* name_of(render::CameraPreset v);
 
@@ -103,6 +105,8 @@ struct SolverSpec {
   bool background_factorisation = true;
   // Corotational quasi-static: past steps the fixed-point iterations mix (Anderson acceleration; 0 = off), 0..20.
   int anderson_depth = 5;
+  // Corotational quasi-static: the linear steps' operator (physics::CorotationalTangent).
+  Tangent tangent = Tangent::kWarped;
   double rayleigh_mass = 0.0;         // dynamic: Rayleigh alpha (C = alpha M + beta K), 1/s, >= 0
   double rayleigh_stiffness = 0.0;    // dynamic: Rayleigh beta, s, >= 0
 };

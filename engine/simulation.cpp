@@ -189,6 +189,10 @@ physics::CorotationalOptions corotational_options(const Scene& scene) {
   o.rotate_preconditioner = scene.twist.enabled();
   o.refactor_cg_iterations = kRefactorCgIterations;
   o.anderson_depth = scene.solver.anderson_depth;
+  constexpr physics::CorotationalTangent kTangents[] = {physics::CorotationalTangent::warped,
+                                                        physics::CorotationalTangent::projected,
+                                                        physics::CorotationalTangent::exact};
+  o.tangent = kTangents[static_cast<int>(scene.solver.tangent)];
   o.refactor_in_background = scene.solver.background_factorisation;
   return o;
 }
@@ -249,6 +253,7 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   m->material = scene.material.model;
   m->element = scene.element;
   m->solver = scene.solver.type;
+  m->tangent = scene.solver.tangent;
   m->collision = scene.collision;
   m->render = scene.render;
   m->twist = scene.twist;
@@ -438,6 +443,7 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   rec.physics_iterations = pred.iterations;
   rec.physics_converged = pred.converged;
   rec.refactorisations = pred.refactorisations;
+  rec.tangent_fallbacks = pred.tangent_fallbacks;
   rec.preconditioner_failures = pred.preconditioner_failures;
   state.carried_lambda = loads.contacts ? pred.contact_lambda : Eigen::VectorXd();
   rec.ms[kPhysics] = ms_since(clock);

@@ -54,6 +54,7 @@ struct Model {
   MaterialModel material = MaterialModel::kLinear; // elastic model
   ElementType element = ElementType::kTet4;        // element of the volume mesh
   SolverType solver = SolverType::kQuasiStatic;    // quasi-static or one implicit step per frame
+  Tangent tangent = Tangent::kWarped;              // corotational quasi-static: the linear steps' operator
   CollisionSpec collision;                         // self-collision and response parameters
   RenderSpec render;                               // image size, camera, force arrows
   TwistSpec twist;                                 // the twisted ring's angle track (prescribed motion below)

@@ -22,6 +22,13 @@ namespace {
 // Below this det F the polar rotation comes from the SVD instead of the Newton iteration.
 constexpr double kNewtonMinDet = 1e-2;
 constexpr int kNewtonMaxIterations = 20;
+// The twist modes' index pairs (i, j) of the signed singular values, and the least s_i + s_j at which a twist
+// eigenvalue (psi_i + psi_j) / (s_i + s_j) is evaluated (below it the tet has collapsed across the pair).
+constexpr int kTwistPairs[3][2] = {{1, 2}, {0, 2}, {0, 1}};
+constexpr double kMinTwistStretch = 1e-6;
+// Newton steps' backtracking line search: at most this many halvings, and Armijo's sufficient-decrease fraction.
+constexpr int kMaxBacktracks = 4;
+constexpr double kArmijo = 1e-4;
 
 // Index of the first non-finite entry of v, or -1.
 int first_non_finite(const Eigen::VectorXd& v) {
@@ -159,10 +166,7 @@ int CorotationalElements::rotations(const Eigen::VectorXd& u, std::vector<Eigen:
 
 void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R,
                                           Eigen::VectorXd& f) const {
-  if (static_cast<int>(R.size()) != n_tets()) {
-    detail::fail_must("CorotationalElements::elastic_forces", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
-         R.size());
-  }
+  check_rotations("CorotationalElements::elastic_forces", R);
   if (u.size() != n_dofs()) detail::fail_must("CorotationalElements::elastic_forces", "u.size()", "be 3n", u.size());
   f.setZero(n_dofs());
   for (int t = 0; t < n_tets(); ++t) {
@@ -178,10 +182,7 @@ void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::v
 
 void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p,
                                           Eigen::VectorXd& y) const {
-  if (static_cast<int>(R.size()) != n_tets()) {
-    detail::fail_must("CorotationalElements::warped_product", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
-         R.size());
-  }
+  check_rotations("CorotationalElements::warped_product", R);
   if (p.size() != n_dofs()) detail::fail_must("CorotationalElements::warped_product", "p.size()", "be 3n", p.size());
   y.setZero(n_dofs());
   for (int t = 0; t < n_tets(); ++t) {
@@ -197,28 +198,103 @@ void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R,
   }
 }
 
+void CorotationalElements::check_rotations(const char* where, const std::vector<Eigen::Matrix3d>& R) const {
+  if (static_cast<int>(R.size()) != n_tets())
+    detail::fail_must(where, "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(), R.size());
+}
+
+void CorotationalElements::shape_gradients(int t, Eigen::Vector3d (&g)[4]) const {
+  for (int a = 0; a < 3; ++a) g[a + 1] = grad_[t].row(a).transpose();
+  g[0] = -(g[1] + g[2] + g[3]);
+}
+
+Eigen::Matrix<double, 12, 12> CorotationalElements::warped_element(const Eigen::Matrix3d& R, int t) const {
+  // Shape-function gradients g_a (g_0 = -(g_1 + g_2 + g_3)), 1/metres.
+  Eigen::Vector3d g[4];
+  shape_gradients(t, g);
+  // Block (a, b) of K_e is V (lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I); warped: R K_ab R^T.
+  Eigen::Matrix<double, 12, 12> W;
+  for (int a = 0; a < 4; ++a)
+    for (int b = 0; b < 4; ++b) {
+      Eigen::Matrix3d Kab = lambda_ * g[a] * g[b].transpose() + mu_ * g[b] * g[a].transpose();
+      Kab.diagonal().array() += mu_ * g[a].dot(g[b]);
+      W.block<3, 3>(3 * a, 3 * b) = volume_[t] * (R * Kab * R.transpose());  // (as a 3 x 3: same round-off)
+    }
+  return W;
+}
+
 Eigen::SparseMatrix<double> CorotationalElements::warped_stiffness(const std::vector<Eigen::Matrix3d>& R) const {
-  if (static_cast<int>(R.size()) != n_tets()) {
-    detail::fail_must("CorotationalElements::warped_stiffness", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
-         R.size());
+  check_rotations("CorotationalElements::warped_stiffness", R);
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(static_cast<size_t>(n_tets()) * 144);
+  for (int t = 0; t < n_tets(); ++t) scatter_element_matrix(warped_element(R[t], t), tets_.row(t), triplets);
+  Eigen::SparseMatrix<double> K(n_dofs(), n_dofs());
+  K.setFromTriplets(triplets.begin(), triplets.end());
+  return K;
+}
+
+void CorotationalElements::twist_modes(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R,
+                                       bool project, std::vector<TwistModes>& modes) const {
+  check_rotations("CorotationalElements::twist_modes", R);
+  check_vector("CorotationalElements::twist_modes", "u", u, n_dofs());
+  modes.resize(n_tets());
+  for (int t = 0; t < n_tets(); ++t) {
+    // Signed singular values s and frame Q of the symmetric stretch R^T F = Q diag(s) Q^T; U = R Q.
+    Eigen::Matrix3d S = R[t].transpose() * gradient(u, t);
+    S = (0.5 * (S + S.transpose())).eval();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
+    eigen.computeDirect(S);
+    const Eigen::Vector3d& s = eigen.eigenvalues();
+    const Eigen::Matrix3d& Q = eigen.eigenvectors();
+    const Eigen::Matrix3d U = R[t] * Q;
+    // dpsi/ds_i of psi = mu sum (s_i - 1)^2 + lambda/2 (sum s_i - 3)^2.
+    const Eigen::Vector3d dpsi = (2.0 * mu_ * (s.array() - 1.0) + lambda_ * (s.sum() - 3.0)).matrix();
+    // Shape-function gradients g_a (g_0 = -(g_1 + g_2 + g_3)), 1/metres.
+    Eigen::Vector3d g[4];
+    shape_gradients(t, g);
+    // Per twist mode: its eigenvalue (clamped when projecting; left out where the tet has collapsed across the
+    // pair, s_i + s_j <= 0, and the mode is undefined) and the nodal gradient of dF : T_k.
+    TwistModes& m = modes[t];
+    for (int k = 0; k < 3; ++k) {
+      const int i = kTwistPairs[k][0], j = kTwistPairs[k][1];
+      const Eigen::Matrix3d T = (U.col(i) * Q.col(j).transpose() - U.col(j) * Q.col(i).transpose()) / std::sqrt(2.0);
+      const double sum = s[i] + s[j];
+      double eigenvalue = sum > kMinTwistStretch ? (dpsi[i] + dpsi[j]) / sum : 0.0;
+      if (project) eigenvalue = std::max(0.0, eigenvalue);
+      m.stiffness[k] = volume_[t] * eigenvalue;
+      for (int a = 0; a < 4; ++a) m.b.block<3, 1>(3 * a, k) = T * g[a];
+    }
   }
+}
+
+void CorotationalElements::tangent_product(const std::vector<Eigen::Matrix3d>& R, const std::vector<TwistModes>& modes,
+                                           const Eigen::VectorXd& p, Eigen::VectorXd& y) const {
+  if (static_cast<int>(modes.size()) != n_tets())
+    detail::fail_must("CorotationalElements::tangent_product", "modes.size()",
+                      ("be n_tets = " + std::to_string(n_tets())).c_str(), modes.size());
+  warped_product(R, p, y);
+  for (int t = 0; t < n_tets(); ++t) {
+    // y_e += b diag(stiffness) b^T p_e.
+    Eigen::Matrix<double, 12, 1> pe;
+    for (int a = 0; a < 4; ++a) pe.segment<3>(3 * a) = p.segment<3>(3 * tets_(t, a));
+    const Eigen::Vector3d c = (modes[t].b.transpose() * pe).cwiseProduct(modes[t].stiffness);
+    const Eigen::Matrix<double, 12, 1> ye = modes[t].b * c;
+    for (int a = 0; a < 4; ++a) y.segment<3>(3 * tets_(t, a)) += ye.segment<3>(3 * a);
+  }
+}
+
+Eigen::SparseMatrix<double> CorotationalElements::tangent_stiffness(const std::vector<Eigen::Matrix3d>& R,
+                                                                    const std::vector<TwistModes>& modes) const {
+  check_rotations("CorotationalElements::tangent_stiffness", R);
+  if (static_cast<int>(modes.size()) != n_tets())
+    detail::fail_must("CorotationalElements::tangent_stiffness", "modes.size()",
+                      ("be n_tets = " + std::to_string(n_tets())).c_str(), modes.size());
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(static_cast<size_t>(n_tets()) * 144);
   for (int t = 0; t < n_tets(); ++t) {
-    // Shape-function gradients g_a (g_0 = -(g_1 + g_2 + g_3)), 1/metres.
-    Eigen::Vector3d g[4];
-    for (int a = 0; a < 3; ++a) g[a + 1] = grad_[t].row(a).transpose();
-    g[0] = -(g[1] + g[2] + g[3]);
-    // Block (a, b) of K_e is V (lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I); warped: R K_ab R^T.
-    Eigen::Matrix<double, 12, 12> W;
-    for (int a = 0; a < 4; ++a)
-      for (int b = 0; b < 4; ++b) {
-        Eigen::Matrix3d Kab = lambda_ * g[a] * g[b].transpose() + mu_ * g[b] * g[a].transpose();
-        Kab.diagonal().array() += mu_ * g[a].dot(g[b]);
-        const Eigen::Matrix3d Wab = volume_[t] * (R[t] * Kab * R[t].transpose());  // (as a 3 x 3: same round-off)
-        W.block<3, 3>(3 * a, 3 * b) = Wab;
-      }
-    scatter_element_matrix(W, tets_.row(t), triplets);
+    const Eigen::Matrix<double, 12, 12> Kt =
+        warped_element(R[t], t) + modes[t].b * modes[t].stiffness.asDiagonal() * modes[t].b.transpose();
+    scatter_element_matrix(Kt, tets_.row(t), triplets);
   }
   Eigen::SparseMatrix<double> K(n_dofs(), n_dofs());
   K.setFromTriplets(triplets.begin(), triplets.end());
@@ -226,10 +302,7 @@ Eigen::SparseMatrix<double> CorotationalElements::warped_stiffness(const std::ve
 }
 
 double CorotationalElements::elastic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const {
-  if (static_cast<int>(R.size()) != n_tets()) {
-    detail::fail_must("CorotationalElements::elastic_energy", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
-         R.size());
-  }
+  check_rotations("CorotationalElements::elastic_energy", R);
   check_vector("CorotationalElements::elastic_energy", "u", u, n_dofs());
   double energy = 0.0;
   for (int t = 0; t < n_tets(); ++t) {
@@ -245,10 +318,7 @@ double CorotationalElements::elastic_energy(const Eigen::VectorXd& u, const std:
 
 void CorotationalElements::node_rotations(const std::vector<Eigen::Matrix3d>& R,
                                           std::vector<Eigen::Matrix3d>& node_R) const {
-  if (static_cast<int>(R.size()) != n_tets()) {
-    detail::fail_must("CorotationalElements::node_rotations", "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(),
-         R.size());
-  }
+  check_rotations("CorotationalElements::node_rotations", R);
   node_R.resize(n_nodes_);
   for (int v = 0; v < n_nodes_; ++v) {
     // Rotation nearest to the sum of the incident tets' rotations.
@@ -296,7 +366,10 @@ class WarpedOperator : public Eigen::EigenBase<WarpedOperator> {
       y.setZero(p.size());
       return;
     }
-    system_.elements->warped_product(*system_.rotations, p, y);
+    if (system_.twist)
+      system_.elements->tangent_product(*system_.rotations, *system_.twist, p, y);
+    else
+      system_.elements->warped_product(*system_.rotations, p, y);
     y *= system_.c_stiffness;
     if (system_.c_mass != 0.0) y.array() += system_.c_mass * system_.mass->array() * p.array();
     if (system_.contacts) add_contact_stiffness(p, y);
@@ -497,6 +570,13 @@ class CorotationalResidual {
     return rnorm_ == 0.0 ? 0.0 : (scale_ > 0.0 ? rnorm_ / scale_ : INFINITY);
   }
   const Eigen::VectorXd& r() const { return r_; }
+  // The potential Pi(u) whose negative gradient r is, at the last evaluation: elastic energy, minus the free
+  // loads' work, plus each carried row's augmented term max(0, lambda_eff)^2 / (2 stiffness); joules.
+  double potential() const {
+    double pi = el_.elastic_energy(state_.u, state_.rotations) - f_.dot(state_.u);
+    if (contacts_) pi += lambda_eff_.squaredNorm() / (2.0 * contacts_->stiffness);
+    return pi;
+  }
   double scale() const { return scale_; }  // force scale, newtons
   double norm() const { return rnorm_; }   // |r|, newtons
   const Eigen::VectorXd& contact_lambda() const { return lambda_eff_; }  // lambda_eff per carried row, newtons
@@ -652,18 +732,70 @@ void start_factorisation(const CorotationalModel& model, const CorotationalOptio
   ++result.refactorisations;
   const CorotationalElements& el = model.elements();
   const std::vector<int>& fixed_nodes = model.fixed_nodes();
-  auto factorise = [&el, &fixed_nodes](std::vector<Eigen::Matrix3d> R) {
-    return std::shared_ptr<const StaticSolver>(std::make_shared<StaticSolver>(el.warped_stiffness(R), fixed_nodes));
+  // The matrix: K_w, or with a tangent the projected tangent at the current iterate (positive semi-definite;
+  // the exact tangent may be indefinite, which a Cholesky factorisation cannot take).
+  std::vector<TwistModes> twist;
+  const bool tangent = options.tangent != CorotationalTangent::warped;
+  if (tangent) el.twist_modes(state.u, state.rotations, /*project=*/true, twist);
+  auto factorise = [&el, &fixed_nodes, tangent](std::vector<Eigen::Matrix3d> R, std::vector<TwistModes> modes) {
+    Eigen::SparseMatrix<double> K = tangent ? el.tangent_stiffness(R, modes) : el.warped_stiffness(R);
+    return std::shared_ptr<const StaticSolver>(std::make_shared<StaticSolver>(K, fixed_nodes));
   };
   if (options.refactor_in_background) {
-    state.pending = std::async(std::launch::async, factorise, state.rotations);
+    state.pending = std::async(std::launch::async, factorise, state.rotations, std::move(twist));
     return;
   }
   try {
-    state.preconditioner = factorise(state.rotations);
+    state.preconditioner = factorise(state.rotations, std::move(twist));
   } catch (const std::exception&) {
     ++result.refactor_failures;  // not positive definite or out of memory: keep the current preconditioner
   }
+}
+
+// The displacement and its cached evaluation (rotations, elastic forces), to go back to a step's start
+// without evaluating again.
+struct CachedEvaluation {
+  Eigen::VectorXd u, u_eval, f_int;
+  std::vector<Eigen::Matrix3d> rotations;
+  int n_inverted = 0;
+  void take(const CorotationalState& s) {
+    u = s.u, u_eval = s.u_eval, f_int = s.f_int, rotations = s.rotations, n_inverted = s.n_inverted;
+  }
+  void restore(CorotationalState& s) const {
+    s.u = u, s.u_eval = u_eval, s.f_int = f_int, s.rotations = rotations, s.n_inverted = n_inverted;
+  }
+};
+
+// Moves state.u by du or by its Anderson mix, whichever lowers the residual (the plain step when the mix does
+// not, and the history restarts); residual: the new one.
+void take_step(CorotationalState& state, CorotationalResidual& residual_at, AndersonMixing& anderson,
+               const Eigen::VectorXd& du, double before, double& residual) {
+  const Eigen::VectorXd u_start = state.u;
+  const bool mixed = anderson.mix(state.u, du);
+  residual = residual_at.evaluate();
+  if (mixed && !(residual < before)) {
+    state.u = u_start + du;
+    anderson.clear();
+    residual = residual_at.evaluate();
+  }
+}
+
+// Newton's step du on the exact tangent: kept when it descends the potential (du . r > 0, r = -grad Pi) and a
+// backtracking line search finds Armijo's sufficient decrease; returns whether state.u moved (residual: the new
+// one). Otherwise state.u is left at a trial point for the caller to restore.
+bool newton_step(CorotationalState& state, CorotationalResidual& residual_at, const Eigen::VectorXd& du,
+                 double& residual) {
+  const double slope = du.dot(residual_at.r());
+  if (!(slope > 0.0)) return false;
+  const double start = residual_at.potential();
+  const Eigen::VectorXd u0 = state.u;
+  double alpha = 1.0;
+  for (int k = 0; k <= kMaxBacktracks; ++k, alpha *= 0.5) {
+    state.u = u0 + alpha * du;
+    residual = residual_at.evaluate();
+    if (residual_at.potential() <= start - kArmijo * alpha * slope) return true;
+  }
+  return false;
 }
 
 }  // namespace
@@ -694,7 +826,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
   if (can_extrapolate && result.residual > options.tolerance)
     result.residual = extrapolate_start(state, residual, fixed, u_before, result.residual);
 
-  // Fixed-point iterations on the warped system.
+  // Fixed-point iterations on the warped system, or Newton's on the tangent.
   AndersonMixing anderson(options.anderson_depth);
   Eigen::VectorXd du;
   std::vector<Eigen::Matrix3d> node_R;
@@ -703,32 +835,55 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     result.converged = result.residual <= options.tolerance;
     if (result.converged || result.iterations >= options.max_iterations) break;
     adopt_finished_factorisation(state, result);
-    // Linear solve K_w du = r by PCG (the lagged K_w or the rest factorisation as preconditioner), no more
+    // The operator: K_w, or the tangent with the twist modes at u (trivial at rest, where K_t = K_w).
+    bool tangent_step = false;
+    if (options.tangent != CorotationalTangent::warped) {
+      el.twist_modes(state.u, state.rotations, options.tangent == CorotationalTangent::projected, state.twist);
+      for (const TwistModes& m : state.twist) tangent_step = tangent_step || !m.stiffness.isZero(0.0);
+    }
+    // Linear solve A du = r by PCG (the lagged factorisation or the rest one as preconditioner), no more
     // accurate than needed.
-    const StaticSolver& preconditioner = state.preconditioner ? *state.preconditioner : model.solver();
-    const bool rotate = options.rotate_preconditioner && !state.preconditioner;
-    const WarpedSystem system{&el, &state.rotations, nullptr, 0.0, 1.0, contacts, &residual.pushing()};
-    if (rotate) el.node_rotations(state.rotations, node_R);
-    const double cg_tol =
-        std::max(options.cg_tolerance, std::min(0.5, 0.5 * options.tolerance * residual.scale() / residual.norm()));
-    du.resize(0);
-    const PcgResult pcg = solve_pcg(system, preconditioner, residual.r(), du, cg_tol, options.max_cg_iterations,
-                                    rotate ? &node_R : nullptr);
+    auto linear_step = [&](bool with_tangent) {
+      const StaticSolver& preconditioner = state.preconditioner ? *state.preconditioner : model.solver();
+      const bool rotate = options.rotate_preconditioner && !state.preconditioner;
+      const WarpedSystem system{&el, &state.rotations, nullptr, 0.0, 1.0, contacts, &residual.pushing(),
+                                with_tangent ? &state.twist : nullptr};
+      if (rotate) el.node_rotations(state.rotations, node_R);
+      const double cg_tol =
+          std::max(options.cg_tolerance, std::min(0.5, 0.5 * options.tolerance * residual.scale() / residual.norm()));
+      du.resize(0);
+      const PcgResult pcg = solve_pcg(system, preconditioner, residual.r(), du, cg_tol, options.max_cg_iterations,
+                                      rotate ? &node_R : nullptr);
+      result.cg_iterations += pcg.iterations;
+      // A slow solve: factorise at these rotations for the solves to come (unless one is under way).
+      if (options.refactor_cg_iterations > 0 && pcg.iterations > options.refactor_cg_iterations &&
+          !state.pending.valid())
+        start_factorisation(model, options, state, result);
+    };
     ++result.iterations;
-    result.cg_iterations += pcg.iterations;
-    // A slow solve: factorise K_w at these rotations for the solves to come (unless one is under way).
-    if (options.refactor_cg_iterations > 0 && pcg.iterations > options.refactor_cg_iterations && !state.pending.valid())
-      start_factorisation(model, options, state, result);
-    if (!du.allFinite()) break;  // keep the last finite iterate (not converged)
-    // The step: the fixed-point step du, or its Anderson-mixed version when that lowers the residual.
     const double before = result.residual;
-    const Eigen::VectorXd u_before_step = state.u;
-    const bool mixed = anderson.mix(state.u, du);
-    result.residual = residual.evaluate();
-    if (mixed && !(result.residual < before)) {
-      state.u = u_before_step + du;
-      anderson.clear();
+    CachedEvaluation start;
+    start.take(state);
+    if (tangent_step && options.tangent == CorotationalTangent::exact) {
+      // Newton's step on the exact tangent, line-searched on the potential; where the tangent is indefinite and
+      // gives no descent, or the search finds no decrease, the warped step from the same start instead.
+      linear_step(true);
+      if (du.allFinite() && newton_step(state, residual, du, result.residual)) {
+        anderson.clear();
+        continue;
+      }
+      start.restore(state);
+      result.residual = residual.evaluate();  // (cached: the start's residual and contact forces again)
+      ++result.tangent_fallbacks;
+      tangent_step = false;
+    }
+    // The step: du, or its Anderson-mixed version when that lowers the residual.
+    linear_step(tangent_step);
+    if (du.allFinite()) take_step(state, residual, anderson, du, before, result.residual);
+    if (!du.allFinite()) {  // keep the last finite iterate (not converged)
+      start.restore(state);
       result.residual = residual.evaluate();
+      break;
     }
   }
   if (contacts) result.contact_lambda = residual.contact_lambda();

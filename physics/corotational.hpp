@@ -28,6 +28,17 @@ namespace lumen::physics {
 // inverted (optional) is set to det F <= 0.
 Eigen::Matrix3d proper_rotation(const Eigen::Matrix3d& F, bool* inverted = nullptr);
 
+// The part of the exact corotational tangent that the warped stiffness K_w leaves out (the derivative of the
+// rotations), for one tet: sum_k stiffness[k] b_k b_k^T, 12 x 12. In the signed singular frame F = U Sigma V^T
+// (U = R Q, V = Q, Q the eigenvectors of the symmetric R^T F) the energy's Hessian is K_w's except on the three
+// twist modes T_k = U (e_i e_j^T - e_j e_i^T) V^T / sqrt 2, pairs (i, j) = (1, 2), (0, 2), (0, 1), where K_w has 0
+// and the energy psi(Sigma) = mu sum (s_i - 1)^2 + lambda/2 (sum s_i - 3)^2 has (psi_i + psi_j) / (s_i + s_j)
+// (Smith et al. 2019, "Analytic eigensystems for isotropic distortion energies").
+struct TwistModes {
+  Eigen::Matrix<double, 12, 3> b;  // column k: the nodal gradient of dF : T_k (nodes of the tet, x y z each), 1/m
+  Eigen::Vector3d stiffness;       // rest volume times the twist eigenvalue, N m; >= 0 when projected
+};
+
 // Element data of a tet mesh for corotational kernels: per tet the rest shape-function gradients and volume.
 // Matrix-free: K_e is never stored; K_e p = V B^T D B p is evaluated from the gradients (the same element as
 // tet_stiffness). Keeps no reference to the mesh.
@@ -55,6 +66,17 @@ class CorotationalElements {
   void warped_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p, Eigen::VectorXd& y) const;
   // The same K_w assembled, 3n x 3n, N/m (the sparsity of the rest stiffness K; with R = identity it is K).
   Eigen::SparseMatrix<double> warped_stiffness(const std::vector<Eigen::Matrix3d>& R) const;
+  // Per-tet twist modes (n_tets) of the tangent at u with rotations R (as from rotations(u)). project: each
+  // negative twist eigenvalue (a tet compressed across the pair) is clamped to 0, so that the tangent
+  // K_w + sum_e twist_e is positive semi-definite per element; otherwise the exact Hessian of elastic_energy.
+  void twist_modes(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R, bool project,
+                   std::vector<TwistModes>& modes) const;
+  // y = K_t p = K_w p + sum_e b_e diag(stiffness_e) b_e^T p_e (p, y: 3n).
+  void tangent_product(const std::vector<Eigen::Matrix3d>& R, const std::vector<TwistModes>& modes,
+                       const Eigen::VectorXd& p, Eigen::VectorXd& y) const;
+  // The same K_t assembled, 3n x 3n, N/m (the sparsity of K).
+  Eigen::SparseMatrix<double> tangent_stiffness(const std::vector<Eigen::Matrix3d>& R,
+                                                const std::vector<TwistModes>& modes) const;
   // Elastic energy sum_e 1/2 (R_e^T x_e - X_e)^T K_e (R_e^T x_e - X_e), joules.
   double elastic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const;
   // Per-node rotations (n_nodes): the proper rotation of the sum of the rotations of the tets around each node
@@ -63,6 +85,10 @@ class CorotationalElements {
 
  private:
   Eigen::Matrix3d gradient(const Eigen::VectorXd& u, int t) const;  // deformation_gradient without checks
+  // Shape-function gradients g_a of tet t (g_0 = -(g_1 + g_2 + g_3)), 1/metres.
+  void shape_gradients(int t, Eigen::Vector3d (&g)[4]) const;
+  Eigen::Matrix<double, 12, 12> warped_element(const Eigen::Matrix3d& R, int t) const;  // R K_e R^T of tet t, N/m
+  void check_rotations(const char* where, const std::vector<Eigen::Matrix3d>& R) const;  // one per tet
   int n_nodes_ = 0;
   Tets tets_;                              // n_tets x 4 node ids
   std::vector<Eigen::Matrix3d> grad_;      // per tet: rows a = 0..2 are grad N_{a+1} (= Dm^-1), 1/metres
@@ -84,7 +110,8 @@ struct AugmentedContacts {
   double stiffness = 0.0;  // augmentation penalty, N/m, > 0
 };
 
-// A symmetric positive definite system A = c_mass diag(mass) + c_stiffness K_w(R) + P on the free DOFs of a
+// A symmetric positive definite system A = c_mass diag(mass) + c_stiffness K_w(R) + P (with twist modes:
+// c_stiffness K_t(R, twist) for K_w; projected modes keep it positive definite) on the free DOFs of a
 // preconditioner's factorisation, P = stiffness sum h_r h_r^T over the contact rows that push (none when
 // contacts is null). R = identity rotations gives the linear stiffness K.
 struct WarpedSystem {
@@ -95,6 +122,7 @@ struct WarpedSystem {
   double c_stiffness = 1.0;                                  // > 0
   const AugmentedContacts* contacts = nullptr;               // rows and penalty of P, or null
   const std::vector<char>* pushing = nullptr;                // per row of contacts: 1 when in P
+  const std::vector<TwistModes>* twist = nullptr;            // per tet: K_w becomes the tangent K_t, or null
 };
 
 // Result of one preconditioned CG solve.
@@ -135,6 +163,14 @@ class CorotationalModel {
   StaticSolver solver_;
 };
 
+// The operator of the corotational solves' linear steps: the warped stiffness K_w (stiffness warping; the
+// rotations' derivative left out, so the iterations are quasi-Newton and converge linearly), or the exact
+// tangent K_t = K_w + twist modes with each tet's negative twist eigenvalues clamped to 0 (Newton's method on a
+// positive semi-definite projection of the Hessian, as in projected Newton, Teran et al. 2005), or the exact one.
+// The exact tangent (indefinite where tets are compressed) is Newton's method itself, line-searched on the
+// potential; a step that does not descend, or finds no decrease, is replaced by the warped step from the same start.
+enum class CorotationalTangent { warped, projected, exact };
+
 // Iteration bounds and tolerances of the corotational solves (validated by each solve).
 struct CorotationalOptions {
   // Outer (fixed-point) convergence: |f_ext - f_int(u)| on the free DOFs <= tolerance * force scale, where the
@@ -157,6 +193,7 @@ struct CorotationalOptions {
   // Anderson acceleration of the fixed-point iterations: the number of past steps mixed (0 = off), >= 0. A mixed
   // step is kept only when it lowers the residual (otherwise the plain step, and the history restarts).
   int anderson_depth = 0;
+  CorotationalTangent tangent = CorotationalTangent::warped;  // the linear steps' operator (and lagged factor)
   // Factorise on a background thread (the solves go on with the previous preconditioner until it is ready)
   // rather than at once inside the solve.
   bool refactor_in_background = false;
@@ -170,6 +207,7 @@ void validate_options(const CorotationalOptions& options);
 struct CorotationalState {
   Eigen::VectorXd u;                          // displacements, 3n, metres (empty = 0)
   std::vector<Eigen::Matrix3d> rotations;     // per tet at u_eval
+  std::vector<TwistModes> twist;              // per tet at the last linear step (projected tangent only)
   Eigen::VectorXd f_int;                      // elastic forces at u_eval, 3n, newtons
   Eigen::VectorXd u_eval;                     // displacement of the cached evaluation, 3n, metres
   int n_inverted = 0;                         // inverted tets at u_eval
@@ -188,6 +226,7 @@ struct CorotationalResult {
   bool converged = false;  // residual <= tolerance
   int n_inverted = 0;      // tets with det F <= 0 at the returned u
   int refactorisations = 0;  // warped preconditioner factorisations this solve started
+  int tangent_fallbacks = 0; // exact tangent: steps taken with K_w instead (no descent or no decrease)
   int refactor_failures = 0; // factorisations that failed (not positive definite, out of memory): the solve went
                              // on with the previous preconditioner
   Eigen::VectorXd contact_lambda;  // with carried contacts: lambda_eff per row at the returned u, newtons

@@ -124,6 +124,7 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
   p.iterations = r.iterations;
   p.converged = r.converged;
   p.refactorisations = r.refactorisations;
+  p.tangent_fallbacks = r.tangent_fallbacks;
   p.preconditioner_failures = r.refactor_failures;
   p.contact_lambda = r.contact_lambda;
   return p;

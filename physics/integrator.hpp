@@ -61,6 +61,7 @@ struct Prediction {
   bool converged = true;  // the solve reached its tolerance
   bool finite = true;     // false: the solve failed (non-finite values); the frame must be rejected
   int refactorisations = 0;         // lagged factorisations started (corotational quasi-static)
+  int tangent_fallbacks = 0;        // exact-tangent steps redone with K_w (corotational quasi-static)
   int preconditioner_failures = 0;  // lagged factorisations that failed (the solve kept the previous one)
   Eigen::VectorXd contact_lambda;   // with FrameLoads::contacts: each carried row's force in the solve, newtons
 };

@@ -5,7 +5,8 @@ radius, the study's and the reference's tip) pinch the paper tube shut at `--for
 check; each variant of collision.coupling ("correct", "carried") and solver.anderson_depth (0, 5) run `--runs`
 times.
 
-usage: tools/bench_coupling.py [--runs 1] [--force 0.16] [--out docs/bench_coupling.csv] [--lumen build/lumen]
+usage: tools/bench_coupling.py [--runs 1] [--force 0.16] [--couplings correct,carried] [--anderson 0,5]
+       [--tangents warped] [--out docs/bench_coupling.csv] [--lumen build/lumen]
 
 Per variant (ms: median over runs of each run's statistic; counts: max over runs): physics median / p99 ms,
 collision + response median ms, frames whose nonlinear solve converged, nonlinear iterations over the session,
@@ -18,24 +19,24 @@ import math
 import os
 import platform
 import statistics
-import subprocess
 import tempfile
 
 from csv_out import write_csv
+from session_run import run_report
 
 TIP_RADIUS = 0.003   # metres: the tip disk's radius
 TIP_POINTS = 7       # its centre and 6 rim points
 PROBE_Z = 0.05       # metres: mid-length of the paper tube
 
 
-def tips_scene(force, coupling, anderson):
+def tips_scene(force, coupling, anderson, tangent):
     """The paper tube pinched by two 7-point tips, as a scene dict."""
     root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
     with open(os.path.join(root, "scenes", "hard", "closure-5x-force.json")) as f:
         s = json.load(f)
-    s["name"] = f"tips-{coupling}-aa{anderson}"
+    s["name"] = f"tips-{coupling}-aa{anderson}-{tangent}"
     s["material"]["model"] = "corotational"
-    s["solver"] = {"background_factorisation": False, "anderson_depth": anderson}
+    s["solver"] = {"background_factorisation": False, "anderson_depth": anderson, "tangent": tangent}
     s["collision"]["coupling"] = coupling
     # Tip points at the mean radius of the faceted outer wall (20 facets), as tools/study/study.cpp places them.
     r = 0.013 * 0.5 * (1.0 + math.cos(math.pi / s["mesh"]["segments_around"]))
@@ -53,21 +54,12 @@ def tips_scene(force, coupling, anderson):
     return s
 
 
-def run_once(lumen, scene, tmp):
-    path = os.path.join(tmp, scene["name"] + ".json")
-    with open(path, "w") as f:
-        json.dump(scene, f)
-    out = os.path.join(tmp, scene["name"])
-    subprocess.run([lumen, "run", path, "--no-render", "--check", "--out", out], check=True, capture_output=True)
-    with open(os.path.join(out, "report.json")) as f:
-        return json.load(f)
-
-
-def summarise(coupling, anderson, force, runs):
+def summarise(coupling, anderson, tangent, force, runs):
     per = [r["per_frame"] for r in runs]
     med = lambda stage, st: round(statistics.median(r["stages"][stage][st] for r in runs), 3)
     last = per[0][-1]
-    return {"coupling": coupling, "anderson_depth": anderson, "force_per_tip_n": force, "runs": len(runs),
+    return {"coupling": coupling, "anderson_depth": anderson, "tangent": tangent, "force_per_tip_n": force,
+            "runs": len(runs),
             "frames": len(per[0]), "physics_median_ms": med("physics", "median_ms"),
             "physics_p99_ms": med("physics", "p99_ms"),
             "collision_response_median_ms": round(statistics.median(
@@ -87,18 +79,28 @@ def main():
     ap.add_argument("--force", type=float, default=0.16)
     ap.add_argument("--out", default="docs/bench_coupling.csv")
     ap.add_argument("--lumen", default="build/lumen")
+    ap.add_argument("--couplings", default="correct,carried", help="comma-separated collision.coupling values")
+    ap.add_argument("--anderson", default="0,5", help="comma-separated solver.anderson_depth values")
+    ap.add_argument("--tangents", default="warped", help="comma-separated solver.tangent values")
     a = ap.parse_args()
     if a.runs < 1 or not a.force > 0.0:
         ap.error(f"--runs must be >= 1 and --force > 0 (got --runs {a.runs}, --force {a.force})")
+    couplings, tangents = a.couplings.split(","), a.tangents.split(",")
+    try:
+        andersons = [int(v) for v in a.anderson.split(",")]
+    except ValueError:
+        ap.error(f"--anderson must be comma-separated integers (got {a.anderson!r})")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
-        for coupling in ("correct", "carried"):
-            for anderson in (0, 5):
-                scene = tips_scene(a.force, coupling, anderson)
-                runs = [run_once(a.lumen, scene, tmp) for _ in range(a.runs)]
-                rows.append(summarise(coupling, anderson, a.force, runs))
-                print(rows[-1], flush=True)
-    header = [f"made by: tools/bench_coupling.py --runs {a.runs} --force {a.force} --out {a.out}",
+        for coupling in couplings:
+            for tangent in tangents:
+                for anderson in andersons:
+                    scene = tips_scene(a.force, coupling, anderson, tangent)
+                    runs = [run_report(a.lumen, scene, tmp) for _ in range(a.runs)]
+                    rows.append(summarise(coupling, anderson, tangent, a.force, runs))
+                    print(rows[-1], flush=True)
+    header = [f"made by: tools/bench_coupling.py --runs {a.runs} --force {a.force} --couplings {a.couplings} "
+              f"--anderson {a.anderson} --tangents {a.tangents} --out {a.out}",
               f"machine: {platform.machine()}, {os.cpu_count()} cores; ms = median over runs; counts = max over runs"]
     write_csv(a.out, header, rows)
 

@@ -12,6 +12,7 @@ using lumen::engine::parse_scene;
 using lumen::engine::ResponseKind;
 using lumen::engine::LcpSolver;
 using lumen::engine::SolverType;
+using lumen::engine::Tangent;
 using lumen::engine::TwistEnd;
 namespace render = lumen::render;
 using nlohmann::json;
@@ -242,6 +243,7 @@ TEST(Scene, SolverKeysWithDefaultsAndValues) {
   EXPECT_EQ(d.solver.rayleigh_mass, 0.0);
   EXPECT_EQ(d.solver.rayleigh_stiffness, 0.0);
   EXPECT_TRUE(d.solver.background_factorisation);
+  EXPECT_EQ(d.solver.tangent, Tangent::kWarped);
   json s = good_scene();
   s["solver"] = json::parse(R"({"type": "dynamic", "tolerance": 1e-6, "max_iterations": 7, "rayleigh_mass": 2.5,
                                 "rayleigh_stiffness": 0.01, "background_factorisation": false})");
@@ -252,6 +254,10 @@ TEST(Scene, SolverKeysWithDefaultsAndValues) {
   EXPECT_DOUBLE_EQ(scene.solver.rayleigh_mass, 2.5);
   EXPECT_DOUBLE_EQ(scene.solver.rayleigh_stiffness, 0.01);
   EXPECT_FALSE(scene.solver.background_factorisation);
+  json c = good_scene();
+  c["material"]["model"] = "corotational";
+  c["solver"] = {{"tangent", "exact"}};
+  EXPECT_EQ(parse_scene(c.dump(), "dir/s.json").solver.tangent, Tangent::kExact);
 }
 
 TEST(Scene, SolverKeysAreValidated) {
@@ -272,6 +278,11 @@ TEST(Scene, SolverKeysAreValidated) {
   EXPECT_EQ(error_of(s), "dir/s.json: solver.max_iterations: out of range [1, 10000] (value 0)");
   s["solver"] = {{"anderson_depth", 21}};
   EXPECT_EQ(error_of(s), "dir/s.json: solver.anderson_depth: out of range [0, 20] (value 21)");
+  s["solver"] = {{"tangent", "newton"}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.tangent: must be one of warped, projected, exact (value \"newton\")");
+  s["solver"] = {{"tangent", "exact"}};  // (good_scene is linear)
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.tangent: needs material.model \"corotational\" and solver.type "
+                         "\"quasi_static\" (got \"linear\", \"quasi_static\") (value \"exact\")");
   s["solver"] = {{"max_iterations", 2.5}};
   EXPECT_EQ(error_of(s), "dir/s.json: solver.max_iterations: must be an integer (value 2.5)");
   s["solver"] = {{"type", "dynamic"}, {"rayleigh_mass", -0.1}};
