@@ -24,49 +24,87 @@ ProbeSample TrackSource::sample(double t) {
   return s;
 }
 
-ReplaySource::ReplaySource(const std::string& csv_path) {
-  std::ifstream in(csv_path);
-  if (!in) throw InputError(csv_path + ": cannot read replay file");
-  static const char* names[7] = {"t", "x", "y", "z", "fx", "fy", "fz"};
+std::string value_text(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+std::string values_text(const double* v, int n) {
+  std::string s = "[";
+  for (int i = 0; i < n; ++i) s += (i ? ", " : "") + value_text(v[i]);
+  return s + "]";
+}
+
+namespace {
+// The columns' names joined as "t, x, y, z".
+std::string joined(const std::vector<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
+  return s;
+}
+
+// One field of a CSV line as a finite number; `where` is "FILE: line N: field ".
+double csv_number(const std::string& field, const std::string& where, const std::string& name) {
+  size_t used = 0;
+  const auto b = field.find_first_not_of(" \t"), e = field.find_last_not_of(" \t");
+  const std::string trimmed = b == std::string::npos ? "" : field.substr(b, e - b + 1);
+  double v = 0.0;
+  try {
+    v = std::stod(trimmed, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != trimmed.size()) throw InputError(where + name + ": not a number (value \"" + trimmed + "\")");
+  if (!std::isfinite(v)) throw InputError(where + name + ": must be finite (value " + trimmed + ")");
+  return v;
+}
+}  // namespace
+
+CsvTable read_csv_table(const std::string& path, const std::vector<std::string>& names, const std::string& what) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot read " + what);
+  const size_t n_fields = names.size();
+  const std::string expected = "expected " + std::to_string(n_fields) + " fields (" + joined(names) + ")";
+  CsvTable table;
+  table.columns = static_cast<int>(n_fields);
   std::string line;
   int lineno = 0;
-  // Parse each data line: 7 finite numbers, t strictly increasing.
+  // Parse each data line: one finite number per column, the first strictly increasing.
   while (std::getline(in, line)) {
     ++lineno;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.empty() || line[0] == '#') continue;
-    if (t_.empty() && (line[0] == 't' || line[0] == 'T')) continue;  // header
+    if (table.lines.empty() && (line[0] == 't' || line[0] == 'T')) continue;  // header
+    const std::string at_line = path + ": line " + std::to_string(lineno) + ": ";
     std::stringstream ss(line);
     std::string field;
-    double v[7];
-    int n = 0;
+    size_t n = 0;
     while (std::getline(ss, field, ',')) {
-      const std::string where = csv_path + ": line " + std::to_string(lineno) + ": field ";
-      if (n >= 7) throw InputError(where + std::to_string(n + 1) + ": expected 7 fields (t, x, y, z, fx, fy, fz)");
-      size_t used = 0;
-      const auto b = field.find_first_not_of(" \t"), e = field.find_last_not_of(" \t");
-      std::string trimmed = b == std::string::npos ? "" : field.substr(b, e - b + 1);
-      try {
-        v[n] = std::stod(trimmed, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used == 0 || used != trimmed.size())
-        throw InputError(where + names[n] + ": not a number (value \"" + trimmed + "\")");
-      if (!std::isfinite(v[n])) throw InputError(where + names[n] + ": must be finite (value " + trimmed + ")");
+      if (n >= n_fields) throw InputError(at_line + "field " + std::to_string(n + 1) + ": " + expected);
+      table.values.push_back(csv_number(field, at_line + "field ", names[n]));
       ++n;
     }
-    if (n != 7)
-      throw InputError(csv_path + ": line " + std::to_string(lineno) + ": expected 7 fields (t, x, y, z, fx, fy, fz), got " +
-                       std::to_string(n));
-    if (!t_.empty() && !(v[0] > t_.back()))
-      throw InputError(csv_path + ": line " + std::to_string(lineno) + ": field t: times must be strictly increasing (value " +
-                       std::to_string(v[0]) + ")");
+    if (n != n_fields) throw InputError(at_line + expected + ", got " + std::to_string(n));
+    const double t = table.values[table.values.size() - n_fields];
+    if (!table.lines.empty() && !(t > table.row(table.rows() - 1)[0]))
+      throw InputError(at_line + "field " + names[0] + ": times must be strictly increasing (value " +
+                       std::to_string(t) + ")");
+    table.lines.push_back(lineno);
+  }
+  if (table.lines.empty()) throw InputError(path + ": no samples (expected lines " + joined(names) + ")");
+  return table;
+}
+
+ReplaySource::ReplaySource(const std::string& csv_path) {
+  // Columns t, x, y, z, fx, fy, fz: seconds, metres, newtons.
+  const CsvTable table = read_csv_table(csv_path, {"t", "x", "y", "z", "fx", "fy", "fz"}, "replay file");
+  for (int i = 0; i < table.rows(); ++i) {
+    const double* v = table.row(i);
     t_.push_back(v[0]);
     x_.emplace_back(v[1], v[2], v[3]);
     f_.emplace_back(v[4], v[5], v[6]);
   }
-  if (t_.empty()) throw InputError(csv_path + ": no samples (expected lines t, x, y, z, fx, fy, fz)");
   for (const auto& x : x_) fixed_point_ = fixed_point_ && (x - x_.front()).norm() == 0.0;
 }
 

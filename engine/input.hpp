@@ -66,6 +66,24 @@ inline void bracket_times(const std::vector<double>& times, double t, size_t& i,
   bracket_by(times, t, [](double v) { return v; }, i, w);
 }
 
+// Numbers as input messages quote them: "0.003", and a list "[1, 0, 0, 0]" (6 significant digits).
+std::string value_text(double v);
+std::string values_text(const double* v, int n);
+
+// A numeric CSV file as read at the boundary: every data line has one finite number per named column, the first
+// column (a time) strictly increasing; lines starting with '#' and a first header line starting with 't' are
+// skipped.
+struct CsvTable {
+  int columns = 0;
+  std::vector<double> values;  // rows x columns, row-major
+  std::vector<int> lines;      // rows: the file's line number of each row (1-based, for messages)
+  int rows() const { return static_cast<int>(lines.size()); }
+  const double* row(int i) const { return &values[static_cast<size_t>(i) * static_cast<size_t>(columns)]; }
+};
+// Read one; `what` names the kind of file ("replay file"). Throws InputError naming the file, line, field
+// (the column's name) and value.
+CsvTable read_csv_table(const std::string& path, const std::vector<std::string>& names, const std::string& what);
+
 // Scripted key frames at a fixed point; linear interpolation between keys, held before the first / after the last.
 class TrackSource final : public InputSource {
  public:
