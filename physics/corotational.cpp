@@ -458,15 +458,18 @@ struct generic_product_impl<lumen::physics::WarpedOperator, Rhs, SparseShape, De
 
 namespace lumen::physics {
 
-PcgResult solve_pcg(const WarpedSystem& system, const StaticSolver& preconditioner, const Eigen::VectorXd& b,
-                    Eigen::VectorXd& x, double tolerance, int max_iterations,
-                    const std::vector<Eigen::Matrix3d>* node_rotations) {
-  const char* where = "solve_pcg";
+namespace {
+
+// Checks a PCG call (system, preconditioner, tolerances, b, and x unless empty: then x = 0) and returns the fixed
+// DOFs of the factorisation (per DOF, 1 = fixed); per-node rotation needs whole fixed nodes.
+std::vector<char> checked_pcg_call(const char* where, const WarpedSystem& system, const StaticSolver& preconditioner,
+                                   const Eigen::VectorXd& b, Eigen::VectorXd& x, double tolerance, int max_iterations,
+                                   const std::vector<Eigen::Matrix3d>* node_rotations) {
   // Validate the system, the tolerances and the vectors.
-  if (!system.elements) throw std::invalid_argument("solve_pcg: system.elements must not be null");
+  if (!system.elements) throw std::invalid_argument(std::string(where) + ": system.elements must not be null");
   const CorotationalElements& el = *system.elements;
   const int n = el.n_dofs();
-  if (!system.rotations) throw std::invalid_argument("solve_pcg: system.rotations must not be null");
+  if (!system.rotations) throw std::invalid_argument(std::string(where) + ": system.rotations must not be null");
   if (static_cast<int>(system.rotations->size()) != el.n_tets()) {
     detail::fail_must(where, "system.rotations->size()", ("be n_tets = " + std::to_string(el.n_tets())).c_str(),
          system.rotations->size());
@@ -476,11 +479,11 @@ PcgResult solve_pcg(const WarpedSystem& system, const StaticSolver& precondition
   if (!(system.c_mass >= 0.0) || !std::isfinite(system.c_mass))
     detail::fail_must(where, "system.c_mass", "be >= 0 and finite", system.c_mass);
   if (system.c_mass > 0.0) {
-    if (!system.mass) throw std::invalid_argument("solve_pcg: system.mass must not be null when c_mass > 0");
+    if (!system.mass) throw std::invalid_argument(std::string(where) + ": system.mass must not be null when c_mass > 0");
     check_vector(where, "system.mass", *system.mass, n);
   }
   if (system.contacts && (!system.pushing || system.pushing->size() != system.contacts->rows.size()))
-    throw std::invalid_argument("solve_pcg: system.pushing must hold one flag per contact row");
+    throw std::invalid_argument(std::string(where) + ": system.pushing must hold one flag per contact row");
   if (preconditioner.n_dofs() != n) {
     detail::fail_must(where, "preconditioner.n_dofs()", ("be " + std::to_string(n)).c_str(), preconditioner.n_dofs());
   }
@@ -501,6 +504,18 @@ PcgResult solve_pcg(const WarpedSystem& system, const StaticSolver& precondition
       if (fixed[3 * v] != fixed[3 * v + 1] || fixed[3 * v] != fixed[3 * v + 2])
         detail::fail_must(where, "node " + std::to_string(v), "be fixed in all or no components with node_rotations", v);
   }
+  return fixed;
+}
+
+}  // namespace
+
+PcgResult solve_pcg(const WarpedSystem& system, const StaticSolver& preconditioner, const Eigen::VectorXd& b,
+                    Eigen::VectorXd& x, double tolerance, int max_iterations,
+                    const std::vector<Eigen::Matrix3d>* node_rotations) {
+  const char* where = "solve_pcg";
+  std::vector<char> fixed =
+      checked_pcg_call(where, system, preconditioner, b, x, tolerance, max_iterations, node_rotations);
+  const int n = system.elements->n_dofs();
 
   // Right-hand side and guess restricted to the free DOFs.
   Eigen::VectorXd bf = b;
@@ -521,6 +536,54 @@ PcgResult solve_pcg(const WarpedSystem& system, const StaticSolver& precondition
   result.iterations = cg.preconditioner().applications();
   result.residual = cg.error();
   result.converged = cg.info() == Eigen::Success;
+  return result;
+}
+
+PcgResult solve_truncated_pcg(const WarpedSystem& system, const StaticSolver& preconditioner,
+                              const Eigen::VectorXd& b, Eigen::VectorXd& x, double tolerance, int max_iterations,
+                              const std::vector<Eigen::Matrix3d>* node_rotations) {
+  x.resize(0);
+  const std::vector<char> fixed = checked_pcg_call("solve_truncated_pcg", system, preconditioner, b, x, tolerance,
+                                                   max_iterations, node_rotations);
+  const WarpedOperator A(system, fixed);
+  CholmodPreconditioner M;
+  M.set(&preconditioner, node_rotations);
+  // Preconditioned CG from x = 0 (Steihaug 1983 without a trust region): while every search direction has positive
+  // curvature each iterate lowers the quadratic model, so b . x > 0; the first direction of non-positive curvature
+  // ends it (at the first iteration, the preconditioned residual M^-1 b itself is returned).
+  Eigen::VectorXd r = b, Ap;
+  for (Eigen::Index d = 0; d < r.size(); ++d)
+    if (fixed[d]) r[d] = 0.0;
+  const double b_norm = r.norm();
+  PcgResult result;
+  if (b_norm == 0.0) {
+    result.converged = true;
+    return result;
+  }
+  Eigen::VectorXd z = M.solve(r), p = z;
+  double rz = r.dot(z);
+  for (int k = 0; k < max_iterations; ++k) {
+    A.apply(p, Ap);
+    const double curvature = p.dot(Ap);
+    if (!(curvature > 0.0)) {
+      result.negative_curvature = true;
+      if (k == 0) x = p;
+      break;
+    }
+    const double alpha = rz / curvature;
+    x += alpha * p;
+    r -= alpha * Ap;
+    result.residual = r.norm() / b_norm;
+    if (result.residual <= tolerance) {
+      result.converged = true;
+      break;
+    }
+    z = M.solve(r);
+    const double rz_next = r.dot(z);
+    p = z + (rz_next / rz) * p;
+    rz = rz_next;
+  }
+  result.iterations = M.applications();
   return result;
 }
 
@@ -843,7 +906,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     }
     // Linear solve A du = r by PCG (the lagged factorisation or the rest one as preconditioner), no more
     // accurate than needed.
-    auto linear_step = [&](bool with_tangent) {
+    auto linear_step = [&](bool with_tangent, bool may_refactor) {
       const StaticSolver& preconditioner = state.preconditioner ? *state.preconditioner : model.solver();
       const bool rotate = options.rotate_preconditioner && !state.preconditioner;
       const WarpedSystem system{&el, &state.rotations, nullptr, 0.0, 1.0, contacts, &residual.pushing(),
@@ -852,11 +915,17 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
       const double cg_tol =
           std::max(options.cg_tolerance, std::min(0.5, 0.5 * options.tolerance * residual.scale() / residual.norm()));
       du.resize(0);
-      const PcgResult pcg = solve_pcg(system, preconditioner, residual.r(), du, cg_tol, options.max_cg_iterations,
-                                      rotate ? &node_R : nullptr);
+      // (Newton's steps on the exact tangent by truncated CG: a descent direction even where it is indefinite.)
+      const PcgResult pcg =
+          with_tangent && options.tangent == CorotationalTangent::exact
+              ? solve_truncated_pcg(system, preconditioner, residual.r(), du, cg_tol, options.max_cg_iterations,
+                                    rotate ? &node_R : nullptr)
+              : solve_pcg(system, preconditioner, residual.r(), du, cg_tol, options.max_cg_iterations,
+                          rotate ? &node_R : nullptr);
       result.cg_iterations += pcg.iterations;
+      result.truncated_steps += pcg.negative_curvature ? 1 : 0;
       // A slow solve: factorise at these rotations for the solves to come (unless one is under way).
-      if (options.refactor_cg_iterations > 0 && pcg.iterations > options.refactor_cg_iterations &&
+      if (may_refactor && options.refactor_cg_iterations > 0 && pcg.iterations > options.refactor_cg_iterations &&
           !state.pending.valid())
         start_factorisation(model, options, state, result);
     };
@@ -865,9 +934,11 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     CachedEvaluation start;
     start.take(state);
     if (tangent_step && options.tangent == CorotationalTangent::exact) {
-      // Newton's step on the exact tangent, line-searched on the potential; where the tangent is indefinite and
-      // gives no descent, or the search finds no decrease, the warped step from the same start instead.
-      linear_step(true);
+      // Newton's step on the exact tangent (truncated CG: a descent direction), line-searched on the potential;
+      // where the search finds no decrease, the warped step from the same start instead.
+      // (A slow solve on the indefinite tangent says little about the preconditioner: at most one factorisation
+      // a solve comes from these steps.)
+      linear_step(true, result.refactorisations == 0);
       if (du.allFinite() && newton_step(state, residual, du, result.residual)) {
         anderson.clear();
         continue;
@@ -878,7 +949,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
       tangent_step = false;
     }
     // The step: du, or its Anderson-mixed version when that lowers the residual.
-    linear_step(tangent_step);
+    linear_step(tangent_step, true);
     if (du.allFinite()) take_step(state, residual, anderson, du, before, result.residual);
     if (!du.allFinite()) {  // keep the last finite iterate (not converged)
       start.restore(state);

@@ -130,6 +130,7 @@ struct PcgResult {
   int iterations = 0;     // preconditioner applications (one CHOLMOD back-substitution each)
   double residual = 0.0;  // |b - A x| / |b| on the free DOFs (0 when b = 0)
   bool converged = false;
+  bool negative_curvature = false;  // solve_truncated_pcg: stopped at a direction with p . A p <= 0
 };
 
 // Solves A x = b on the free DOFs of `preconditioner` by Eigen's ConjugateGradient, preconditioned with the
@@ -139,6 +140,14 @@ struct PcgResult {
 PcgResult solve_pcg(const WarpedSystem& system, const StaticSolver& preconditioner, const Eigen::VectorXd& b,
                     Eigen::VectorXd& x, double tolerance, int max_iterations,
                     const std::vector<Eigen::Matrix3d>* node_rotations = nullptr);
+
+// The same system, possibly indefinite (the exact tangent), solved by CG from x = 0 up to the first direction of
+// non-positive curvature (truncated CG, Steihaug 1983): x is then a descent direction for the quadratic model
+// (b . x > 0), M^-1 b when the first direction already has non-positive curvature. x: out, 3n (fixed DOFs 0);
+// node_rotations as for solve_pcg.
+PcgResult solve_truncated_pcg(const WarpedSystem& system, const StaticSolver& preconditioner,
+                              const Eigen::VectorXd& b, Eigen::VectorXd& x, double tolerance, int max_iterations,
+                              const std::vector<Eigen::Matrix3d>* node_rotations = nullptr);
 
 // A corotational model: element data, fixed nodes and the rest-state factorisation used as preconditioner.
 // Built once; a solve reads it and writes a CorotationalState.
@@ -167,8 +176,9 @@ class CorotationalModel {
 // rotations' derivative left out, so the iterations are quasi-Newton and converge linearly), or the exact
 // tangent K_t = K_w + twist modes with each tet's negative twist eigenvalues clamped to 0 (Newton's method on a
 // positive semi-definite projection of the Hessian, as in projected Newton, Teran et al. 2005), or the exact one.
-// The exact tangent (indefinite where tets are compressed) is Newton's method itself, line-searched on the
-// potential; a step that does not descend, or finds no decrease, is replaced by the warped step from the same start.
+// The exact tangent (indefinite where tets are compressed) is Newton's method itself: its linear steps by CG
+// truncated at negative curvature (solve_truncated_pcg, a descent direction), line-searched on the potential; a
+// step that finds no decrease is replaced by the warped step from the same start.
 enum class CorotationalTangent { warped, projected, exact };
 
 // Iteration bounds and tolerances of the corotational solves (validated by each solve).
@@ -227,6 +237,7 @@ struct CorotationalResult {
   int n_inverted = 0;      // tets with det F <= 0 at the returned u
   int refactorisations = 0;  // warped preconditioner factorisations this solve started
   int tangent_fallbacks = 0; // exact tangent: steps taken with K_w instead (no descent or no decrease)
+  int truncated_steps = 0;   // exact tangent: Newton steps whose CG stopped at a direction of negative curvature
   int refactor_failures = 0; // factorisations that failed (not positive definite, out of memory): the solve went
                              // on with the previous preconditioner
   Eigen::VectorXd contact_lambda;  // with carried contacts: lambda_eff per row at the returned u, newtons

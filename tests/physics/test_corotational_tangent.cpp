@@ -152,5 +152,46 @@ TEST(CorotationalTangent, AssembledTangentMatchesTheProductAndIsTheLinearStiffne
   EXPECT_LT(Eigen::MatrixXd(K0 - Kw).cwiseAbs().maxCoeff(), 1e-12 * Eigen::MatrixXd(Kw).cwiseAbs().maxCoeff());
 }
 
+// Truncated CG against its twin, Eigen's CG (solve_pcg), on a positive definite system (K_w on a tube held at both
+// ends): the same solution. On the exact tangent of a tube crushed to half its width (indefinite), it stops at a
+// direction of negative curvature and returns a descent direction, b . x > 0.
+TEST(TruncatedPcg, MatchesCgWhenPositiveDefiniteAndStopsWithADescentDirectionWhenNot) {
+  const Deformed d = deformed_tube(Eigen::Vector3d(0.5, 0.5, 1.0), 0.0);
+  std::vector<int> ends = d.mesh.node_set(kStartEnd);
+  ends.insert(ends.end(), d.mesh.node_set(kStopEnd).begin(), d.mesh.node_set(kStopEnd).end());
+  const CorotationalModel model(d.mesh, kMaterial, ends);
+  const CorotationalElements& el = model.elements();
+  std::vector<Eigen::Matrix3d> R;
+  el.rotations(d.u, R);
+  std::vector<TwistModes> exact;
+  el.twist_modes(d.u, R, /*project=*/false, exact);
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(el.n_dofs(), -1.0, 2.0);
+  // Positive definite: K_w.
+  const WarpedSystem warped{&el, &R};
+  Eigen::VectorXd x_cg, x_truncated;
+  const PcgResult cg = solve_pcg(warped, model.solver(), b, x_cg, 1e-10, 500);
+  const PcgResult truncated = solve_truncated_pcg(warped, model.solver(), b, x_truncated, 1e-10, 500);
+  ASSERT_TRUE(cg.converged);
+  ASSERT_TRUE(truncated.converged);
+  EXPECT_FALSE(truncated.negative_curvature);
+  EXPECT_LT((x_truncated - x_cg).norm(), 1e-8 * x_cg.norm());
+  // Indefinite: the exact tangent of the crushed tube (a negative eigenvalue checked by the dense solver).
+  Eigen::MatrixXd Kt(el.tangent_stiffness(R, exact));
+  std::vector<int> free_dofs;
+  for (int dof = 0; dof < el.n_dofs(); ++dof)
+    if (!model.is_fixed_dof(dof)) free_dofs.push_back(dof);
+  Eigen::MatrixXd Kf(free_dofs.size(), free_dofs.size());
+  for (size_t i = 0; i < free_dofs.size(); ++i)
+    for (size_t j = 0; j < free_dofs.size(); ++j) Kf(i, j) = Kt(free_dofs[i], free_dofs[j]);
+  ASSERT_LT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Kf).eigenvalues().minCoeff(), 0.0);
+  const WarpedSystem tangent{&el, &R, nullptr, 0.0, 1.0, nullptr, nullptr, &exact};
+  Eigen::VectorXd x;
+  const PcgResult r = solve_truncated_pcg(tangent, model.solver(), b, x, 1e-10, 500);
+  std::printf("indefinite tangent: stopped after %d iterations, negative curvature %d, b.x / (|b||x|) %.3e\n",
+              r.iterations, r.negative_curvature, b.dot(x) / (b.norm() * x.norm()));
+  EXPECT_TRUE(r.negative_curvature);
+  EXPECT_GT(b.dot(x), 0.0);
+}
+
 }  // namespace
 }  // namespace lumen::physics
