@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <sstream>
+#include <string>
 
 #include "engine/scene.hpp"
 #include "engine/simulation.hpp"
@@ -35,11 +36,14 @@ nlohmann::json mesh_quality_json(const physics::MeshQuality& q) {
 }
 
 std::string mesh_quality_line(const Model& model, const physics::MeshQuality& q) {
+  // A tet10 model's quality is measured on the linear tets its elements split into (the mesh the state holds).
+  const std::string measured =
+      q.tets == model.n_elements ? std::string() : " (quality over their " + std::to_string(q.tets) + " linear sub-tets)";
   char line[320];
   std::snprintf(line, sizeof line,
-                "mesh: %d nodes, %d tets, %ld inner + %ld outer wall triangles; min dihedral angle %.1f deg (p1 %.1f, "
+                "mesh: %d nodes, %d tets%s, %ld inner + %ld outer wall triangles; min dihedral angle %.1f deg (p1 %.1f, "
                 "median %.1f), radius ratio %.3f (p1 %.3f, median %.3f), %d inverted or zero-volume tets",
-                model.mesh.n_nodes(), q.tets, static_cast<long>(model.inner_wall().rows()),
+                model.mesh.n_nodes(), model.n_elements, measured.c_str(), static_cast<long>(model.inner_wall().rows()),
                 static_cast<long>(model.outer_wall().rows()), q.min_dihedral_deg.min, q.min_dihedral_deg.p1,
                 q.min_dihedral_deg.p50, q.radius_ratio.min, q.radius_ratio.p1, q.radius_ratio.p50, q.degenerate_tets);
   return line;
