@@ -11,6 +11,7 @@
 
 #include "collision/ccd_queries.hpp"
 #include "collision/self_collision.hpp"
+#include "engine/mesh_check.hpp"
 #include "engine/scene.hpp"
 #include "engine/session.hpp"
 #include "engine/simulation.hpp"
@@ -70,7 +71,7 @@ void prepare_output_dir(const std::string& dir) {
 }
 
 int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool no_render, std::string video,
-            bool export_surface, bool check, const std::string& positions_path) {
+            bool export_surface, bool export_volume, bool check, const std::string& positions_path) {
   // Load and validate everything before touching the output folder.
   engine::Scene scene = engine::load_scene(scene_path);
   if (out_dir.empty()) out_dir = (fs::path("out") / scene.name).string();
@@ -79,6 +80,7 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
   if (video.empty() && scene.render.video && !no_render) video = (fs::path(out_dir) / "video.mp4").string();
   engine::Inputs inputs = engine::make_inputs(scene);  // reads (and refuses a bad) replay file now
   auto model = engine::compile_model(scene);
+  std::printf("%s\n", engine::mesh_quality_line(*model, physics::mesh_quality(model->mesh.rest, model->mesh.tets)).c_str());
   engine::SessionOptions opt;
   opt.frames = frames;
   prepare_output_dir(out_dir);
@@ -88,6 +90,9 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
   opt.write_frames = !no_render;
   opt.video_path = no_render ? std::string() : video;
   opt.export_surface = export_surface;
+  opt.export_volume = export_volume;
+  opt.volume_material.young_modulus = scene.material.young_modulus;
+  opt.volume_material.poisson_ratio = scene.material.poisson_ratio;
   opt.check = check;
   opt.progress = true;
   // Final node positions (for comparing runs to a baseline): the committed state after the last frame.
@@ -155,7 +160,7 @@ int main(int argc, char** argv) {
   std::string scene_path, out_dir, video, ccd_file, positions_path;
   int frames = -1, kdop = 0;
   bool classify = false;
-  bool no_render = false, export_surface = false, json = false, check = false;
+  bool no_render = false, export_surface = false, export_volume = false, json = false, check = false;
 
   CLI::App* run = app.add_subcommand("run", "run a scene: PNG frames, optional MP4, report.json");
   run->add_option("scene", scene_path, "scene file (JSON)")->required();
@@ -164,6 +169,8 @@ int main(int argc, char** argv) {
   run->add_flag("--no-render", no_render, "simulate only (no images, no video)");
   run->add_option("--video", video, "write an MP4 (H.264) to this file");
   run->add_flag("--export-surface", export_surface, "write the deformed inner wall per frame as OBJ (assimp)");
+  run->add_flag("--export-volume", export_volume,
+                "write the volume mesh per frame as VTK XML (DIR/volume/volume_000001.vtu ..., DIR/volume.pvd)");
   run->add_option("--positions", positions_path, "write the final node positions as CSV (x, y, z per node, metres)");
   run->add_flag("--check", check, "count intersecting inner-wall triangle pairs on every frame (exact predicates)");
 
@@ -194,7 +201,8 @@ int main(int argc, char** argv) {
   }
 
   try {
-    if (*run) return cmd_run(scene_path, out_dir, frames, no_render, video, export_surface, check, positions_path);
+    if (*run) return cmd_run(scene_path, out_dir, frames, no_render, video, export_surface, export_volume, check,
+                               positions_path);
     if (*bench) return cmd_bench(scene_path, frames, json, no_render, kdop, classify);
     if (*ccd) return cmd_ccd(ccd_file, json);
   } catch (const engine::InputError& e) {

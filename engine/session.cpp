@@ -7,11 +7,16 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include <assimp/Exporter.hpp>
 #include <assimp/scene.h>
 
 #include "collision/self_collision.hpp"
+#include "engine/mesh_check.hpp"
+#include "engine/volume_export.hpp"
 #include "render/renderer.hpp"
 
 namespace lumen::engine {
@@ -120,6 +125,8 @@ struct SessionOutputs {
   fs::path out;
   bool write_frames = false;
   bool export_surface = false;
+  bool export_volume = false;
+  std::vector<std::pair<double, std::string>> volume_frames;  // exported frames: time, file relative to `out`
   std::unique_ptr<render::Renderer> renderer;
   std::unique_ptr<render::FrameWriter> writer;
 };
@@ -138,6 +145,11 @@ SessionOutputs open_outputs(const Model& model, const SessionOptions& opt) {
   if (o.export_surface) {
     fs::create_directories(o.out / "surface");
     clear_stale(o.out / "surface", "inner_");
+  }
+  o.export_volume = opt.export_volume && !opt.out_dir.empty();
+  if (o.export_volume) {
+    fs::create_directories(o.out / "volume");
+    clear_stale(o.out / "volume", "volume_");
   }
   if (!opt.render) return o;
   o.renderer = std::make_unique<render::Renderer>(rs.width, rs.height, rs.camera, framing_of(model));
@@ -172,9 +184,14 @@ FrameRecord run_frame(const Model& model, const SessionOptions& opt, SessionOutp
   }
   rec.ms[kTotal] = std::chrono::duration<double, std::milli>(Clock::now() - frame_start).count() - check_ms;
   rec.over_budget = rec.ms[kTotal] > model.budget_ms;
-  // Surface export and observer (off the budget, like the writers).
+  // Surface and volume export and observer (off the budget, like the writers).
   if (io.export_surface)
     export_surface_obj(numbered(io.out / "surface", "inner_", rec.frame, ".obj"), state.x, model.inner_wall());
+  if (io.export_volume) {
+    const std::string file = numbered("volume", "volume_", rec.frame, ".vtu");
+    write_text_file((io.out / file).string(), volume_vtu(model, state, opt.volume_material));
+    io.volume_frames.emplace_back(rec.t, file);
+  }
   if (opt.on_frame) opt.on_frame(model, state, rec);
   return rec;
 }
@@ -217,6 +234,7 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
                {"tets", model.n_elements},
                {"inner_triangles", model.inner_wall().rows()},
                {"outer_triangles", model.outer_wall().rows()}};
+  r["mesh"].update(mesh_quality_json(physics::mesh_quality(model.mesh.rest, model.mesh.tets)));
   r["model"] = {{"material", name_of(model.material)}, {"element", name_of(model.element)},
                 {"solver", name_of(model.solver)},
                 {"tangent", name_of(model.tangent)}, {"compile_seconds", model.compile_seconds}};
@@ -281,6 +299,7 @@ SessionResult run_session(const Model& model, Inputs inputs, const SessionOption
   }
   if (tty) std::fprintf(stderr, "\n");
   if (io.writer) result.writer = io.writer->finish();
+  if (io.export_volume) write_text_file((io.out / "volume.pvd").string(), volume_pvd(io.volume_frames));
   result.report = session_report(model, opt, result, state);
   return result;
 }

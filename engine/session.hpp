@@ -8,6 +8,7 @@
 
 #include "engine/report.hpp"
 #include "engine/simulation.hpp"
+#include "physics/fem.hpp"
 #include "render/writers.hpp"
 
 namespace lumen::engine {
@@ -19,6 +20,8 @@ struct SessionOptions {
   bool write_frames = true;     // PNG frames (run)
   std::string video_path;       // MP4 path, empty for none
   bool export_surface = false;  // DIR/surface/inner_000001.obj ...
+  bool export_volume = false;   // DIR/volume/volume_000001.vtu ... and the collection DIR/volume.pvd
+  physics::LinearMaterial volume_material;  // the scene's elasticity, for the exported von Mises stress
   bool check = false;           // exact intersection count of the inner wall on every frame
   bool progress = false;        // progress line on stderr
   bool classify_overlaps = false;  // k-DOP study: split bounding-volume overlaps into with / without contact

@@ -1,6 +1,7 @@
 #include "engine/simulation.hpp"
 
 #include "collision/distance.hpp"
+#include "engine/mesh_check.hpp"
 #include "engine/response.hpp"
 #include "physics/quadratic.hpp"
 
@@ -74,13 +75,16 @@ namespace {
 
 // The volume mesh the engine works on, and (tet10) the quadratic mesh its stiffness comes from: the engine's mesh
 // is then the quadratic mesh's linear view (all nodes, each element split into 8 tets, walls split over the edge
-// nodes). n_elements: the volume elements.
+// nodes). n_elements: the volume elements. An inverted or zero-volume tet is refused (InputError naming it).
 physics::TetMesh build_mesh(const Scene& scene, std::unique_ptr<physics::QuadraticMesh>& quadratic, int& n_elements) {
   physics::TetMesh linear = physics::make_hollow_cylinder(scene.mesh);
   n_elements = static_cast<int>(linear.tets.rows());
+  require_valid_tets(linear, scene.path);
   if (scene.element != ElementType::kTet10) return linear;
   quadratic = std::make_unique<physics::QuadraticMesh>(physics::make_quadratic_cylinder(linear, scene.mesh));
-  return physics::linear_view(*quadratic);
+  physics::TetMesh view = physics::linear_view(*quadratic);
+  require_valid_tets(view, scene.path);
+  return view;
 }
 
 // Index of the mesh's surface of that name (the generator's names; a missing one is a bug, not a user's mistake).

@@ -87,13 +87,31 @@ Eigen::Matrix<double, 12, 12> tet_stiffness(const Mat43& X, const LinearMaterial
   return 0.5 * (K + K.transpose());
 }
 
+Eigen::Matrix3d tet_displacement_gradient(const Mat43& X, const Mat43& u) {
+  double volume;
+  const Mat43 g = shape_gradients(X, volume);
+  // H = sum_a u_a (x) grad N_a.
+  return u.transpose() * g;
+}
+
+Eigen::Matrix3d linear_stress(const Eigen::Matrix3d& eps, const LinearMaterial& m) {
+  const LameParameters lame = lame_parameters(m);
+  return lame.lambda * eps.trace() * Eigen::Matrix3d::Identity() + 2.0 * lame.mu * eps;
+}
+
+double von_mises(const Eigen::Matrix3d& sigma) {
+  // Deviator s = sigma - tr(sigma)/3 I; sigma_vm = sqrt(3/2 s:s).
+  const Eigen::Matrix3d s = sigma - sigma.trace() / 3.0 * Eigen::Matrix3d::Identity();
+  return std::sqrt(1.5 * s.squaredNorm());
+}
+
 double tet_energy(const Mat43& X, const Mat43& u, const LinearMaterial& m) {
   const LameParameters lame = lame_parameters(m);
   const double lambda = lame.lambda, mu = lame.mu;
   double volume;
-  const Mat43 g = shape_gradients(X, volume);
-  // Displacement gradient H = sum_a u_a (x) grad N_a, small strain eps = sym(H).
-  const Eigen::Matrix3d H = u.transpose() * g;
+  shape_gradients(X, volume);
+  // Small strain eps = sym(H) of the displacement gradient.
+  const Eigen::Matrix3d H = tet_displacement_gradient(X, u);
   const Eigen::Matrix3d eps = 0.5 * (H + H.transpose());
   // Energy density mu eps:eps + lambda/2 tr(eps)^2, times the volume.
   const double tr = eps.trace();

@@ -23,6 +23,10 @@ Eigen::Matrix<double, 12, 12> tet_stiffness(const Eigen::Matrix<double, 4, 3>& X
 // Elastic energy of a linear tet for displacements u (4 x 3), joules (for finite-difference checks).
 double tet_energy(const Eigen::Matrix<double, 4, 3>& X, const Eigen::Matrix<double, 4, 3>& u, const LinearMaterial& m);
 
+// Displacement gradient H = du/dX of a linear tet with rest vertices X and displacements u (4 x 3 each, metres),
+// dimensionless; its small strain is sym(H). Throws std::invalid_argument for a degenerate or inverted rest tet.
+Eigen::Matrix3d tet_displacement_gradient(const Eigen::Matrix<double, 4, 3>& X, const Eigen::Matrix<double, 4, 3>& u);
+
 // Throws std::invalid_argument unless E > 0 and finite and nu in (-1, 0.5).
 void validate_material(const LinearMaterial& m);
 
@@ -33,6 +37,11 @@ struct LameParameters {
 };
 // The Lame parameters of a material; throws as validate_material.
 LameParameters lame_parameters(const LinearMaterial& m);
+
+// Isotropic linear stress of a small strain eps: lambda tr(eps) I + 2 mu eps, pascals.
+Eigen::Matrix3d linear_stress(const Eigen::Matrix3d& eps, const LinearMaterial& m);
+// Von Mises equivalent stress of a stress tensor: sqrt(3/2 s:s), s its deviator, pascals.
+double von_mises(const Eigen::Matrix3d& sigma);
 
 // Appends the entries of an element matrix Ke (3k x 3k, DOF order (x0, y0, z0, x1, ..., z_{k-1})) of the element
 // with mesh nodes nodes(0..k-1) to triplets of the global 3n x 3n matrix: Ke(3a + i, 3b + j) at

@@ -1,0 +1,52 @@
+#include "engine/mesh_check.hpp"
+
+#include <cstdio>
+#include <sstream>
+#include <string>
+
+#include "engine/scene.hpp"
+#include "engine/simulation.hpp"
+
+namespace lumen::engine {
+
+namespace {
+
+nlohmann::json percentiles_json(const physics::QualityPercentiles& p) {
+  return {{"min", p.min}, {"p1", p.p1}, {"p50", p.p50}};
+}
+
+}  // namespace
+
+void require_valid_tets(const physics::TetMesh& mesh, const std::string& file) {
+  const physics::MeshQuality q = physics::mesh_quality(mesh.rest, mesh.tets);
+  if (q.first_degenerate < 0) return;
+  std::ostringstream msg;
+  msg << file << ": mesh: tet " << q.first_degenerate << " (of " << q.tets
+      << ") is inverted or has zero volume (signed volume "
+      << physics::tet_volume(mesh.rest, mesh.tets, q.first_degenerate) << " m^3); " << q.degenerate_tets
+      << " such tets";
+  throw InputError(msg.str());
+}
+
+nlohmann::json mesh_quality_json(const physics::MeshQuality& q) {
+  return {{"quality_tets", q.tets},
+          {"min_dihedral_deg", percentiles_json(q.min_dihedral_deg)},
+          {"radius_ratio", percentiles_json(q.radius_ratio)},
+          {"degenerate_tets", q.degenerate_tets}};
+}
+
+std::string mesh_quality_line(const Model& model, const physics::MeshQuality& q) {
+  // A tet10 model's quality is measured on the linear tets its elements split into (the mesh the state holds).
+  const std::string measured =
+      q.tets == model.n_elements ? std::string() : " (quality over their " + std::to_string(q.tets) + " linear sub-tets)";
+  char line[320];
+  std::snprintf(line, sizeof line,
+                "mesh: %d nodes, %d tets%s, %ld inner + %ld outer wall triangles; min dihedral angle %.1f deg (p1 %.1f, "
+                "median %.1f), radius ratio %.3f (p1 %.3f, median %.3f), %d inverted or zero-volume tets",
+                model.mesh.n_nodes(), model.n_elements, measured.c_str(), static_cast<long>(model.inner_wall().rows()),
+                static_cast<long>(model.outer_wall().rows()), q.min_dihedral_deg.min, q.min_dihedral_deg.p1,
+                q.min_dihedral_deg.p50, q.radius_ratio.min, q.radius_ratio.p1, q.radius_ratio.p50, q.degenerate_tets);
+  return line;
+}
+
+}  // namespace lumen::engine
