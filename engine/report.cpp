@@ -104,6 +104,8 @@ nlohmann::json frame_json(const FrameRecord& r) {
   j["physics_converged"] = r.physics_converged;
   j["refactorisations"] = r.refactorisations;
   j["tangent_fallbacks"] = r.tangent_fallbacks;
+  j["cg_iterations"] = r.cg_iterations;
+  j["truncated_steps"] = r.truncated_steps;
   j["preconditioner_failures"] = r.preconditioner_failures;
   j["twist_degrees"] = r.twist_degrees;
   j["kinetic_energy_j"] = r.kinetic_energy;

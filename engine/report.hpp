@@ -33,6 +33,8 @@ struct FrameRecord {
   bool physics_converged = true;      // corotational or dynamic: the solve reached its tolerance
   int refactorisations = 0;           // corotational: lagged warped factorisations started this frame
   int tangent_fallbacks = 0;          // corotational, solver.tangent exact: steps redone with K_w this frame
+  int cg_iterations = 0;              // corotational quasi-static: PCG iterations this frame
+  int truncated_steps = 0;            // corotational, solver.tangent exact: CG stopped at negative curvature
   int preconditioner_failures = 0;    // corotational: lagged factorisations that failed (previous one kept)
   double twist_degrees = 0.0;         // angle of the twisted end ring at the end of the frame (0 without twist)
   double kinetic_energy = 0.0;        // dynamic: 1/2 v^T M v at the end of the frame, joules (0 quasi-static)

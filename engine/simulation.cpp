@@ -448,6 +448,8 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   rec.physics_converged = pred.converged;
   rec.refactorisations = pred.refactorisations;
   rec.tangent_fallbacks = pred.tangent_fallbacks;
+  rec.cg_iterations = pred.cg_iterations;
+  rec.truncated_steps = pred.truncated_steps;
   rec.preconditioner_failures = pred.preconditioner_failures;
   state.carried_lambda = loads.contacts ? pred.contact_lambda : Eigen::VectorXd();
   rec.ms[kPhysics] = ms_since(clock);

@@ -125,6 +125,8 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
   p.converged = r.converged;
   p.refactorisations = r.refactorisations;
   p.tangent_fallbacks = r.tangent_fallbacks;
+  p.cg_iterations = r.cg_iterations;
+  p.truncated_steps = r.truncated_steps;
   p.preconditioner_failures = r.refactor_failures;
   p.contact_lambda = r.contact_lambda;
   return p;

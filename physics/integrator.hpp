@@ -62,6 +62,8 @@ struct Prediction {
   bool finite = true;     // false: the solve failed (non-finite values); the frame must be rejected
   int refactorisations = 0;         // lagged factorisations started (corotational quasi-static)
   int tangent_fallbacks = 0;        // exact-tangent steps redone with K_w (corotational quasi-static)
+  int cg_iterations = 0;            // PCG iterations over the frame's linear solves (corotational quasi-static)
+  int truncated_steps = 0;          // exact-tangent steps whose CG stopped at negative curvature
   int preconditioner_failures = 0;  // lagged factorisations that failed (the solve kept the previous one)
   Eigen::VectorXd contact_lambda;   // with FrameLoads::contacts: each carried row's force in the solve, newtons
 };

@@ -7,9 +7,10 @@ usage: tools/bench_tangent.py [--runs 1] [--tangents warped,projected,exact] [--
        [--out docs/bench_tangent.csv] [--lumen build/lumen]
 
 Per scene and tangent (ms: median over runs of each run's statistic; counts: max over runs): physics median /
-p99 ms, whole-frame median / p99 ms (no render), frames whose nonlinear solve converged, nonlinear iterations
-over the session, exact-tangent fallbacks, contact-response fallback frames, frames with intersecting pairs,
-and the largest node displacement at the last frame (mm).
+p99 ms, whole-frame median / p99 ms (no render), frames whose nonlinear solve converged, nonlinear iterations,
+exact-tangent fallbacks, PCG iterations and truncated (negative-curvature) CG solves over the session,
+contact-response fallback frames, frames with intersecting pairs, and the largest node displacement at the last
+frame (mm). (docs/bench_tangent.csv predates the cg_iterations and truncated_steps columns.)
 """
 import argparse
 import json
@@ -49,6 +50,8 @@ def summarise(path, tangent, runs):
             "converged_frames": min(sum(f["physics_converged"] for f in p) for p in per),
             "nonlinear_iterations": max(sum(f["physics_iterations"] for f in p) for p in per),
             "tangent_fallbacks": max(sum(f["tangent_fallbacks"] for f in p) for p in per),
+            "cg_iterations": max(sum(f["cg_iterations"] for f in p) for p in per),
+            "truncated_steps": max(sum(f["truncated_steps"] for f in p) for p in per),
             "fallback_frames": max(r["fallback_frames"] for r in runs),
             "frames_with_intersections": max(r["frames_with_intersections"] for r in runs),
             "max_displacement_end_mm": round(1000.0 * per[0][-1]["max_displacement_m"], 4)}
