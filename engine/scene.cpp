@@ -290,21 +290,21 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   if (s.collision.lcp == LcpSolver::kNncg && s.collision.response != ResponseKind::kConstraint)
     r.fail("collision.lcp", "\"nncg\" needs collision.response \"constraint\" (got \"paper\")",
            &root.at("collision").at("lcp"));
+  // Keys of the corotational quasi-static solve only: the message after the key's own words.
+  const bool corotational_quasi_static =
+      s.material.model == MaterialModel::kCorotational && s.solver.type == SolverType::kQuasiStatic;
+  const std::string needs_corotational = std::string("needs material.model \"corotational\" and solver.type "
+      "\"quasi_static\" (got \"") + name_of(s.material.model) + "\", \"" + name_of(s.solver.type) + "\")";
   // Carried contacts enter the corotational quasi-static solve's equilibrium, with the constraint response.
   if (s.collision.coupling == ContactCoupling::kCarried) {
     const json* at = &root.at("collision").at("coupling");
-    if (s.material.model != MaterialModel::kCorotational || s.solver.type != SolverType::kQuasiStatic)
-      r.fail("collision.coupling", std::string("\"carried\" needs material.model \"corotational\" and solver.type "
-             "\"quasi_static\" (got \"") + name_of(s.material.model) + "\", \"" + name_of(s.solver.type) + "\")", at);
+    if (!corotational_quasi_static) r.fail("collision.coupling", "\"carried\" " + needs_corotational, at);
     if (s.collision.response != ResponseKind::kConstraint)
       r.fail("collision.coupling", "\"carried\" needs collision.response \"constraint\" (got \"paper\")", at);
   }
   // The tangent is the corotational quasi-static solve's (the other integrators have no choice of operator).
-  if (s.solver.tangent != Tangent::kWarped &&
-      (s.material.model != MaterialModel::kCorotational || s.solver.type != SolverType::kQuasiStatic))
-    r.fail("solver.tangent", std::string("needs material.model \"corotational\" and solver.type \"quasi_static\" (got \"") +
-           name_of(s.material.model) + "\", \"" + name_of(s.solver.type) + "\")",
-           &root.at("solver").at("tangent"));
+  if (s.solver.tangent != Tangent::kWarped && !corotational_quasi_static)
+    r.fail("solver.tangent", needs_corotational, &root.at("solver").at("tangent"));
   // Displacement-driven probes (held points) are solved on the linear quasi-static model's probe compliance.
   int held = -1;
   for (size_t i = 0; i < s.probes.size() && held < 0; ++i)

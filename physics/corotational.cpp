@@ -203,6 +203,11 @@ void CorotationalElements::check_rotations(const char* where, const std::vector<
     detail::fail_must(where, "R.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(), R.size());
 }
 
+void CorotationalElements::check_modes(const char* where, const std::vector<TwistModes>& modes) const {
+  if (static_cast<int>(modes.size()) != n_tets())
+    detail::fail_must(where, "modes.size()", ("be n_tets = " + std::to_string(n_tets())).c_str(), modes.size());
+}
+
 void CorotationalElements::shape_gradients(int t, Eigen::Vector3d (&g)[4]) const {
   for (int a = 0; a < 3; ++a) g[a + 1] = grad_[t].row(a).transpose();
   g[0] = -(g[1] + g[2] + g[3]);
@@ -269,9 +274,7 @@ void CorotationalElements::twist_modes(const Eigen::VectorXd& u, const std::vect
 
 void CorotationalElements::tangent_product(const std::vector<Eigen::Matrix3d>& R, const std::vector<TwistModes>& modes,
                                            const Eigen::VectorXd& p, Eigen::VectorXd& y) const {
-  if (static_cast<int>(modes.size()) != n_tets())
-    detail::fail_must("CorotationalElements::tangent_product", "modes.size()",
-                      ("be n_tets = " + std::to_string(n_tets())).c_str(), modes.size());
+  check_modes("CorotationalElements::tangent_product", modes);
   warped_product(R, p, y);
   for (int t = 0; t < n_tets(); ++t) {
     // y_e += b diag(stiffness) b^T p_e.
@@ -286,9 +289,7 @@ void CorotationalElements::tangent_product(const std::vector<Eigen::Matrix3d>& R
 Eigen::SparseMatrix<double> CorotationalElements::tangent_stiffness(const std::vector<Eigen::Matrix3d>& R,
                                                                     const std::vector<TwistModes>& modes) const {
   check_rotations("CorotationalElements::tangent_stiffness", R);
-  if (static_cast<int>(modes.size()) != n_tets())
-    detail::fail_must("CorotationalElements::tangent_stiffness", "modes.size()",
-                      ("be n_tets = " + std::to_string(n_tets())).c_str(), modes.size());
+  check_modes("CorotationalElements::tangent_stiffness", modes);
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(static_cast<size_t>(n_tets()) * 144);
   for (int t = 0; t < n_tets(); ++t) {
@@ -797,9 +798,13 @@ void start_factorisation(const CorotationalModel& model, const CorotationalOptio
   const std::vector<int>& fixed_nodes = model.fixed_nodes();
   // The matrix: K_w, or with a tangent the projected tangent at the current iterate (positive semi-definite;
   // the exact tangent may be indefinite, which a Cholesky factorisation cannot take).
-  std::vector<TwistModes> twist;
+  // (The projected tangent's modes are the solve's own; the exact tangent's are projected here.)
   const bool tangent = options.tangent != CorotationalTangent::warped;
-  if (tangent) el.twist_modes(state.u, state.rotations, /*project=*/true, twist);
+  std::vector<TwistModes> twist;
+  if (options.tangent == CorotationalTangent::projected)
+    twist = state.twist;
+  else if (tangent)
+    el.twist_modes(state.u, state.rotations, /*project=*/true, twist);
   auto factorise = [&el, &fixed_nodes, tangent](std::vector<Eigen::Matrix3d> R, std::vector<TwistModes> modes) {
     Eigen::SparseMatrix<double> K = tangent ? el.tangent_stiffness(R, modes) : el.warped_stiffness(R);
     return std::shared_ptr<const StaticSolver>(std::make_shared<StaticSolver>(K, fixed_nodes));
@@ -931,13 +936,13 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     };
     ++result.iterations;
     const double before = result.residual;
-    CachedEvaluation start;
-    start.take(state);
     if (tangent_step && options.tangent == CorotationalTangent::exact) {
       // Newton's step on the exact tangent (truncated CG: a descent direction), line-searched on the potential;
       // where the search finds no decrease, the warped step from the same start instead.
       // (A slow solve on the indefinite tangent says little about the preconditioner: at most one factorisation
       // a solve comes from these steps.)
+      CachedEvaluation start;
+      start.take(state);
       linear_step(true, result.refactorisations == 0);
       if (du.allFinite() && newton_step(state, residual, du, result.residual)) {
         anderson.clear();
@@ -950,12 +955,8 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     }
     // The step: du, or its Anderson-mixed version when that lowers the residual.
     linear_step(tangent_step, true);
-    if (du.allFinite()) take_step(state, residual, anderson, du, before, result.residual);
-    if (!du.allFinite()) {  // keep the last finite iterate (not converged)
-      start.restore(state);
-      result.residual = residual.evaluate();
-      break;
-    }
+    if (!du.allFinite()) break;  // keep the last finite iterate (not converged)
+    take_step(state, residual, anderson, du, before, result.residual);
   }
   if (contacts) result.contact_lambda = residual.contact_lambda();
   return result;

@@ -89,6 +89,7 @@ class CorotationalElements {
   void shape_gradients(int t, Eigen::Vector3d (&g)[4]) const;
   Eigen::Matrix<double, 12, 12> warped_element(const Eigen::Matrix3d& R, int t) const;  // R K_e R^T of tet t, N/m
   void check_rotations(const char* where, const std::vector<Eigen::Matrix3d>& R) const;  // one per tet
+  void check_modes(const char* where, const std::vector<TwistModes>& modes) const;        // one per tet
   int n_nodes_ = 0;
   Tets tets_;                              // n_tets x 4 node ids
   std::vector<Eigen::Matrix3d> grad_;      // per tet: rows a = 0..2 are grad N_{a+1} (= Dm^-1), 1/metres
