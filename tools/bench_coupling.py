@@ -86,6 +86,11 @@ def main():
     if a.runs < 1 or not a.force > 0.0:
         ap.error(f"--runs must be >= 1 and --force > 0 (got --runs {a.runs}, --force {a.force})")
     couplings, tangents = a.couplings.split(","), a.tangents.split(",")
+    for option, values, allowed in (("--couplings", couplings, ("correct", "carried")),
+                                    ("--tangents", tangents, ("warped", "projected", "exact"))):
+        bad = [v for v in values if v not in allowed]
+        if bad:
+            ap.error(f"{option} must name {', '.join(allowed)} (got {bad[0]!r})")
     try:
         andersons = [int(v) for v in a.anderson.split(",")]
     except ValueError:

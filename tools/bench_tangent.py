@@ -23,6 +23,7 @@ from csv_out import write_csv
 from session_run import run_report
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
+TANGENTS = ("warped", "projected", "exact")  # solver.tangent's values
 # The scenes run by default, each with material.model set to corotational.
 DEFAULT_SCENES = ["scenes/paper-press-corotational.json", "scenes/hard/twist-180-corotational.json",
                   "scenes/hard/closure-5x-force.json", "scenes/hard/inverting-point-force.json",
@@ -67,6 +68,12 @@ def main():
     a = ap.parse_args()
     if a.runs < 1:
         ap.error(f"--runs must be >= 1 (got {a.runs})")
+    bad = [t for t in a.tangents.split(",") if t not in TANGENTS]
+    if bad:
+        ap.error(f"--tangents must name {', '.join(TANGENTS)} (got {bad[0]!r})")
+    missing = [p for p in a.scenes.split(",") if not os.path.isfile(os.path.join(ROOT, p))]
+    if missing:
+        ap.error(f"--scenes: no such scene file {missing[0]!r}")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for path in a.scenes.split(","):
