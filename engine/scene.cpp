@@ -279,10 +279,7 @@ void read_twist(const Reader& r, const json& m, TwistSpec& spec) {
 
 // Checks across keys: what the compiled model cannot combine is refused here, naming the first key involved.
 void check_combinations(const Reader& r, const json& root, const Scene& s) {
-  // Quadratic elements come with the linear quasi-static model only (prefactorised, like the paper's).
-  if (s.element == ElementType::kTet10 && s.material.model != MaterialModel::kLinear)
-    r.fail("mesh.element", std::string("\"tet10\" needs material.model \"linear\" (got \"") + name_of(s.material.model) + "\")",
-           &root.at("mesh").at("element"));
+  // Quadratic elements come with the quasi-static models only (linear prefactorised, or corotational).
   if (s.element == ElementType::kTet10 && s.solver.type != SolverType::kQuasiStatic)
     r.fail("mesh.element", std::string("\"tet10\" needs solver.type \"quasi_static\" (got \"") + name_of(s.solver.type) + "\")",
            &root.at("mesh").at("element"));
@@ -305,6 +302,10 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   // The tangent is the corotational quasi-static solve's (the other integrators have no choice of operator).
   if (s.solver.tangent != Tangent::kWarped && !corotational_quasi_static)
     r.fail("solver.tangent", needs_corotational, &root.at("solver").at("tangent"));
+  // The 10-node corotational element has no twist modes: warped steps only.
+  if (s.solver.tangent != Tangent::kWarped && s.element == ElementType::kTet10)
+    r.fail("solver.tangent", std::string("\"") + name_of(s.solver.tangent) + "\" needs mesh.element \"tet4\" (got \"tet10\")",
+           &root.at("solver").at("tangent"));
   // Displacement-driven probes (held points) are solved on the linear quasi-static model's probe compliance.
   int held = -1;
   for (size_t i = 0; i < s.probes.size() && held < 0; ++i)

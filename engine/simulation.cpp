@@ -202,7 +202,7 @@ physics::CorotationalOptions corotational_options(const Scene& scene) {
 }
 
 // The integrator of the scene, chosen once: backward Euler (solver.type dynamic, elasticity from material.model),
-// corotational quasi-static, or linear quasi-static (stiffness from the quadratic mesh for tet10).
+// corotational quasi-static or linear quasi-static (both on the quadratic mesh for tet10).
 std::unique_ptr<physics::Integrator> make_integrator(const Scene& scene, const Model& m,
                                                      const physics::QuadraticMesh* quadratic) {
   physics::LinearMaterial material;
@@ -219,6 +219,9 @@ std::unique_ptr<physics::Integrator> make_integrator(const Scene& scene, const M
     return std::make_unique<physics::BackwardEuler>(m.mesh, material, m.fixed_nodes, params,
                                                     corotational_options(scene), m.prescribed);
   }
+  if (scene.material.model == MaterialModel::kCorotational && quadratic)
+    return std::make_unique<physics::CorotationalQuasiStatic>(*quadratic, material, m.fixed_nodes,
+                                                              corotational_options(scene), m.prescribed);
   if (scene.material.model == MaterialModel::kCorotational)
     return std::make_unique<physics::CorotationalQuasiStatic>(m.mesh, material, m.fixed_nodes,
                                                               corotational_options(scene), m.prescribed);

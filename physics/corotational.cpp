@@ -126,15 +126,59 @@ CorotationalElements::CorotationalElements(const TetMesh& mesh, const LinearMate
     }
     grad_[t] = Dm.inverse();
   }
-  // Node -> incident tets (CSR), for per-node rotations.
+  build_node_elements();
+}
+
+CorotationalElements::CorotationalElements(const QuadraticMesh& mesh, const LinearMaterial& material)
+    : n_nodes_(mesh.n_nodes()), order_(ElementOrder::kQuadratic), material_(material) {
+  const LameParameters lame = lame_parameters(material);  // validates the material
+  lambda_ = lame.lambda;
+  mu_ = lame.mu;
+  nodes10_ = mesh.tets;
+  tets_ = mesh.tets.leftCols<4>();
+  rest10_ = mesh.rest;
+  const int nt = n_tets();
+  volume_.resize(nt);
+  mean_grad10_.resize(nt);
+  stiffness10_.resize(static_cast<size_t>(nt) * kTet10Dofs * kTet10Dofs);
+  // Per element: its rest nodes, volume, averaged gradients and stiffness (Jacobians checked by quadratic.cpp).
+  for (int t = 0; t < nt; ++t) {
+    Eigen::Matrix<double, 10, 3> X;
+    for (int a = 0; a < 10; ++a) {
+      const int v = nodes10_(t, a);
+      if (v < 0 || v >= n_nodes_) {
+        detail::fail_must("CorotationalElements", "mesh.tets(" + std::to_string(t) + ", " + std::to_string(a) + ")",
+                          ("be a node id in [0, " + std::to_string(n_nodes_) + ")").c_str(), v);
+      }
+      X.row(a) = mesh.rest.row(v);
+    }
+    volume_[t] = tet10_volume(X);
+    mean_grad10_[t] = tet10_mean_gradients(X);
+    Eigen::Map<Eigen::Matrix<double, 30, 30>>(stiffness10_.data() + kTet10Dofs * kTet10Dofs * t) =
+        tet10_stiffness(X, material);
+  }
+  build_node_elements();
+}
+
+void CorotationalElements::build_node_elements() {
+  // Node -> incident elements (CSR, over every node of an element), for per-node rotations.
+  const int nt = n_tets();
+  const int per_element = order_ == ElementOrder::kLinear ? 4 : 10;
+  auto node = [&](int t, int a) { return order_ == ElementOrder::kLinear ? tets_(t, a) : nodes10_(t, a); };
   node_tet_start_.assign(n_nodes_ + 1, 0);
   for (int t = 0; t < nt; ++t)
-    for (int a = 0; a < 4; ++a) ++node_tet_start_[tets_(t, a) + 1];
+    for (int a = 0; a < per_element; ++a) ++node_tet_start_[node(t, a) + 1];
   for (int v = 0; v < n_nodes_; ++v) node_tet_start_[v + 1] += node_tet_start_[v];
   node_tet_.resize(node_tet_start_[n_nodes_]);
   std::vector<int> fill(node_tet_start_.begin(), node_tet_start_.end() - 1);
   for (int t = 0; t < nt; ++t)
-    for (int a = 0; a < 4; ++a) node_tet_[fill[tets_(t, a)]++] = t;
+    for (int a = 0; a < per_element; ++a) node_tet_[fill[node(t, a)]++] = t;
+}
+
+void CorotationalElements::require_linear(const char* where) const {
+  if (order_ != ElementOrder::kLinear)
+    throw std::invalid_argument(std::string(where) + ": needs 4-node tets (the 10-node corotational element has no "
+                                                     "twist modes: warped steps only)");
 }
 
 Eigen::Matrix3d CorotationalElements::deformation_gradient(const Eigen::VectorXd& u, int t) const {
@@ -145,6 +189,12 @@ Eigen::Matrix3d CorotationalElements::deformation_gradient(const Eigen::VectorXd
 }
 
 Eigen::Matrix3d CorotationalElements::gradient(const Eigen::VectorXd& u, int t) const {
+  // 10-node tets: the volume average F = I + sum_a u_a (x) G_a.
+  if (order_ == ElementOrder::kQuadratic) {
+    Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
+    for (int a = 0; a < 10; ++a) F += u.segment<3>(3 * nodes10_(t, a)) * mean_grad10_[t].row(a);
+    return F;
+  }
   // F = I + Du Dm^-1 with Du the displacement edges u_a - u_0 as columns.
   const Eigen::Vector3d u0 = u.segment<3>(3 * tets_(t, 0));
   Eigen::Matrix3d Du;
@@ -168,6 +218,7 @@ void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::v
                                           Eigen::VectorXd& f) const {
   check_rotations("CorotationalElements::elastic_forces", R);
   if (u.size() != n_dofs()) detail::fail_must("CorotationalElements::elastic_forces", "u.size()", "be 3n", u.size());
+  if (order_ == ElementOrder::kQuadratic) return quadratic_forces(u, R, f);
   f.setZero(n_dofs());
   for (int t = 0; t < n_tets(); ++t) {
     // Strain of the unrotated element, eps = sym(R^T F) - I, its stress, and the nodal forces V R sigma grad N_a.
@@ -184,6 +235,7 @@ void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R,
                                           Eigen::VectorXd& y) const {
   check_rotations("CorotationalElements::warped_product", R);
   if (p.size() != n_dofs()) detail::fail_must("CorotationalElements::warped_product", "p.size()", "be 3n", p.size());
+  if (order_ == ElementOrder::kQuadratic) return quadratic_product(R, p, y);
   y.setZero(n_dofs());
   for (int t = 0; t < n_tets(); ++t) {
     // R K_e R^T p_e: strain of the unrotated displacement gradient R^T (Dp Dm^-1), stress, rotated nodal forces.
@@ -230,6 +282,7 @@ Eigen::Matrix<double, 12, 12> CorotationalElements::warped_element(const Eigen::
 
 Eigen::SparseMatrix<double> CorotationalElements::warped_stiffness(const std::vector<Eigen::Matrix3d>& R) const {
   check_rotations("CorotationalElements::warped_stiffness", R);
+  if (order_ == ElementOrder::kQuadratic) return quadratic_stiffness(R);
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(static_cast<size_t>(n_tets()) * 144);
   for (int t = 0; t < n_tets(); ++t) scatter_element_matrix(warped_element(R[t], t), tets_.row(t), triplets);
@@ -240,6 +293,7 @@ Eigen::SparseMatrix<double> CorotationalElements::warped_stiffness(const std::ve
 
 void CorotationalElements::twist_modes(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R,
                                        bool project, std::vector<TwistModes>& modes) const {
+  require_linear("CorotationalElements::twist_modes");
   check_rotations("CorotationalElements::twist_modes", R);
   check_vector("CorotationalElements::twist_modes", "u", u, n_dofs());
   modes.resize(n_tets());
@@ -274,6 +328,7 @@ void CorotationalElements::twist_modes(const Eigen::VectorXd& u, const std::vect
 
 void CorotationalElements::tangent_product(const std::vector<Eigen::Matrix3d>& R, const std::vector<TwistModes>& modes,
                                            const Eigen::VectorXd& p, Eigen::VectorXd& y) const {
+  require_linear("CorotationalElements::tangent_product");
   check_modes("CorotationalElements::tangent_product", modes);
   warped_product(R, p, y);
   for (int t = 0; t < n_tets(); ++t) {
@@ -288,6 +343,7 @@ void CorotationalElements::tangent_product(const std::vector<Eigen::Matrix3d>& R
 
 Eigen::SparseMatrix<double> CorotationalElements::tangent_stiffness(const std::vector<Eigen::Matrix3d>& R,
                                                                     const std::vector<TwistModes>& modes) const {
+  require_linear("CorotationalElements::tangent_stiffness");
   check_rotations("CorotationalElements::tangent_stiffness", R);
   check_modes("CorotationalElements::tangent_stiffness", modes);
   std::vector<Eigen::Triplet<double>> triplets;
@@ -305,6 +361,7 @@ Eigen::SparseMatrix<double> CorotationalElements::tangent_stiffness(const std::v
 double CorotationalElements::elastic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const {
   check_rotations("CorotationalElements::elastic_energy", R);
   check_vector("CorotationalElements::elastic_energy", "u", u, n_dofs());
+  if (order_ == ElementOrder::kQuadratic) return quadratic_energy(u, R);
   double energy = 0.0;
   for (int t = 0; t < n_tets(); ++t) {
     // V (mu eps:eps + lambda/2 tr(eps)^2) with the unrotated strain.
@@ -327,6 +384,72 @@ void CorotationalElements::node_rotations(const std::vector<Eigen::Matrix3d>& R,
     for (int k = node_tet_start_[v]; k < node_tet_start_[v + 1]; ++k) sum += R[node_tet_[k]];
     node_R[v] = node_tet_start_[v + 1] > node_tet_start_[v] ? proper_rotation(sum) : Eigen::Matrix3d::Identity();
   }
+}
+
+// 10-node kernels: the element's displacement unrotated by R^T, times the stored K_e, rotated back by R.
+
+Eigen::Matrix<double, 30, 1> CorotationalElements::unrotated_displacement(const Eigen::VectorXd& u,
+                                                                          const Eigen::Matrix3d& R, int t) const {
+  // Relative to the element's first node (K_e has translations in its null space), so that positions far from
+  // the origin do not swamp small displacements in round-off.
+  const int v0 = nodes10_(t, 0);
+  const Eigen::Vector3d X0 = rest10_.row(v0).transpose(), u0 = u.segment<3>(3 * v0);
+  Eigen::Matrix<double, 30, 1> d;
+  for (int a = 0; a < 10; ++a) {
+    const int v = nodes10_(t, a);
+    const Eigen::Vector3d dX = rest10_.row(v).transpose() - X0;
+    d.segment<3>(3 * a) = R.transpose() * (dX + u.segment<3>(3 * v) - u0) - dX;
+  }
+  return d;
+}
+
+void CorotationalElements::quadratic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R,
+                                            Eigen::VectorXd& f) const {
+  f.setZero(n_dofs());
+  for (int t = 0; t < n_tets(); ++t) {
+    // f_e = R K_e (R^T x_e - X_e).
+    const Eigen::Matrix<double, 30, 1> fe = element_stiffness(t) * unrotated_displacement(u, R[t], t);
+    for (int a = 0; a < 10; ++a) f.segment<3>(3 * nodes10_(t, a)) += R[t] * fe.segment<3>(3 * a);
+  }
+}
+
+void CorotationalElements::quadratic_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p,
+                                             Eigen::VectorXd& y) const {
+  y.setZero(n_dofs());
+  for (int t = 0; t < n_tets(); ++t) {
+    // y_e = R K_e R^T p_e.
+    Eigen::Matrix<double, 30, 1> pe;
+    for (int a = 0; a < 10; ++a) pe.segment<3>(3 * a) = R[t].transpose() * p.segment<3>(3 * nodes10_(t, a));
+    const Eigen::Matrix<double, 30, 1> ye = element_stiffness(t) * pe;
+    for (int a = 0; a < 10; ++a) y.segment<3>(3 * nodes10_(t, a)) += R[t] * ye.segment<3>(3 * a);
+  }
+}
+
+Eigen::SparseMatrix<double> CorotationalElements::quadratic_stiffness(const std::vector<Eigen::Matrix3d>& R) const {
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(static_cast<size_t>(n_tets()) * kTet10Dofs * kTet10Dofs);
+  Eigen::Matrix<double, 30, 30> W;
+  for (int t = 0; t < n_tets(); ++t) {
+    // Block (a, b): R K_ab R^T.
+    const auto K = element_stiffness(t);
+    for (int a = 0; a < 10; ++a)
+      for (int b = 0; b < 10; ++b)
+        W.block<3, 3>(3 * a, 3 * b) = R[t] * K.block<3, 3>(3 * a, 3 * b) * R[t].transpose();
+    scatter_element_matrix(W, nodes10_.row(t), triplets);
+  }
+  Eigen::SparseMatrix<double> K(n_dofs(), n_dofs());
+  K.setFromTriplets(triplets.begin(), triplets.end());
+  return K;
+}
+
+double CorotationalElements::quadratic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const {
+  double energy = 0.0;
+  for (int t = 0; t < n_tets(); ++t) {
+    // 1/2 d^T K_e d with d the unrotated displacement.
+    const Eigen::Matrix<double, 30, 1> d = unrotated_displacement(u, R[t], t);
+    energy += 0.5 * d.dot(element_stiffness(t) * d);
+  }
+  return energy;
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -592,6 +715,13 @@ PcgResult solve_truncated_pcg(const WarpedSystem& system, const StaticSolver& pr
 // CorotationalModel and the quasi-static solve
 
 CorotationalModel::CorotationalModel(const TetMesh& mesh, const LinearMaterial& material,
+                                     const std::vector<int>& fixed_nodes)
+    : elements_(mesh, material),
+      K_(assemble_stiffness(mesh, material)),
+      fixed_nodes_(fixed_nodes),
+      solver_(K_, fixed_nodes) {}
+
+CorotationalModel::CorotationalModel(const QuadraticMesh& mesh, const LinearMaterial& material,
                                      const std::vector<int>& fixed_nodes)
     : elements_(mesh, material),
       K_(assemble_stiffness(mesh, material)),
@@ -874,6 +1004,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
   const char* where = "solve_corotational";
   validate_options(options);
   const CorotationalElements& el = model.elements();
+  if (options.tangent != CorotationalTangent::warped) el.require_linear(where);
   const int n = model.n_dofs();
   check_vector(where, "f_ext", f_ext, n);
   if (u_fixed.size() != 0) check_vector(where, "u_fixed", u_fixed, n);

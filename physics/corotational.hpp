@@ -19,6 +19,7 @@
 #include "physics/contact_rows.hpp"
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
+#include "physics/quadratic.hpp"
 
 namespace lumen::physics {
 
@@ -39,23 +40,34 @@ struct TwistModes {
   Eigen::Vector3d stiffness;       // rest volume times the twist eigenvalue, N m; >= 0 when projected
 };
 
-// Element data of a tet mesh for corotational kernels: per tet the rest shape-function gradients and volume.
-// Matrix-free: K_e is never stored; K_e p = V B^T D B p is evaluated from the gradients (the same element as
-// tet_stiffness). Keeps no reference to the mesh.
+// Element data of a tet mesh for corotational kernels. Keeps no reference to the mesh.
+// - 4-node tets: per tet the rest shape-function gradients and volume; matrix-free (K_e p = V B^T D B p is
+//   evaluated from the gradients, the same element as tet_stiffness).
+// - 10-node tets: one rotation per element, that of the volume-averaged deformation gradient
+//   F_e = I + sum_a u_a (x) G_a (G_a = tet10_mean_gradients; F_e is the deformation gradient itself for a
+//   straight element deformed affinely), and the stored quadratic K_e (tet10_stiffness, 30 x 30):
+//   f_e = R_e K_e (R_e^T x_e - X_e), K_w = R_e K_e R_e^T (element-wise corotation, as for higher-order elements in
+//   Nesme et al. 2005). Rigid motions cost nothing and small deformations match the linear tet10, but the
+//   rotations' derivative is left out of the tangent entirely (no twist modes: warped steps only).
 class CorotationalElements {
  public:
   // Throws std::invalid_argument for an invalid material, node index or a non-positive rest volume.
   CorotationalElements(const TetMesh& mesh, const LinearMaterial& material);
+  // The same for 10-node tets (and a Jacobian that is not positive at a quadrature point).
+  CorotationalElements(const QuadraticMesh& mesh, const LinearMaterial& material);
 
   int n_nodes() const { return n_nodes_; }
   int n_dofs() const { return 3 * n_nodes_; }
   int n_tets() const { return static_cast<int>(tets_.rows()); }
+  ElementOrder order() const { return order_; }
+  // Corner nodes of each element (n_tets x 4; the whole element for 4-node tets).
   const Tets& tets() const { return tets_; }
   const LinearMaterial& material() const { return material_; }
   // Rest volume of tet t, cubic metres.
   double rest_volume(int t) const { return volume_[t]; }
 
-  // Deformation gradient of tet t for displacements u (3n, metres): F = I + sum_a u_a (x) grad N_a.
+  // Deformation gradient of tet t for displacements u (3n, metres): F = I + sum_a u_a (x) grad N_a (10-node
+  // tets: its volume average, as above).
   Eigen::Matrix3d deformation_gradient(const Eigen::VectorXd& u, int t) const;
   // Per-tet rotations R (n_tets, proper) of the deformation gradients at u; returns the number of inverted tets
   // (det F <= 0).
@@ -66,7 +78,8 @@ class CorotationalElements {
   void warped_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p, Eigen::VectorXd& y) const;
   // The same K_w assembled, 3n x 3n, N/m (the sparsity of the rest stiffness K; with R = identity it is K).
   Eigen::SparseMatrix<double> warped_stiffness(const std::vector<Eigen::Matrix3d>& R) const;
-  // Per-tet twist modes (n_tets) of the tangent at u with rotations R (as from rotations(u)). project: each
+  // Per-tet twist modes (n_tets) of the tangent at u with rotations R (as from rotations(u)); 4-node tets only
+  // (std::invalid_argument for 10-node tets, as the two functions after it). project: each
   // negative twist eigenvalue (a tet compressed across the pair) is clamped to 0, so that the tangent
   // K_w + sum_e twist_e is positive semi-definite per element; otherwise the exact Hessian of elastic_energy.
   void twist_modes(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R, bool project,
@@ -82,20 +95,41 @@ class CorotationalElements {
   // Per-node rotations (n_nodes): the proper rotation of the sum of the rotations of the tets around each node
   // (identity for a node in no tet).
   void node_rotations(const std::vector<Eigen::Matrix3d>& R, std::vector<Eigen::Matrix3d>& node_R) const;
+  // Throws std::invalid_argument naming `where` unless the elements are 4-node tets (what the twist modes need).
+  void require_linear(const char* where) const;
 
  private:
   Eigen::Matrix3d gradient(const Eigen::VectorXd& u, int t) const;  // deformation_gradient without checks
+  void build_node_elements();  // node_tet_start_ / node_tet_ from the element nodes
+  // The kernels of 10-node tets (same contracts as the public functions).
+  void quadratic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R, Eigen::VectorXd& f) const;
+  void quadratic_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p, Eigen::VectorXd& y) const;
+  Eigen::SparseMatrix<double> quadratic_stiffness(const std::vector<Eigen::Matrix3d>& R) const;
+  double quadratic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const;
+  // Element t's unrotated displacement R^T x_e - X_e up to a translation (30, metres) and its K_e (30 x 30, N/m),
+  // 10-node tets.
+  Eigen::Matrix<double, 30, 1> unrotated_displacement(const Eigen::VectorXd& u, const Eigen::Matrix3d& R, int t) const;
+  Eigen::Map<const Eigen::Matrix<double, 30, 30>> element_stiffness(int t) const {
+    return Eigen::Map<const Eigen::Matrix<double, 30, 30>>(stiffness10_.data() + kTet10Dofs * kTet10Dofs * t);
+  }
+  static constexpr int kTet10Dofs = 30;
   // Shape-function gradients g_a of tet t (g_0 = -(g_1 + g_2 + g_3)), 1/metres.
   void shape_gradients(int t, Eigen::Vector3d (&g)[4]) const;
   Eigen::Matrix<double, 12, 12> warped_element(const Eigen::Matrix3d& R, int t) const;  // R K_e R^T of tet t, N/m
   void check_rotations(const char* where, const std::vector<Eigen::Matrix3d>& R) const;  // one per tet
   void check_modes(const char* where, const std::vector<TwistModes>& modes) const;        // one per tet
   int n_nodes_ = 0;
-  Tets tets_;                              // n_tets x 4 node ids
+  ElementOrder order_ = ElementOrder::kLinear;
+  Tets tets_;                              // n_tets x 4 node ids (corners)
   std::vector<Eigen::Matrix3d> grad_;      // per tet: rows a = 0..2 are grad N_{a+1} (= Dm^-1), 1/metres
   std::vector<double> volume_;             // per tet rest volume, cubic metres
   std::vector<int> node_tet_start_;        // CSR node -> incident tets, n_nodes + 1
   std::vector<int> node_tet_;              // incident tet ids
+  // 10-node tets only:
+  Eigen::Matrix<int, Eigen::Dynamic, 10, Eigen::RowMajor> nodes10_;  // n_tets x 10 node ids
+  std::vector<double> stiffness10_;        // n_tets x 30 x 30 (column-major per tet): K_e, N/m
+  std::vector<Eigen::Matrix<double, 10, 3>> mean_grad10_;  // per tet: rows G_a, 1/metres
+  Points rest10_;                          // n_nodes x 3 rest positions, metres
   LinearMaterial material_;
   double lambda_ = 0.0, mu_ = 0.0;         // Lame parameters, pascals
 };
@@ -157,6 +191,8 @@ class CorotationalModel {
   // fixed_nodes: nodes whose displacement is prescribed (0 unless a solve is given u_fixed); must remove all
   // rigid motion. Factorises K once (StaticSolver).
   CorotationalModel(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes);
+  // The same on 10-node tets (K from assemble_stiffness of the quadratic mesh).
+  CorotationalModel(const QuadraticMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes);
 
   const CorotationalElements& elements() const { return elements_; }
   // Rest-state stiffness K, 3n x 3n, N/m, and its CHOLMOD factorisation on the free DOFs.

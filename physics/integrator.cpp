@@ -113,6 +113,14 @@ CorotationalQuasiStatic::CorotationalQuasiStatic(const TetMesh& mesh, const Line
   validate_options(options_);
 }
 
+CorotationalQuasiStatic::CorotationalQuasiStatic(const QuadraticMesh& mesh, const LinearMaterial& material,
+                                                 const std::vector<int>& fixed_nodes,
+                                                 const CorotationalOptions& options, const PrescribedMotion& prescribed)
+    : model_(mesh, material, fixed_nodes), options_(options), prescribed_(prescribed) {
+  validate_options(options_);
+  if (options_.tangent != CorotationalTangent::warped) model_.elements().require_linear("CorotationalQuasiStatic");
+}
+
 Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::VectorXd& prescribed_c, const SimState&,
                                             IntegratorWork& work, Eigen::VectorXd& u1) const {
   // Nonlinear equilibrium from the nodal loads, warm-started from the last frame's free solution.

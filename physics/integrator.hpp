@@ -128,6 +128,10 @@ class CorotationalQuasiStatic final : public Integrator {
  public:
   CorotationalQuasiStatic(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes,
                           const CorotationalOptions& options, const PrescribedMotion& prescribed);
+  // On 10-node tets (the warped tangent only: std::invalid_argument for another options.tangent).
+  CorotationalQuasiStatic(const QuadraticMesh& mesh, const LinearMaterial& material,
+                          const std::vector<int>& fixed_nodes, const CorotationalOptions& options,
+                          const PrescribedMotion& prescribed);
   Prediction predict(FrameLoads& loads, const Eigen::VectorXd& prescribed_c, const SimState& state,
                      IntegratorWork& work, Eigen::VectorXd& u1) const override;
   const StaticSolver& contact_solver() const override { return model_.solver(); }

@@ -211,6 +211,19 @@ double tet10_volume(const Mat10x3& X) {
   return volume;
 }
 
+Mat10x3 tet10_mean_gradients(const Mat10x3& X) {
+  const auto& rule = tet_quadrature();
+  Mat10x3 sum = Mat10x3::Zero();
+  double volume = 0.0;
+  for (int q = 0; q < static_cast<int>(rule.size()); ++q) {
+    double det;
+    const Mat10x3 g = physical_gradients(X, rule[q].xi, q, -1, det);
+    sum += (rule[q].weight * det) * g;
+    volume += rule[q].weight * det;
+  }
+  return sum / volume;
+}
+
 Eigen::SparseMatrix<double> assemble_stiffness(const QuadraticMesh& mesh, const LinearMaterial& m) {
   validate_material(m);
   const int n = mesh.n_nodes();

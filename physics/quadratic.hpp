@@ -89,6 +89,11 @@ double tet10_energy(const Eigen::Matrix<double, 10, 3>& X, const Eigen::Matrix<d
                     const LinearMaterial& m);
 // Rest volume of a (possibly curved) 10-node tet, cubic metres (same rule and Jacobian check).
 double tet10_volume(const Eigen::Matrix<double, 10, 3>& X);
+// Shape-function gradients averaged over a (possibly curved) 10-node tet, G_a = (1 / V) integral of grad N_a dV,
+// 10 x 3 (row a: G_a), 1/metres, by the same rule and Jacobian check: the volume-averaged deformation gradient
+// of a displacement u (10 x 3) is I + u^T G. They sum to zero (the N_a sum to one); for a straight element and an
+// affine displacement u^T G is the displacement gradient itself.
+Eigen::Matrix<double, 10, 3> tet10_mean_gradients(const Eigen::Matrix<double, 10, 3>& X);
 
 // Global stiffness, 3N x 3N (N = mesh.n_nodes()), symmetric, DOF 3*i+c for node i, coordinate c.
 // Throws std::invalid_argument naming the tet when a node id is out of range or a Jacobian is not positive.

@@ -30,7 +30,11 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <map>
+#include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -219,6 +223,7 @@ struct StudyOptions {
   double fps = 20.0;
   bool quick = false, no_render = false;
   int max_corotational_tets = 30000;
+  std::string reference_csv, reference_out;  // the CalculiX reference sweep (both set) or none
 };
 
 // Two opposite probes at 1.25x the force that first shuts the lumen (0.08 N on the paper mesh, linear): the walls
@@ -298,6 +303,86 @@ void load_sweep(const StudyOptions& opt) {
                  1e3 * cor.probe_disp);
   }
   engine::write_text_file(opt.load_out, lcsv);
+}
+
+// The converged CalculiX tip displacement of one case (tools/reference/ccx_reference.py's CSV): per (force,
+// material) the finest level that finished ("ok").
+struct ReferenceTip {
+  double tip_m = 0.0;  // area-weighted mean over the tip's disc of the displacement along the pinch, metres
+  int dofs = 0;
+};
+using ReferenceTable = std::map<std::pair<double, std::string>, ReferenceTip>;
+
+// Reads the reference CSV (comment lines start with '#'); throws std::runtime_error naming the file and the line.
+ReferenceTable read_reference(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot be read");
+  ReferenceTable table;
+  std::string line;
+  std::vector<std::string> header;
+  for (int number = 1; std::getline(in, line); ++number) {
+    if (line.empty() || line[0] == '#') continue;
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
+    if (header.empty()) {
+      header = cells;
+      continue;
+    }
+    std::map<std::string, std::string> row;
+    for (size_t i = 0; i < header.size() && i < cells.size(); ++i) row[header[i]] = cells[i];
+    if (row["status"] != "ok" || row["tip_displacement_m"].empty()) continue;
+    try {
+      const std::pair<double, std::string> key{std::stod(row["force_N"]), row["material"]};
+      const ReferenceTip tip{std::stod(row["tip_displacement_m"]), std::stoi(row["dofs"])};
+      if (tip.dofs > table[key].dofs) table[key] = tip;
+    } catch (const std::exception&) {
+      throw std::runtime_error(path + ":" + std::to_string(number) + ": force_N, tip_displacement_m or dofs is not a number");
+    }
+  }
+  return table;
+}
+
+// The sweep against the converged CalculiX reference (3 mm tips, as the squeeze's): each configuration pinched
+// below first contact, at 0.002 N against the linear reference (the discretisation error alone; every model is
+// near linear there) and at 0.01 N against the Neo-Hookean NLGEOM one (the tip moves about 1.7x the wall
+// thickness: discretisation and model error together); whole-frame times with self-collision and rendering.
+void reference_sweep(const StudyOptions& opt) {
+  const ReferenceTable table = read_reference(opt.reference_csv);
+  const std::pair<double, const char*> loads[] = {{0.002, "linear"}, {0.01, "neohooke"}};
+  std::vector<Config> configs;
+  for (const Level& l : std::vector<Level>{{12, 16, 2}, {20, 26, 3}, {28, 36, 4}, {40, 52, 6}})
+    for (const char* model : {"linear", "corotational"})
+      if (std::string(model) == "linear" || 6 * l.around * l.along * l.layers <= opt.max_corotational_tets)
+        configs.push_back({l, "tet4", model, std::string(model) == "linear" ? 0.0 : 1e-4});
+  for (const Level& l : std::vector<Level>{{8, 10, 1}, {10, 13, 1}, {16, 20, 2}, {20, 26, 2}})
+    for (const char* model : {"linear", "corotational"})
+      configs.push_back({l, "tet10", model, std::string(model) == "linear" ? 0.0 : 1e-4});
+  std::string csv =
+      "force_n,reference_material,reference_tip_mm,reference_dofs,around,along,layers,nodes,tets,element,model,"
+      "tolerance,frames,probe_disp_mm,err_probe_disp,total_median_ms,total_p99_ms,physics_median_ms,physics_p99_ms,"
+      "over_budget,not_converged,fallbacks,failures\n";
+  char line[1024];  // one CSV row
+  for (const auto& [force, material] : loads) {
+    const auto ref = table.find({force, material});
+    if (ref == table.end())
+      throw std::runtime_error(opt.reference_csv + ": no finished row for force " + std::to_string(force) + " N, " + material);
+    for (const Config& c : configs) {
+      std::fprintf(stderr, "%g N %dx%dx%d %s %s ...", force, c.level.around, c.level.along, c.level.layers,
+                   c.element.c_str(), c.model.c_str());
+      const Outcome o = run(squeeze_scene(c, force, opt.frames, opt.fps), !opt.no_render);
+      const double err = (o.probe_disp - ref->second.tip_m) / ref->second.tip_m;  // signed: < 0 too stiff
+      std::snprintf(line, sizeof line, "%g,%s,%.6g,%d,%d,%d,%d,%d,%d,%s,%s,%g,%d,%.6g,%.6g,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld\n",
+                    force, material, 1e3 * ref->second.tip_m, ref->second.dofs, c.level.around, c.level.along,
+                    c.level.layers, o.nodes, o.tets, c.element.c_str(), c.model.c_str(), c.tolerance, opt.frames,
+                    1e3 * o.probe_disp, err, o.total.median_ms, o.total.p99_ms, o.physics.median_ms, o.physics.p99_ms,
+                    o.over_budget, o.not_converged, o.fallbacks, o.failures);
+      csv += line;
+      engine::write_text_file(opt.reference_out, csv);  // after every configuration
+      std::fprintf(stderr, " %.4f mm (%+.1f %%), total %.2f / %.2f ms\n", 1e3 * o.probe_disp, 100.0 * err,
+                   o.total.median_ms, o.total.p99_ms);
+    }
+  }
 }
 
 // A model family of the capacity sweep.
@@ -380,10 +465,26 @@ int main(int argc, char** argv) {
                  "skip corotational configurations above this many tets (seconds per frame there)");
   app.add_flag("--quick", opt.quick, "coarse levels only and fewer configurations (a smoke run)");
   app.add_flag("--no-render", opt.no_render, "leave rendering out of the frame time");
+  app.add_option("--reference", opt.reference_csv,
+                 "CalculiX reference CSV (3 mm tips) for the reference sweep, e.g. docs/reference_convergence_tip3mm.csv");
+  app.add_option("--reference-out", opt.reference_out, "CSV of the sweep against the CalculiX reference; runs only it");
   CLI11_PARSE(app, argc, argv);
+  if (opt.reference_out.empty() != opt.reference_csv.empty()) {
+    std::fprintf(stderr, "lumen_study: --reference and --reference-out go together\n");
+    return 2;
+  }
   // Output folders exist before any work (each CSV is then written atomically as it grows).
-  for (const std::string& path : {opt.out, opt.load_out, opt.capacity_out})
+  for (const std::string& path : {opt.out, opt.load_out, opt.capacity_out, opt.reference_out})
     if (!path.empty() && fs::path(path).has_parent_path()) fs::create_directories(fs::path(path).parent_path());
+  if (!opt.reference_out.empty()) {
+    try {
+      reference_sweep(opt);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "lumen_study: %s\n", e.what());
+      return 2;
+    }
+    return 0;
+  }
 
   // Mesh levels: coarser than the paper, the paper (9360 tets), then up to 8x its tets. Quadratic levels: their
   // walls collide and render at twice these counts along each edge (8 x 10 x 1 draws a 16 x 20 wall; 12 x 16 x 1
