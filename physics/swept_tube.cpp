@@ -218,21 +218,23 @@ double bend_radius(const CentrelineFrame& a, const CentrelineFrame& b) {
   return (b.point - a.point).norm() / (2.0 * std::sin(0.5 * turn));
 }
 
-// Scale each ring's radii so its outer wall stays within kBendClearance of the bend radius on either side;
-// returns how many rings it changed.
+// Scale each ring's radii so its outer wall stays within kBendClearance of the bend radius on either side, the
+// scale changing by at most kClampTaper from ring to ring (so a clamped ring's neighbours narrow toward it instead
+// of the wall stepping); returns how many rings it changed.
 int clamp_to_bends(std::vector<TubeRing>& rings) {
-  std::vector<double> limit(rings.size(), std::numeric_limits<double>::infinity());
-  for (size_t j = 0; j + 1 < rings.size(); ++j) {
+  const size_t n = rings.size();
+  std::vector<double> scale(n, 1.0);
+  for (size_t j = 0; j + 1 < n; ++j) {
     const double rho = kBendClearance * bend_radius(rings[j].frame, rings[j + 1].frame);
-    limit[j] = std::min(limit[j], rho);
-    limit[j + 1] = std::min(limit[j + 1], rho);
+    for (size_t k : {j, j + 1}) scale[k] = std::min(scale[k], rho / rings[k].outer_radius);
   }
+  for (size_t j = 1; j < n; ++j) scale[j] = std::min(scale[j], scale[j - 1] + kClampTaper);
+  for (size_t j = n - 1; j-- > 0;) scale[j] = std::min(scale[j], scale[j + 1] + kClampTaper);
   int clamped = 0;
-  for (size_t j = 0; j < rings.size(); ++j) {
-    if (!(rings[j].outer_radius > limit[j])) continue;
-    const double scale = limit[j] / rings[j].outer_radius;
-    rings[j].inner_radius *= scale;
-    rings[j].outer_radius *= scale;
+  for (size_t j = 0; j < n; ++j) {
+    if (!(scale[j] < 1.0)) continue;
+    rings[j].inner_radius *= scale[j];
+    rings[j].outer_radius *= scale[j];
     ++clamped;
   }
   return clamped;

@@ -50,6 +50,8 @@ struct SweptTubeSpec {
 
 // The outer wall stays within this fraction of the local bend radius (the clamp).
 inline constexpr double kBendClearance = 0.9;
+// The clamp's scale of the radii changes by at most this much from one ring to the next.
+inline constexpr double kClampTaper = 0.1;
 // At least this many rings per haustral pitch (so the sacculation is resolved).
 inline constexpr int kMinRingsPerHaustrum = 4;
 // At most this many rings along a swept tube (a guard against a segment_length far too small).

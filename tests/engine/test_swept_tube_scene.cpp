@@ -236,3 +236,25 @@ TEST(FixedNodeSets, BoxAndPlaneSelectTheNodesInsideAndOnTheNormalsSide) {
                 .find("f.json: fixed[0]: must be a node-set name (ends, start, stop), {\"box\""),
             std::string::npos);
 }
+
+// The lumen program on a bad centreline: exit 2, one message naming the centreline file, the field and the sample,
+// and nothing written into the output folder.
+TEST(SweptTubeScene, BadCentrelineExitsTwoAndWritesNothing) {
+  const fs::path d = temp_dir("cli");
+  json line = straight_centreline(11, 100.0);
+  line["points"][7] = line["points"][6];
+  const std::string scene = write_case(d, swept_scene(), line);
+  const fs::path out = d / "out";
+  const std::string cmd = std::string(LUMEN_BINARY) + " run " + scene + " --out " + out.string() + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  ASSERT_NE(p, nullptr);
+  std::string output;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) output.append(buf, n);
+  const int status = pclose(p);
+  EXPECT_EQ(WIFEXITED(status) ? WEXITSTATUS(status) : -1, 2) << output;
+  EXPECT_NE(output.find("lumen: error: " + (d / "line.json").string() + ": points[7]: repeats points[6], got [0, 0, "),
+            std::string::npos) << output;
+  EXPECT_TRUE(!fs::exists(out) || fs::is_empty(out));
+}

@@ -230,6 +230,32 @@ TEST(SweptTube, ClampPreventsInversionOnATightBend) {
   std::vector<TubeRing> unclamped = tube.rings;
   for (TubeRing& ring : unclamped) ring.inner_radius = 0.008, ring.outer_radius = 0.0105;
   EXPECT_GT(inverted_tets(make_structured_tube(unclamped, 16, 2)), 0);
+  // A quarter turn of 8 mm radius between two straight runs (1 mm samples): the rings at the turn are clamped and
+  // their neighbours on the straight runs narrow toward them, the scale changing by at most kClampTaper a ring.
+  Centreline kinked = sampled(41, [](int k) { return Eigen::Vector3d(0.0, 0.0, 0.001 * (k - 40)); });
+  const int turn_samples = 13;
+  kinked.points.conservativeResize(41 + turn_samples + 40, 3);
+  for (int k = 1; k <= turn_samples; ++k) {
+    const double phi = 0.5 * kPi * k / turn_samples;
+    kinked.points.row(40 + k) << 0.008 - 0.008 * std::cos(phi), 0.0, 0.008 * std::sin(phi);
+  }
+  for (int k = 1; k <= 40; ++k) kinked.points.row(40 + turn_samples + k) << 0.008 + 0.001 * k, 0.0, 0.008;
+  s.centreline = kinked;
+  s.range_stop = arc_lengths(kinked.points).back();
+  const SweptTube kink = make_swept_tube(s);
+  EXPECT_EQ(inverted_tets(kink.mesh), 0);
+  int turn_rings = 0;
+  double smallest = 1.0;
+  for (size_t j = 0; j < kink.rings.size(); ++j) {
+    const double scale = kink.rings[j].outer_radius / 0.0105;
+    smallest = std::min(smallest, scale);
+    turn_rings += kink.ring_s[j] > 0.040 && kink.ring_s[j] < 0.040 + 0.004 * kPi;
+    if (j > 0) {
+      EXPECT_LE(std::abs(scale - kink.rings[j - 1].outer_radius / 0.0105), kClampTaper + 1e-12) << j;
+    }
+  }
+  EXPECT_LE(smallest, kBendClearance * 0.008 / 0.0105 * 1.01);
+  EXPECT_GT(kink.clamped_rings, turn_rings + 2);
   // A bend radius of 5 cm is wider than the wall: nothing clamped.
   s.centreline = arc(0.05, 1.0, 60, false);
   s.range_stop = arc_lengths(s.centreline.points).back();
