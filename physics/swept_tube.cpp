@@ -20,6 +20,8 @@ constexpr double kRepeatedPointFraction = 1e-9;
 constexpr double kMinNormalPart = 1e-3;
 // A centreline runs straight while the chords from its start leave the start tangent by less than this fraction.
 constexpr double kStraightFraction = 1e-9;
+// A normalised tangent has squared norm 1, a zero one (normalised, it stays zero) 0: the threshold between them.
+constexpr double kMinTangentSquaredNorm = 0.5;
 // Ring counts within this relative tolerance of a whole number are that number (range / segment_length).
 constexpr double kRingCountTolerance = 1e-9;
 
@@ -39,7 +41,16 @@ template <typename T>
   detail::fail_value(std::string("SweptTubeSpec.") + field, rule, value);
 }
 
+// Row i of an n x 3 array as a column vector.
 Eigen::Vector3d row(const Points& p, Eigen::Index i) { return p.row(i).transpose(); }
+
+// The part of v normal to the unit vector u.
+Eigen::Vector3d normal_part(const Eigen::Vector3d& v, const Eigen::Vector3d& u) { return v - u * u.dot(v); }
+
+// x reflected in the plane through the origin normal to v (c = v . v > 0).
+Eigen::Vector3d reflect(const Eigen::Vector3d& x, const Eigen::Vector3d& v, double c) {
+  return x - (2.0 / c) * v.dot(x) * v;
+}
 
 // Angle between two vectors, radians (robust near 0 and pi).
 double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
@@ -56,14 +67,13 @@ void check_rows(const Points& rows, Eigen::Index n, const std::string& source, c
 }
 
 // Tangents (the given ones, else the estimated ones, field "points"): unit (a zero one stays zero when
-// normalised), along the direction of travel,
-// turning by less than 90 degrees between samples.
+// normalised), along the direction of travel, turning by less than 90 degrees between samples.
 void check_tangents(const Centreline& c, const std::vector<Eigen::Vector3d>& t, const std::string& source) {
   const bool given = c.tangents.rows() != 0;
   const char* field = given ? "tangents" : "points";
   for (size_t k = 0; k < t.size(); ++k) {
     const Eigen::Index i = static_cast<Eigen::Index>(k);
-    if (!(t[k].squaredNorm() > 0.5)) fail_sample(source, field, i, given ? "must not be zero" : "the centreline turns back here");
+    if (!(t[k].squaredNorm() > kMinTangentSquaredNorm)) fail_sample(source, field, i, given ? "must not be zero" : "the centreline turns back here");
     const Eigen::Index a = std::min<Eigen::Index>(i, c.points.rows() - 2);
     if (!(t[k].dot(row(c.points, a + 1) - row(c.points, a)) > 0.0))
       fail_sample(source, field, i, "the tangent points against the centreline's direction, got " + vec_text(t[k]));
@@ -78,12 +88,12 @@ void check_normals(const Centreline& c, const std::vector<Eigen::Vector3d>& tang
   for (Eigen::Index i = 0; i < c.normals.rows(); ++i) {
     const Eigen::Vector3d n = row(c.normals, i);
     const Eigen::Vector3d& t = tangents[i];
-    const Eigen::Vector3d normal_part = n - t * t.dot(n);
-    if (!(normal_part.norm() > kMinNormalPart * n.norm()))
+    const Eigen::Vector3d part = normal_part(n, t);
+    if (!(part.norm() > kMinNormalPart * n.norm()))
       fail_sample(source, "normals", i, "is zero or (nearly) parallel to the tangent, got " + vec_text(n));
-    if (i > 0 && !(normal_part.dot(last) > 0.0))
+    if (i > 0 && !(part.dot(last) > 0.0))
       fail_sample(source, "normals", i, "turns by 90 degrees or more from normals[" + std::to_string(i - 1) + "]");
-    last = normal_part;
+    last = part;
   }
 }
 
@@ -110,14 +120,13 @@ Eigen::Vector3d first_normal(const Centreline& c, const Eigen::Vector3d& t0) {
   const Eigen::Vector3d x0 = row(c.points, 0);
   for (Eigen::Index k = 1; k < c.points.rows(); ++k) {
     const Eigen::Vector3d d = row(c.points, k) - x0;
-    const Eigen::Vector3d off = d - t0 * t0.dot(d);
+    const Eigen::Vector3d off = normal_part(d, t0);
     if (off.norm() > kStraightFraction * d.norm()) return off.normalized();
   }
   int axis = 0;
   for (int a = 1; a < 3; ++a)
     if (std::abs(t0[a]) < std::abs(t0[axis])) axis = a;
-  const Eigen::Vector3d e = Eigen::Vector3d::Unit(axis);
-  return (e - t0 * t0.dot(e)).normalized();
+  return normal_part(Eigen::Vector3d::Unit(axis), t0).normalized();
 }
 
 // Rotation-minimising normals by double reflection: reflect the frame in the bisector plane of the chord, then
@@ -128,12 +137,11 @@ std::vector<Eigen::Vector3d> rotation_minimising_normals(const Centreline& c, co
   for (size_t i = 0; i + 1 < t.size(); ++i) {
     const Eigen::Vector3d v1 = row(c.points, static_cast<Eigen::Index>(i + 1)) - row(c.points, static_cast<Eigen::Index>(i));
     const double c1 = v1.dot(v1);
-    const Eigen::Vector3d rL = r[i] - (2.0 / c1) * v1.dot(r[i]) * v1;
-    const Eigen::Vector3d tL = t[i] - (2.0 / c1) * v1.dot(t[i]) * v1;
+    const Eigen::Vector3d rL = reflect(r[i], v1, c1), tL = reflect(t[i], v1, c1);
     const Eigen::Vector3d v2 = t[i + 1] - tL;
     const double c2 = v2.dot(v2);
-    const Eigen::Vector3d next = c2 > 0.0 ? Eigen::Vector3d(rL - (2.0 / c2) * v2.dot(rL) * v2) : rL;
-    r[i + 1] = (next - t[i + 1] * t[i + 1].dot(next)).normalized();
+    const Eigen::Vector3d next = c2 > 0.0 ? reflect(rL, v2, c2) : rL;
+    r[i + 1] = normal_part(next, t[i + 1]).normalized();
   }
   return r;
 }
@@ -270,7 +278,7 @@ std::vector<CentrelineFrame> centreline_frames(const Centreline& c) {
   if (c.normals.rows() == c.points.rows()) {
     for (size_t i = 0; i < t.size(); ++i) {
       const Eigen::Vector3d n = row(c.normals, static_cast<Eigen::Index>(i));
-      normals.push_back((n - t[i] * t[i].dot(n)).normalized());
+      normals.push_back(normal_part(n, t[i]).normalized());
     }
   } else {
     normals = rotation_minimising_normals(c, t);
@@ -288,8 +296,7 @@ CentrelineFrame frame_at_arc_length(const std::vector<CentrelineFrame>& frames, 
   CentrelineFrame f;
   f.point = lerp(a.point, b.point, k.w);
   f.tangent = lerp(a.tangent, b.tangent, k.w).normalized();
-  const Eigen::Vector3d n = lerp(a.normal, b.normal, k.w);
-  f.normal = (n - f.tangent * f.tangent.dot(n)).normalized();
+  f.normal = normal_part(lerp(a.normal, b.normal, k.w), f.tangent).normalized();
   f.binormal = f.tangent.cross(f.normal);
   return f;
 }

@@ -95,7 +95,7 @@ double swept_tube_lumen_radius(const SweptTubeSpec& spec, double s);
 // the centreline with the frame of frame_at_arc_length, lumen radius swept_tube_lumen_radius and outer radius
 // that plus wall_thickness; where the outer radius exceeds kBendClearance times the bend radius of the rings on
 // either side (chord / (2 sin(turn / 2)) between ring tangents), both radii of the ring are scaled down to reach
-// it (counted in clamped_rings). Throws std::invalid_argument naming the field and value for an invalid spec
+// it, the scale changing by at most kClampTaper from ring to ring (rings scaled: clamped_rings). Throws std::invalid_argument naming the field and value for an invalid spec
 // (the centreline as validate_centreline).
 SweptTube make_swept_tube(const SweptTubeSpec& spec);
 
