@@ -258,3 +258,40 @@ TEST(SweptTubeScene, BadCentrelineExitsTwoAndWritesNothing) {
             std::string::npos) << output;
   EXPECT_TRUE(!fs::exists(out) || fs::is_empty(out));
 }
+
+// A twist turns a swept tube's end ring about that ring's own centreline tangent and centre: on a straight
+// centreline its prescribed displacement is the hollow cylinder's (the same node numbering, the tube shifted by the
+// range start), and on a bent one every turned node stays at its distance from the end ring's centre.
+TEST(SweptTubeScene, TwistTurnsTheEndRingAboutItsOwnTangent) {
+  const fs::path d = temp_dir("twist");
+  json swept = swept_scene();
+  swept["mesh"].erase("haustra");
+  swept["mesh"]["segment_length"] = 5.0;
+  swept["fixed"] = {"start"};
+  swept["probes"] = json::array();
+  swept["twist"] = json::parse(R"({"end": "stop", "track": [{"t": 0.0, "degrees": 0.0}, {"t": 1.0, "degrees": 90.0}]})");
+  json cylinder = swept;
+  cylinder["mesh"] = json::parse(R"({"type": "hollow_cylinder", "inner_radius": 0.008, "outer_radius": 0.0105,
+                                     "length": 0.06, "segments_around": 12, "segments_along": 12, "layers": 2})");
+  const auto tube = lumen::engine::compile_model(lumen::engine::load_scene(write_case(d, swept, straight_centreline(11, 100.0))));
+  const auto cyl = lumen::engine::compile_model(lumen::engine::parse_scene(cylinder.dump(), "c.json"));
+  ASSERT_EQ(tube->mesh.n_nodes(), cyl->mesh.n_nodes());
+  EXPECT_LE((tube->twist_axis - Eigen::Vector3d::UnitZ()).norm(), 1e-15);
+  EXPECT_LE((tube->twist_center - Eigen::Vector3d(0.0, 0.0, 0.08)).norm(), 1e-15);
+  EXPECT_LE((lumen::engine::twist_displacement(*tube, 30.0) - lumen::engine::twist_displacement(*cyl, 30.0)).lpNorm<Eigen::Infinity>(),
+            1e-12);
+  // The shipped colon segment (a bent, clamped end): turned nodes keep their distance from the ring's centre.
+  lumen::engine::Scene colon = lumen::engine::load_scene(std::string(LUMEN_SOURCE_DIR) + "/scenes/colon-sigmoid-pinch.json");
+  colon.twist.end = lumen::engine::TwistEnd::kStop;
+  colon.twist.track = {{0.0, 0.0}, {1.0, 90.0}};
+  colon.probes.clear();
+  colon.collision.self = false;
+  const auto m = lumen::engine::compile_model(colon);
+  const Eigen::VectorXd u = lumen::engine::twist_displacement(*m, 90.0);
+  for (int v : m->mesh.node_set(lumen::physics::kStopEnd)) {
+    const Eigen::Vector3d x = m->mesh.rest.row(v).transpose();
+    const Eigen::Vector3d moved = x + u.segment<3>(3 * v);
+    EXPECT_NEAR((moved - m->twist_center).norm(), (x - m->twist_center).norm(), 1e-12) << v;
+    EXPECT_NEAR((moved - x).dot(m->twist_axis), 0.0, 1e-12) << v;
+  }
+}
