@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <set>
 #include <sstream>
 
@@ -24,6 +25,13 @@ constexpr const char* kTangentNames[] = {"warped", "projected", "exact"};
 constexpr const char* kTwistEndNames[] = {"", "start", "stop"};
 constexpr const char* kNodeSetNames[] = {"ends", "start", "stop"};
 constexpr const char* kCameraNames[] = {"side", "diagonal", "endoscope"};
+constexpr const char* kMeshTypeNames[] = {"hollow_cylinder", "swept_tube"};
+// mesh.units of a swept tube, and metres per unit.
+enum class LengthUnit { kMetre, kMillimetre };
+constexpr const char* kLengthUnitNames[] = {"m", "mm"};
+constexpr double kMetresPerUnit[] = {1.0, 1e-3};
+// A range end within this fraction of the centreline's arc length past it is its end (decimal rounding).
+constexpr double kRangeEndTolerance = 1e-9;
 
 // Reads one JSON object, checking keys, types and ranges; every error names file, key path and value.
 class Reader {
@@ -122,11 +130,9 @@ class Reader {
   std::string file_;
 };
 
-void read_mesh(const Reader& r, const json& m, physics::HollowCylinderSpec& spec, ElementType& element) {
+void read_hollow_cylinder(const Reader& r, const json& m, physics::HollowCylinderSpec& spec) {
   r.only_keys(m, "mesh", {"type", "inner_radius", "outer_radius", "length", "segments_around", "segments_along",
                           "layers", "bend_radius", "element"});
-  if (m.contains("element")) element = r.choice<ElementType>(m.at("element"), "mesh.element", kElementNames);
-  r.one_of(r.require(m, "mesh", "type"), "mesh.type", {"hollow_cylinder"});
   spec.inner_radius = r.positive(r.require(m, "mesh", "inner_radius"), "mesh.inner_radius");
   spec.outer_radius = r.positive(r.require(m, "mesh", "outer_radius"), "mesh.outer_radius");
   if (spec.inner_radius >= spec.outer_radius)
@@ -141,6 +147,164 @@ void read_mesh(const Reader& r, const json& m, physics::HollowCylinderSpec& spec
     if (spec.bend_radius != 0.0 && !(spec.bend_radius > spec.outer_radius))
       r.fail("mesh.bend_radius", "must be 0 (straight) or > mesh.outer_radius", &m.at("bend_radius"));
   }
+}
+
+// Rows of 3 numbers (a centreline file's points, tangents or normals), n of them, times `scale`.
+Points read_rows(const Reader& r, const json& v, const char* key, size_t n, double scale) {
+  if (!v.is_array() || v.size() != n)
+    r.fail(key, "must be an array of " + std::to_string(n) + " [x, y, z] rows (one per point)", nullptr);
+  Points rows(static_cast<Eigen::Index>(n), 3);
+  for (size_t i = 0; i < n; ++i) rows.row(static_cast<Eigen::Index>(i)) = scale * r.vec3(v[i], Reader::index(key, i)).transpose();
+  return rows;
+}
+
+// A centreline file {"n", "points", "tangents", "normals"} (tangents and normals optional), points scaled to
+// metres; its geometry validated (physics::validate_centreline), every error naming the file, field and sample.
+physics::Centreline read_centreline(const std::string& file, double metres_per_unit) {
+  require_file(file, "centreline file");
+  std::ifstream in(file, std::ios::binary);
+  std::stringstream text;
+  text << in.rdbuf();
+  if (!in) throw InputError(file + ": cannot read centreline file");
+  json root;
+  try {
+    root = json::parse(text.str());
+  } catch (const json::exception& e) {
+    throw InputError(file + ": malformed JSON: " + e.what());
+  }
+  const Reader r(file);
+  r.only_keys(root, "", {"n", "points", "tangents", "normals"});
+  const json& points = r.require(root, "", "points");
+  if (!points.is_array() || points.empty()) r.fail("points", "must be a non-empty array of [x, y, z] rows", nullptr);
+  const size_t n = points.size();
+  if (root.contains("n") && r.integer_in(root.at("n"), "n", 0, std::numeric_limits<int>::max()) != static_cast<int>(n))
+    r.fail("n", "must equal the number of points (" + std::to_string(n) + ")", &root.at("n"));
+  physics::Centreline c;
+  c.points = read_rows(r, points, "points", n, metres_per_unit);
+  if (root.contains("tangents")) c.tangents = read_rows(r, root.at("tangents"), "tangents", n, 1.0);
+  if (root.contains("normals")) c.normals = read_rows(r, root.at("normals"), "normals", n, 1.0);
+  try {
+    physics::validate_centreline(c, file);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(e.what());
+  }
+  return c;
+}
+
+// mesh.radius of a swept tube: a number, or a profile [[s, r], ...] along the arc length (file units).
+void read_radius(const Reader& r, const json& v, double unit, physics::SweptTubeSpec& spec) {
+  if (v.is_object() && v.contains("from_surface"))
+    r.fail("mesh.radius", "\"from_surface\" is not supported yet: give a number or a profile [[s, r], ...]", &v);
+  if (!v.is_array()) {
+    spec.radius = unit * r.positive(v, "mesh.radius");
+    return;
+  }
+  if (v.size() < 2) r.fail("mesh.radius", "a profile needs at least 2 [s, r] pairs", &v);
+  for (size_t k = 0; k < v.size(); ++k) {
+    const std::string at = Reader::index("mesh.radius", k);
+    if (!v[k].is_array() || v[k].size() != 2) r.fail(at, "must be a pair [s, r]", &v[k]);
+    physics::RadiusKnot knot{unit * r.number(v[k][0], at + "[0]"), unit * r.positive(v[k][1], at + "[1]")};
+    if (!spec.radius_profile.empty() && !(knot.s > spec.radius_profile.back().s))
+      r.fail(at + "[0]", "arc lengths must be strictly increasing", &v[k][0]);
+    spec.radius_profile.push_back(knot);
+  }
+}
+
+// mesh.range: [s0, s1] within the centreline's arc length (file units); the whole centreline when absent.
+void read_range(const Reader& r, const json& m, double unit, physics::SweptTubeSpec& spec) {
+  const double length = physics::arc_lengths(spec.centreline.points).back();
+  spec.range_start = 0.0;
+  spec.range_stop = length;
+  if (!m.contains("range")) return;
+  const json& v = m.at("range");
+  if (!v.is_array() || v.size() != 2) r.fail("mesh.range", "must be [start, stop] (arc lengths)", &v);
+  spec.range_start = unit * r.number(v[0], "mesh.range[0]");
+  spec.range_stop = unit * r.number(v[1], "mesh.range[1]");
+  std::ostringstream within;
+  within << "must lie within the centreline's arc length [0, " << length / unit << "] of " << spec.source
+         << ", start < stop";
+  if (spec.range_stop > length && spec.range_stop <= length * (1.0 + kRangeEndTolerance)) spec.range_stop = length;
+  if (!(spec.range_start >= 0.0 && spec.range_start < spec.range_stop && spec.range_stop <= length))
+    r.fail("mesh.range", within.str(), &v);
+}
+
+// Cross-checks of a swept tube's keys: the profile covers the range, haustra resolved, rings bounded.
+void check_swept_tube(const Reader& r, const json& m, const physics::SweptTubeSpec& spec) {
+  if (!spec.radius_profile.empty() &&
+      (spec.radius_profile.front().s > spec.range_start || spec.radius_profile.back().s < spec.range_stop))
+    r.fail("mesh.radius", "the profile must cover mesh.range (first s <= range start, last s >= range stop)",
+           &m.at("radius"));
+  if (spec.haustra.enabled() && spec.haustra.pitch < physics::kMinRingsPerHaustrum * spec.segment_length)
+    r.fail("mesh.haustra.pitch",
+           "must be at least " + std::to_string(physics::kMinRingsPerHaustrum) + " mesh.segment_length",
+           &m.at("haustra").at("pitch"));
+  if (!((spec.range_stop - spec.range_start) / spec.segment_length < physics::kMaxSweptRings))
+    r.fail("mesh.segment_length", "gives more than " + std::to_string(physics::kMaxSweptRings) + " rings over the range",
+           &m.at("segment_length"));
+}
+
+void read_swept_tube(const Reader& r, const json& m, const std::filesystem::path& dir, physics::SweptTubeSpec& spec) {
+  r.only_keys(m, "mesh", {"type", "element", "centreline", "units", "range", "radius", "wall_thickness",
+                          "segments_around", "segment_length", "layers", "haustra"});
+  const LengthUnit units = m.contains("units") ? r.choice<LengthUnit>(m.at("units"), "mesh.units", kLengthUnitNames)
+                                               : LengthUnit::kMetre;
+  const double unit = kMetresPerUnit[static_cast<int>(units)];
+  // The centreline file, relative to the scene file.
+  std::filesystem::path file = r.string(r.require(m, "mesh", "centreline"), "mesh.centreline");
+  if (file.is_relative()) file = dir / file;
+  spec.source = file.lexically_normal().string();
+  spec.centreline = read_centreline(spec.source, unit);
+  read_range(r, m, unit, spec);
+  read_radius(r, r.require(m, "mesh", "radius"), unit, spec);
+  spec.wall_thickness = unit * r.positive(r.require(m, "mesh", "wall_thickness"), "mesh.wall_thickness");
+  spec.segments_around = r.integer_in(r.require(m, "mesh", "segments_around"), "mesh.segments_around", 3, 4096);
+  spec.segment_length = unit * r.positive(r.require(m, "mesh", "segment_length"), "mesh.segment_length");
+  spec.layers = r.integer_in(r.require(m, "mesh", "layers"), "mesh.layers", 1, 256);
+  if (m.contains("haustra")) {
+    const json& h = m.at("haustra");
+    r.only_keys(h, "mesh.haustra", {"depth", "pitch"});
+    spec.haustra.depth = unit * r.positive(r.require(h, "mesh.haustra", "depth"), "mesh.haustra.depth");
+    spec.haustra.pitch = unit * r.positive(r.require(h, "mesh.haustra", "pitch"), "mesh.haustra.pitch");
+  }
+  check_swept_tube(r, m, spec);
+}
+
+void read_mesh(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& s) {
+  if (!m.is_object()) r.fail("mesh", "must be an object", &m);
+  s.mesh_type = r.choice<MeshType>(r.require(m, "mesh", "type"), "mesh.type", kMeshTypeNames);
+  if (m.contains("element")) s.element = r.choice<ElementType>(m.at("element"), "mesh.element", kElementNames);
+  if (s.mesh_type == MeshType::kSweptTube)
+    read_swept_tube(r, m, dir, s.swept_tube);
+  else
+    read_hollow_cylinder(r, m, s.mesh);
+}
+
+// One entry of "fixed": a node-set name, {"box": [low, high]} or {"plane": {"point", "normal"}}.
+FixedSpec read_fixed(const Reader& r, const json& v, const std::string& path) {
+  if (v.is_string()) return r.choice<NodeSetName>(v, path, kNodeSetNames);
+  if (!v.is_object() || v.size() != 1 || !(v.contains("box") || v.contains("plane")))
+    r.fail(path, "must be a node-set name (ends, start, stop), {\"box\": [[x0, y0, z0], [x1, y1, z1]]} or "
+                 "{\"plane\": {\"point\": [x, y, z], \"normal\": [x, y, z]}}", &v);
+  FixedSpec f;
+  if (v.contains("box")) {
+    const json& box = v.at("box");
+    const std::string at = Reader::join(path, "box");
+    if (!box.is_array() || box.size() != 2) r.fail(at, "must be [[x0, y0, z0], [x1, y1, z1]]", &box);
+    f.kind = FixedKind::kBox;
+    f.a = r.vec3(box[0], Reader::index(at, 0));
+    f.b = r.vec3(box[1], Reader::index(at, 1));
+    if (!(f.a.array() <= f.b.array()).all()) r.fail(at, "the first corner must be the low one (x0 <= x1, y0 <= y1, z0 <= z1)", &box);
+    return f;
+  }
+  const json& plane = v.at("plane");
+  const std::string at = Reader::join(path, "plane");
+  r.only_keys(plane, at, {"point", "normal"});
+  f.kind = FixedKind::kPlane;
+  f.a = r.vec3(r.require(plane, at, "point"), Reader::join(at, "point"));
+  f.b = r.vec3(r.require(plane, at, "normal"), Reader::join(at, "normal"));
+  if (!(f.b.norm() > 0.0)) r.fail(Reader::join(at, "normal"), "must not be zero", &plane.at("normal"));
+  f.b.normalize();
+  return f;
 }
 
 void read_material(const Reader& r, const json& m, MaterialSpec& mat) {
@@ -279,6 +443,10 @@ void read_twist(const Reader& r, const json& m, TwistSpec& spec) {
 
 // Checks across keys: what the compiled model cannot combine is refused here, naming the first key involved.
 void check_combinations(const Reader& r, const json& root, const Scene& s) {
+  // Quadratic elements take their curved walls from the hollow cylinder's geometry.
+  if (s.element == ElementType::kTet10 && s.mesh_type != MeshType::kHollowCylinder)
+    r.fail("mesh.element", std::string("\"tet10\" needs mesh.type \"hollow_cylinder\" (got \"") + name_of(s.mesh_type) + "\")",
+           &root.at("mesh").at("element"));
   // Quadratic elements come with the quasi-static models only (linear prefactorised, or corotational).
   if (s.element == ElementType::kTet10 && s.solver.type != SolverType::kQuasiStatic)
     r.fail("mesh.element", std::string("\"tet10\" needs solver.type \"quasi_static\" (got \"") + name_of(s.solver.type) + "\")",
@@ -334,6 +502,7 @@ const char* name_of(LcpSolver v) { return kLcpSolverNames[static_cast<int>(v)]; 
 const char* name_of(ContactCoupling v) { return kCouplingNames[static_cast<int>(v)]; }
 const char* name_of(Tangent v) { return kTangentNames[static_cast<int>(v)]; }
 const char* name_of(TwistEnd v) { return kTwistEndNames[static_cast<int>(v)]; }
+const char* name_of(MeshType v) { return kMeshTypeNames[static_cast<int>(v)]; }
 const char* name_of(render::CameraPreset v) { return kCameraNames[static_cast<int>(v)]; }
 
 Scene parse_scene(const std::string& text, const std::string& path) {
@@ -355,14 +524,13 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   s.name = r.string(r.require(root, "", "name"), "name");
   if (s.name.empty() || s.name.find_first_of("/\\") != std::string::npos || s.name == "." || s.name == "..")
     r.fail("name", "must be a non-empty name without path separators", &root.at("name"));
-  read_mesh(r, r.require(root, "", "mesh"), s.mesh, s.element);
+  read_mesh(r, r.require(root, "", "mesh"), dir, s);
   read_material(r, r.require(root, "", "material"), s.material);
 
-  // Named node sets held still.
+  // Node sets held still: names, boxes, plane sides.
   const json& fixed = r.require(root, "", "fixed");
-  if (!fixed.is_array() || fixed.empty()) r.fail("fixed", "must be a non-empty array of names", &fixed);
-  for (size_t i = 0; i < fixed.size(); ++i)
-    s.fixed.push_back(r.choice<NodeSetName>(fixed[i], Reader::index("fixed", i), kNodeSetNames));
+  if (!fixed.is_array() || fixed.empty()) r.fail("fixed", "must be a non-empty array of node sets", &fixed);
+  for (size_t i = 0; i < fixed.size(); ++i) s.fixed.push_back(read_fixed(r, fixed[i], Reader::index("fixed", i)));
 
   const json& probes = r.require(root, "", "probes");
   if (!probes.is_array()) r.fail("probes", "must be an array", &probes);

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 
 #include "physics/mesh.hpp"
+#include "physics/swept_tube.hpp"
 #include "render/renderer.hpp"
 
 namespace lumen::engine {
@@ -48,6 +49,7 @@ enum class ContactCoupling { kCorrect, kCarried };    // "correct" | "carried"
 enum class Tangent { kWarped, kProjected, kExact };  // "warped" | "projected" | "exact"
 enum class TwistEnd { kNone, kStart, kStop };         // (no twist) | "start" | "stop"
 enum class NodeSetName { kEnds, kStart, kStop };      // "ends" | "start" | "stop"
+enum class MeshType { kHollowCylinder, kSweptTube };  // "hollow_cylinder" | "swept_tube"
 // The JSON name of a choice (what the scene file says and report.json repeats).
 const char* name_of(MaterialModel v);
 const char* name_of(ElementType v);
@@ -57,7 +59,21 @@ const char* name_of(LcpSolver v);
 const char* name_of(ContactCoupling v);
 const char* name_of(Tangent v);
 const char* name_of(TwistEnd v);
+const char* name_of(MeshType v);
 const char* name_of(render::CameraPreset v);
+
+// A set of nodes held still (key "fixed"): a named node set ("ends", "start", "stop"), the nodes inside a box
+// ({"box": [[x0, y0, z0], [x1, y1, z1]]}, corners in metres, inclusive), or the nodes on the normal's side of a
+// plane ({"plane": {"point": [...], "normal": [...]}}, inclusive).
+enum class FixedKind { kNamed, kBox, kPlane };
+struct FixedSpec {
+  FixedKind kind = FixedKind::kNamed;
+  NodeSetName name = NodeSetName::kEnds;          // kNamed
+  Eigen::Vector3d a = Eigen::Vector3d::Zero();    // kBox: the low corner; kPlane: a point on the plane (metres)
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();    // kBox: the high corner; kPlane: the unit normal
+  FixedSpec() = default;
+  FixedSpec(NodeSetName n) : name(n) {}  // a named set (implicit, so a list of names reads as before)
+};
 
 struct MaterialSpec {
   MaterialModel model = MaterialModel::kLinear;  // prefactorised linear (the paper's) or corotational
@@ -129,12 +145,16 @@ struct TwistSpec {
 struct Scene {
   std::string path;  // the file it was read from
   std::string name;
+  // The volume mesh's source (key mesh.type): the generated hollow cylinder (`mesh`) or a tube swept along a
+  // centreline file (`swept_tube`, its centreline read, validated and converted to metres at load).
+  MeshType mesh_type = MeshType::kHollowCylinder;
   physics::HollowCylinderSpec mesh;
+  physics::SweptTubeSpec swept_tube;
   // Element of the volume mesh (key mesh.element): "tet4" (linear, the paper's) or "tet10" (quadratic,
   // isoparametric; its walls are drawn and collide as each face split into 4 triangles over the edge nodes).
   ElementType element = ElementType::kTet4;
   MaterialSpec material;
-  std::vector<NodeSetName> fixed;  // named node sets held still
+  std::vector<FixedSpec> fixed;  // node sets held still
   std::vector<ProbeSpec> probes;
   int frames = 120;
   double fps = 40.0;  // frames per second of simulated time; the budget is 1 / fps

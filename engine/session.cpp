@@ -235,6 +235,9 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
                {"inner_triangles", model.inner_wall().rows()},
                {"outer_triangles", model.outer_wall().rows()}};
   r["mesh"].update(mesh_quality_json(physics::mesh_quality(model.mesh.rest, model.mesh.tets)));
+  r["mesh"]["source"] = name_of(model.mesh_type);
+  r["mesh"]["build_ms"] = model.mesh_build_ms;
+  if (model.mesh_type == MeshType::kSweptTube) r["mesh"]["clamped_rings"] = model.clamped_rings;
   r["model"] = {{"material", name_of(model.material)}, {"element", name_of(model.element)},
                 {"solver", name_of(model.solver)},
                 {"tangent", name_of(model.tangent)}, {"compile_seconds", model.compile_seconds}};

@@ -73,16 +73,37 @@ namespace {
 // ---------------------------------------------------------------------------------------------------------------
 // Compile stages
 
+// The generated linear mesh of the scene's mesh source, with the build facts kept in the model (generator time,
+// clamped rings, end rings).
+physics::TetMesh generate_mesh(const Scene& scene, Model& m) {
+  if (scene.mesh_type == MeshType::kSweptTube) {
+    physics::SweptTube tube = physics::make_swept_tube(scene.swept_tube);
+    m.clamped_rings = tube.clamped_rings;
+    m.end_rings = {tube.rings.front(), tube.rings.back()};
+    return std::move(tube.mesh);
+  }
+  const physics::HollowCylinderSpec& c = scene.mesh;
+  m.end_rings = {physics::TubeRing{physics::hollow_cylinder_frame(c, 0.0), c.inner_radius, c.outer_radius},
+                 physics::TubeRing{physics::hollow_cylinder_frame(c, c.length), c.inner_radius, c.outer_radius}};
+  return physics::make_hollow_cylinder(c);
+}
+
 // The volume mesh the engine works on, and (tet10) the quadratic mesh its stiffness comes from: the engine's mesh
 // is then the quadratic mesh's linear view (all nodes, each element split into 8 tets, walls split over the edge
-// nodes). n_elements: the volume elements. An inverted or zero-volume tet is refused (InputError naming it).
-physics::TetMesh build_mesh(const Scene& scene, std::unique_ptr<physics::QuadraticMesh>& quadratic, int& n_elements) {
-  physics::TetMesh linear = physics::make_hollow_cylinder(scene.mesh);
-  n_elements = static_cast<int>(linear.tets.rows());
+// nodes). Sets m.n_elements (the volume elements) and m.mesh_build_ms (generating it, the quality check not
+// included). An inverted or zero-volume tet is refused (InputError naming it).
+physics::TetMesh build_mesh(const Scene& scene, std::unique_ptr<physics::QuadraticMesh>& quadratic, Model& m) {
+  const auto t0 = Clock::now();
+  m.mesh_type = scene.mesh_type;
+  physics::TetMesh linear = generate_mesh(scene, m);
+  m.n_elements = static_cast<int>(linear.tets.rows());
+  m.mesh_build_ms = ms_since(t0);
   require_valid_tets(linear, scene.path);
   if (scene.element != ElementType::kTet10) return linear;
+  const auto t1 = Clock::now();
   quadratic = std::make_unique<physics::QuadraticMesh>(physics::make_quadratic_cylinder(linear, scene.mesh));
   physics::TetMesh view = physics::linear_view(*quadratic);
+  m.mesh_build_ms += ms_since(t1);
   require_valid_tets(view, scene.path);
   return view;
 }
@@ -108,15 +129,34 @@ void sort_unique(std::vector<int>& ids) {
   ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
 }
 
-// Named node sets held still ("ends": both end sets).
+// The mesh nodes a box or plane entry of "fixed" selects (rest positions, inclusive).
+std::vector<int> selected_nodes(const FixedSpec& f, const Points& rest) {
+  std::vector<int> nodes;
+  for (int v = 0; v < rest.rows(); ++v) {
+    const Eigen::Vector3d x = rest.row(v).transpose();
+    const bool in = f.kind == FixedKind::kBox ? ((x.array() >= f.a.array()).all() && (x.array() <= f.b.array()).all())
+                                              : (x - f.a).dot(f.b) >= 0.0;
+    if (in) nodes.push_back(v);
+  }
+  return nodes;
+}
+
+// Node sets held still ("ends": both end sets; a box or a plane side: the nodes it selects, at least one).
 void add_fixed_sets(const Scene& scene, Model& m) {
-  auto hold = [&](const char* set) {
-    const std::vector<int>& nodes = m.mesh.node_set(set);
+  auto hold = [&](const std::vector<int>& nodes) {
     m.fixed_nodes.insert(m.fixed_nodes.end(), nodes.begin(), nodes.end());
   };
-  for (NodeSetName name : scene.fixed) {
-    if (name == NodeSetName::kEnds || name == NodeSetName::kStart) hold(physics::kStartEnd);
-    if (name == NodeSetName::kEnds || name == NodeSetName::kStop) hold(physics::kStopEnd);
+  for (size_t i = 0; i < scene.fixed.size(); ++i) {
+    const FixedSpec& f = scene.fixed[i];
+    if (f.kind == FixedKind::kNamed) {
+      if (f.name == NodeSetName::kEnds || f.name == NodeSetName::kStart) hold(m.mesh.node_set(physics::kStartEnd));
+      if (f.name == NodeSetName::kEnds || f.name == NodeSetName::kStop) hold(m.mesh.node_set(physics::kStopEnd));
+      continue;
+    }
+    const std::vector<int> nodes = selected_nodes(f, m.mesh.rest);
+    if (nodes.empty())
+      throw InputError(scene.path + ": fixed[" + std::to_string(i) + "]: selects no node of the mesh");
+    hold(nodes);
   }
 }
 
@@ -127,16 +167,16 @@ void add_twist(const Scene& scene, Model& m) {
   const bool start = scene.twist.end == TwistEnd::kStart;
   physics::PrescribedMotion& pm = m.prescribed;
   pm.nodes = start ? m.mesh.node_set(physics::kStartEnd) : m.mesh.node_set(physics::kStopEnd);
-  const physics::CentrelineFrame frame = physics::hollow_cylinder_frame(scene.mesh, start ? 0.0 : scene.mesh.length);
-  m.twist_center = frame.point;
-  m.twist_axis = frame.tangent;
+  const physics::TubeRing& ring = m.end_rings[start ? 0 : 1];
+  m.twist_center = ring.frame.point;
+  m.twist_axis = ring.frame.tangent;
   // Rotation basis per ring node: R(theta) r - r = (cos theta - 1) (r - a (a . r)) + sin theta (a x r).
   pm.basis = Eigen::MatrixXd::Zero(3 * m.mesh.n_nodes(), 2);
   const Eigen::Vector3d& a = m.twist_axis;
   for (int node : pm.nodes) {
     const Eigen::Vector3d r = m.mesh.rest.row(node).transpose() - m.twist_center;
     // The generator puts every end node in the ring plane; a node off it is a bug, not a user's mistake.
-    if (std::abs(a.dot(r)) > 1e-9 * scene.mesh.outer_radius)
+    if (std::abs(a.dot(r)) > 1e-9 * ring.outer_radius)
       throw std::logic_error("compile_model: twist: end node " + std::to_string(node) + " is off the ring plane (" +
                              std::to_string(a.dot(r)) + " m)");
     pm.basis.block<3, 1>(3 * node, 0) = r - a * a.dot(r);
@@ -267,7 +307,7 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   m->budget_ms = 1000.0 / scene.fps;
   m->time_step = 1.0 / scene.fps;
   std::unique_ptr<physics::QuadraticMesh> quadratic;
-  m->mesh = build_mesh(scene, quadratic, m->n_elements);
+  m->mesh = build_mesh(scene, quadratic, *m);
   resolve_walls(*m);
   add_fixed_sets(scene, *m);
   add_twist(scene, *m);

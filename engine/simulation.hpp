@@ -1,5 +1,6 @@
 #pragma once
 // The compiled model (immutable after compile) and the mutable session state; one step per frame.
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -69,6 +70,12 @@ struct Model {
   Eigen::Vector3d twist_center = Eigen::Vector3d::Zero();  // c, metres
   Eigen::Vector3d twist_axis = Eigen::Vector3d::UnitZ();   // a, unit (start -> stop direction)
   int n_elements = 0;                              // volume elements (tets; tet10: the quadratic ones)
+  // How the mesh was built: its source, the generator's time, the rings a swept tube's bend clamp reduced, and
+  // the end rings (start, stop: centreline frame and wall radii) that twists turn.
+  MeshType mesh_type = MeshType::kHollowCylinder;
+  double mesh_build_ms = 0.0;
+  int clamped_rings = 0;
+  std::array<physics::TubeRing, 2> end_rings;
   // The organ's walls as indices into mesh.surfaces, resolved from their names when the scene compiles.
   int inner_surface = -1;                          // the lumen wall: self-collision, framing, surface export
   int outer_surface = -1;                          // the outer wall: where probes attach

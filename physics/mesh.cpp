@@ -1,4 +1,4 @@
-// Hollow-cylinder tetrahedral mesh generator and tet volume.
+// Structured tube tet mesh (shared by the generated tubes), the hollow-cylinder generator and tet volume.
 #include "physics/mesh.hpp"
 
 #include "physics/detail/messages.hpp"
@@ -43,11 +43,13 @@ void validate(const HollowCylinderSpec& s) {
 
 }  // namespace
 
-TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec) {
-  validate(spec);
-  const int na = spec.segments_around;  // cells around (periodic)
-  const int nl = spec.segments_along;   // cells along
-  const int nr = spec.layers;           // cells through the wall
+TetMesh make_structured_tube(const std::vector<TubeRing>& rings, int segments_around, int layers) {
+  if (rings.size() < 2) detail::fail_value("make_structured_tube: rings", "must number at least 2", rings.size());
+  if (segments_around < 3) detail::fail_value("make_structured_tube: segments_around", "must be >= 3", segments_around);
+  if (layers < 1) detail::fail_value("make_structured_tube: layers", "must be >= 1", layers);
+  const int na = segments_around;                        // cells around (periodic)
+  const int nl = static_cast<int>(rings.size()) - 1;     // cells along
+  const int nr = layers;                                 // cells through the wall
   const int n_nodes = na * (nl + 1) * (nr + 1);
   // Node id of grid point (i around, j along, k layer); i is taken modulo na.
   auto node = [&](int i, int j, int k) { return (j * (nr + 1) + k) * na + (i % na); };
@@ -55,16 +57,14 @@ TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec) {
   TetMesh mesh;
   mesh.rest.resize(n_nodes, 3);
 
-  // Node positions: ring at arc length s, radius r, angle theta in the local frame (e1, e2) = (normal, binormal)
-  // of the centreline (hollow_cylinder_frame).
+  // Node positions: ring j at radius r, angle theta in its local frame (e1, e2) = (normal, binormal).
   for (int j = 0; j <= nl; ++j) {
-    const CentrelineFrame frame = hollow_cylinder_frame(spec, spec.length * j / nl);
-    const Eigen::Vector3d &c = frame.point, &e1 = frame.normal, &e2 = frame.binormal;
+    const TubeRing& ring = rings[j];
     for (int k = 0; k <= nr; ++k) {
-      const double r = spec.inner_radius + (spec.outer_radius - spec.inner_radius) * k / nr;
+      const double r = ring.inner_radius + (ring.outer_radius - ring.inner_radius) * k / nr;
       for (int i = 0; i < na; ++i) {
         const double theta = 2.0 * static_cast<double>(EIGEN_PI) * i / na;
-        mesh.rest.row(node(i, j, k)) = (c + r * std::cos(theta) * e1 + r * std::sin(theta) * e2).transpose();
+        mesh.rest.row(node(i, j, k)) = ring_point(ring.frame, r, theta).transpose();
       }
     }
   }
@@ -128,6 +128,16 @@ TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec) {
   return mesh;
 }
 
+TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec) {
+  validate(spec);
+  // Rings at equal arc-length steps along the centreline, all with the spec's radii.
+  std::vector<TubeRing> rings(spec.segments_along + 1);
+  for (int j = 0; j <= spec.segments_along; ++j)
+    rings[j] = {hollow_cylinder_frame(spec, spec.length * j / spec.segments_along), spec.inner_radius,
+                spec.outer_radius};
+  return make_structured_tube(rings, spec.segments_around, spec.layers);
+}
+
 CentrelineFrame hollow_cylinder_frame(const HollowCylinderSpec& spec, double s) {
   CentrelineFrame f{Eigen::Vector3d(0.0, 0.0, s), Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX(),
                     Eigen::Vector3d::UnitY()};
@@ -140,10 +150,13 @@ CentrelineFrame hollow_cylinder_frame(const HollowCylinderSpec& spec, double s) 
   return f;
 }
 
+Eigen::Vector3d ring_point(const CentrelineFrame& f, double r, double theta) {
+  return f.point + r * std::cos(theta) * f.normal + r * std::sin(theta) * f.binormal;
+}
+
 Eigen::Vector3d hollow_cylinder_point(const HollowCylinderSpec& spec, double s, double r, double theta) {
   // Same frame as the generator: the ring at s has local axes normal (x) and binormal (y).
-  const CentrelineFrame f = hollow_cylinder_frame(spec, s);
-  return f.point + r * std::cos(theta) * f.normal + r * std::sin(theta) * f.binormal;
+  return ring_point(hollow_cylinder_frame(spec, s), r, theta);
 }
 
 double tet_volume(const Points& x, const Tets& tets, int t) {

@@ -63,6 +63,32 @@ struct TetMesh {
   }
 };
 
+// A frame of a tube's centreline: the point and its right-handed orthonormal axes (tangent, normal, binormal).
+struct CentrelineFrame {
+  Eigen::Vector3d point;     // metres
+  Eigen::Vector3d tangent;   // unit
+  Eigen::Vector3d normal;    // unit, local x axis of the ring at s
+  Eigen::Vector3d binormal;  // unit, local y axis of the ring at s (tangent x normal)
+};
+
+// Point of a ring with frame f at distance r (metres) from its centre and angle theta (radians) from its
+// local x axis (the normal): f.point + r cos(theta) f.normal + r sin(theta) f.binormal.
+Eigen::Vector3d ring_point(const CentrelineFrame& f, double r, double theta);
+
+// One ring of nodes of a structured tube: its centreline frame and the radii of its inner and outer wall.
+struct TubeRing {
+  CentrelineFrame frame;
+  double inner_radius = 0.0;  // metres
+  double outer_radius = 0.0;  // metres, > inner_radius
+};
+
+// The structured double-wall tet mesh over rings (at least 2, in order along the centreline): the hollow
+// cylinder's grid, numbering, tets, surfaces and node sets (make_hollow_cylinder below), ring j's nodes at
+// ring_point(rings[j].frame, r_k, 2 pi i / segments_around) with r_k from its inner to its outer radius in
+// `layers` equal steps. Every generated tube (hollow cylinder, swept tube) is built by it. Throws
+// std::invalid_argument when there are fewer than 2 rings, segments_around < 3 or layers < 1.
+TetMesh make_structured_tube(const std::vector<TubeRing>& rings, int segments_around, int layers);
+
 // Parameters of a hollow cylinder along +z from z = 0 to z = length, axis through the origin.
 struct HollowCylinderSpec {
   double inner_radius = 0.01;   // metres
@@ -93,12 +119,6 @@ TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec);
 // c(s) = (R - R cos(s/R), 0, R sin(s/R)), tangent (sin(s/R), 0, cos(s/R)), normal (cos(s/R), 0, -sin(s/R))
 // toward the centre of curvature (the rings' local x axis) and binormal y (the local y axis). Straight
 // (R <= 0): (0, 0, s), z, x and y. Any s is accepted (no validation of spec).
-struct CentrelineFrame {
-  Eigen::Vector3d point;     // metres
-  Eigen::Vector3d tangent;   // unit
-  Eigen::Vector3d normal;    // unit, local x axis of the ring at s
-  Eigen::Vector3d binormal;  // unit, local y axis of the ring at s (tangent x normal)
-};
 CentrelineFrame hollow_cylinder_frame(const HollowCylinderSpec& spec, double s);
 
 // Point of the hollow cylinder of `spec` at arc length s along the centreline (metres), distance r from it
