@@ -109,6 +109,9 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
   if (result.writer.frames > 0)
     std::printf("writer: %ld frames, %.1f frames/s on its thread\n", result.writer.frames, result.writer.frames_per_second());
   if (check) std::printf("frames with intersecting inner-wall pairs: %ld\n", result.report["frames_with_intersections"].get<long>());
+  if (check && !model->instruments.empty())
+    std::printf("frames with intersecting instrument-organ pairs: %ld\n",
+                result.report["frames_with_instrument_intersections"].get<long>());
   std::printf("outputs in %s\n", out_dir.c_str());
   return 0;
 }
@@ -172,7 +175,7 @@ int main(int argc, char** argv) {
   run->add_flag("--export-volume", export_volume,
                 "write the volume mesh per frame as VTK XML (DIR/volume/volume_000001.vtu ..., DIR/volume.pvd)");
   run->add_option("--positions", positions_path, "write the final node positions as CSV (x, y, z per node, metres)");
-  run->add_flag("--check", check, "count intersecting inner-wall triangle pairs on every frame (exact predicates)");
+  run->add_flag("--check", check, "count intersecting inner-wall triangle pairs, and instrument-organ pairs, on every frame (exact predicates)");
 
   CLI::App* bench = app.add_subcommand("bench", "run a scene without writing images; print per-stage frame times");
   bench->add_option("scene", scene_path, "scene file (JSON)")->required();
