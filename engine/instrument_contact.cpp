@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <limits>
 
+#include "collision/distance.hpp"
 #include "collision/intersect.hpp"
 #include "engine/simulation.hpp"
 
@@ -83,6 +84,22 @@ void detect_tool_contacts(const Model& model, State& state, const Points& x0, co
     stats->feature_tests += part_stats.feature_tests;
     stats->contacts += part_stats.contacts;
   }
+}
+
+HeldContact remeasured(const HeldContact& h, const State& state) {
+  const Points& y = state.tool_points[h.part];
+  Eigen::Vector3d p[4];
+  for (int k = 0; k < 4; ++k) p[k] = h.on_tool(k) ? y.row(h.c.v[k]).transpose() : state.x.row(h.c.v[k]).transpose();
+  HeldContact out = h;
+  out.c.toi = 0.0;
+  if (h.c.kind == collision::FeatureKind::VertexFace) {
+    const Eigen::Vector3d w = collision::closest_on_triangle(p[0], p[1], p[2], p[3]);
+    out.c.s = w[1];
+    out.c.t = w[2];
+  } else {
+    collision::segment_segment_closest(p[0], p[1], p[2], p[3], out.c.s, out.c.t);
+  }
+  return out;
 }
 
 physics::ContactRow tool_contact_row(const HeldContact& h, const Model& model, const State& state, const Points& x0,

@@ -319,7 +319,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     }
     for (size_t i = 0; i < state.tool_active.size(); ++i) {
       const FeatureKey key = key_of(state.tool_active[i]);
-      rr.active.emplace(key, state.tool_active[i]);
+      rr.active.emplace(key, remeasured(state.tool_active[i], state));
       rr.pushing.insert(key);
       rr.carried[key] = state.tool_active_lambda[i];
     }
