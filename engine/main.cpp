@@ -121,13 +121,14 @@ int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_rend
   if (kdop > 0 && kdop != 6 && kdop != 14 && kdop != 18 && kdop != 26)
     throw engine::InputError("--kdop: must be one of 6, 14, 18, 26 (value " + std::to_string(kdop) + ")");
   if (kdop > 0) scene.collision.kdop = kdop;
+  engine::Inputs inputs = engine::make_inputs(scene);  // refuses a bad replay or a device-only instrument now
   auto model = engine::compile_model(scene);
   engine::SessionOptions opt;
   opt.frames = frames;
   opt.classify_overlaps = classify;
   opt.render = !no_render;
   opt.write_frames = false;
-  engine::SessionResult result = engine::run_session(*model, engine::make_inputs(scene), opt);
+  engine::SessionResult result = engine::run_session(*model, std::move(inputs), opt);
   if (json) {
     nlohmann::json j = result.report;
     j.erase("per_frame");

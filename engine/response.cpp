@@ -281,6 +281,24 @@ void end_tool_sweeps(const Model& model, State& state, const ResponseRounds& rr)
   state.tool_records = instrument_records(model, state, contacts, rr.rows, rr.solved.lambda);
 }
 
+// The constraint response's warm start: last frame's held self-contacts and tool contacts (these re-measured at
+// the frame's start), all guessed to push, with their multipliers.
+void warm_start(const State& state, ResponseRounds& rr) {
+  for (size_t i = 0; i < state.active.size(); ++i) {
+    const FeatureKey key = key_of(state.active[i]);
+    rr.active.emplace(key, HeldContact{state.active[i], -1, 0});
+    rr.pushing.insert(key);
+    if (i < state.active_lambda.size()) rr.carried[key] = state.active_lambda[i];
+    if (static_cast<Eigen::Index>(i) < state.carried_lambda.size()) rr.in_solve[key] = state.carried_lambda[i];
+  }
+  for (size_t i = 0; i < state.tool_active.size(); ++i) {
+    const FeatureKey key = key_of(state.tool_active[i]);
+    rr.active.emplace(key, remeasured(state.tool_active[i], state));
+    rr.pushing.insert(key);
+    rr.carried[key] = state.tool_active_lambda[i];
+  }
+}
+
 }  // namespace
 
 void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, FrameRecord& rec) {
@@ -309,21 +327,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   // contacts that pushed last time are the active-set solver's first guess.
   clock = Clock::now();
   ResponseRounds rr;
-  if (!paper) {
-    for (size_t i = 0; i < state.active.size(); ++i) {
-      const FeatureKey key = key_of(state.active[i]);
-      rr.active.emplace(key, HeldContact{state.active[i], -1, 0});
-      rr.pushing.insert(key);
-      if (i < state.active_lambda.size()) rr.carried[key] = state.active_lambda[i];
-      if (static_cast<Eigen::Index>(i) < state.carried_lambda.size()) rr.in_solve[key] = state.carried_lambda[i];
-    }
-    for (size_t i = 0; i < state.tool_active.size(); ++i) {
-      const FeatureKey key = key_of(state.tool_active[i]);
-      rr.active.emplace(key, remeasured(state.tool_active[i], state));
-      rr.pushing.insert(key);
-      rr.carried[key] = state.tool_active_lambda[i];
-    }
-  }
+  if (!paper) warm_start(state, rr);
   bool resolved = found.empty() && rr.active.empty();
   while (!resolved && rr.iterations < cs.max_iterations) {
     ++rr.iterations;

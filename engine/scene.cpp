@@ -294,6 +294,13 @@ void read_resolution(const Reader& r, const json& m, const std::string& path, co
     out = r.integer_in(m.at(key), Reader::join(path, key), std::numeric_limits<int>::min(),
                        std::numeric_limits<int>::max());
 }
+// The resolutions of a round shape (the sphere-tipped probe's, the rod's).
+void read_round_resolutions(const Reader& r, const json& m, const std::string& path, int& segments_around, int& rings,
+                            int& shaft_segments) {
+  read_resolution(r, m, path, "segments_around", segments_around);
+  read_resolution(r, m, path, "rings", rings);
+  read_resolution(r, m, path, "shaft_segments", shaft_segments);
+}
 // The same for a dimension the shape needs.
 double required_dimension(const Reader& r, const json& m, const std::string& path, const char* key) {
   return r.number(r.require(m, path, key), Reader::join(path, key));
@@ -313,9 +320,7 @@ ShapeSpec read_shape(const Reader& r, const json& m, const std::string& path, co
     s.tip_radius = required_dimension(r, m, path, "tip_radius");
     s.shaft_radius = required_dimension(r, m, path, "shaft_radius");
     s.shaft_length = required_dimension(r, m, path, "shaft_length");
-    read_resolution(r, m, path, "segments_around", s.segments_around);
-    read_resolution(r, m, path, "rings", s.rings);
-    read_resolution(r, m, path, "shaft_segments", s.shaft_segments);
+    read_round_resolutions(r, m, path, s.segments_around, s.rings, s.shaft_segments);
     shape = s;
   } else if (type == "rod") {
     r.only_keys(m, path, {"type", "radius", "length", "end", "segments_around", "rings", "shaft_segments"});
@@ -323,9 +328,7 @@ ShapeSpec read_shape(const Reader& r, const json& m, const std::string& path, co
     s.radius = required_dimension(r, m, path, "radius");
     s.length = required_dimension(r, m, path, "length");
     if (m.contains("end")) s.end = r.choice<RodEnd>(m.at("end"), Reader::join(path, "end"), kRodEndNames);
-    read_resolution(r, m, path, "segments_around", s.segments_around);
-    read_resolution(r, m, path, "rings", s.rings);
-    read_resolution(r, m, path, "shaft_segments", s.shaft_segments);
+    read_round_resolutions(r, m, path, s.segments_around, s.rings, s.shaft_segments);
     shape = s;
   } else if (type == "grasper") {
     r.only_keys(m, path, {"type", "jaw_length", "jaw_width", "jaw_thickness", "opening_angle", "shaft_radius",

@@ -10,7 +10,6 @@
 #include "support/instruments.hpp"
 
 using namespace lumen::engine;
-using lumen::test::tool_clearance;
 using nlohmann::json;
 
 namespace {
@@ -21,60 +20,27 @@ constexpr double kGap = 1e-4;  // the scene's collision gap, metres
 // A small tube pressed from above by a 3 mm sphere-tipped probe moving from 0.5 mm above the outer wall to
 // `depth` metres below it in `press_frames` frames (40 fps), then held.
 json press_scene(double depth, int press_frames, int frames) {
-  json s = json::parse(R"({
-    "name": "tool-press",
-    "mesh": {"type": "hollow_cylinder", "inner_radius": 0.01, "outer_radius": 0.013, "length": 0.1,
-             "segments_around": 12, "segments_along": 10, "layers": 2},
-    "material": {"model": "linear", "young_modulus": 5000.0, "poisson_ratio": 0.45},
-    "fixed": ["ends"],
-    "probes": [],
-    "instruments": [{"name": "probe",
-                     "shape": {"type": "sphere_probe", "tip_radius": 0.003, "shaft_radius": 0.002,
-                               "shaft_length": 0.04}}],
-    "collision": {"self": true, "gap": 1e-4},
-    "fps": 40
-  })");
+  json s = lumen::test::small_tube_scene("tool-press");
+  s["instruments"] = {{{"name", "probe"},
+                       {"shape", {{"type", "sphere_probe"}, {"tip_radius", 0.003}, {"shaft_radius", 0.002},
+                                  {"shaft_length", 0.04}}}}};
+  s["collision"] = {{"self", true}, {"gap", kGap}};
   constexpr double kStartClearance = 0.0005;
-  const double t1 = press_frames / 40.0;
+  const double t1 = press_frames / s["fps"].get<double>();
   s["frames"] = frames;
   s["instruments"][0]["track"] = {{{"t", 0.0}, {"position", {0.0, kOuterRadius + kStartClearance, 0.05}}},
                                   {{"t", t1}, {"position", {0.0, kOuterRadius - depth, 0.05}}}};
   return s;
 }
 
-struct Checked {
-  std::unique_ptr<Model> model;
-  SessionResult result;
-  std::vector<lumen::test::ToolClearance> clearance;  // per frame
-  std::vector<lumen::test::ElasticLoad> elastic;      // per frame, about the instrument's origin
-  lumen::Points final_x;
-};
-
-// Run a scene with the exact check, measuring the clearance and the elastic load after every frame.
-Checked run_checked(const json& scene_json) {
-  const Scene scene = parse_scene(scene_json.dump(), "tool.json");
-  Checked c;
-  c.model = compile_model(scene);
-  lumen::physics::LinearMaterial material;
-  material.young_modulus = scene.material.young_modulus;
-  material.poisson_ratio = scene.material.poisson_ratio;
-  SessionOptions opt;
-  opt.render = false;
-  opt.check = true;
-  opt.on_frame = [&](const Model& m, const State& s, const FrameRecord&) {
-    c.clearance.push_back(tool_clearance(m, s));
-    const Eigen::Vector3d origin = s.tool_pose.empty() ? Eigen::Vector3d::Zero() : s.tool_pose[0].position;
-    c.elastic.push_back(lumen::test::elastic_load(m, s, material, origin));
-    c.final_x = s.x;
-  };
-  c.result = run_session(*c.model, make_inputs(scene), opt);
-  return c;
+lumen::test::CheckedRun run_checked(const json& scene_json) {
+  return lumen::test::run_checked(parse_scene(scene_json.dump(), "tool.json"));
 }
 
 }  // namespace
 
 TEST(InstrumentSession, ProbePressNeverPenetratesTheOrgan) {
-  const Checked c = run_checked(press_scene(0.003, 20, 24));
+  const lumen::test::CheckedRun c = run_checked(press_scene(0.003, 20, 24));
   int touching = 0;
   for (size_t i = 0; i < c.result.frames.size(); ++i) {
     const FrameRecord& f = c.result.frames[i];
@@ -94,7 +60,7 @@ TEST(InstrumentSession, ProbePressNeverPenetratesTheOrgan) {
 }
 
 TEST(InstrumentSession, ForceOnTheToolIsMinusTheOrgansElasticResponse) {
-  const Checked c = run_checked(press_scene(0.002, 16, 20));
+  const lumen::test::CheckedRun c = run_checked(press_scene(0.002, 16, 20));
   int compared = 0;
   for (size_t i = 0; i < c.result.frames.size(); ++i) {
     const FrameRecord& f = c.result.frames[i];
@@ -129,7 +95,7 @@ TEST(InstrumentSession, SafeFallbackStopsTheToolsShortOfTheirTargets) {
     key["rotation"] = {0, 0, 0, 1};
   }
   s["instruments"].push_back(below);
-  const Checked c = run_checked(s);
+  const lumen::test::CheckedRun c = run_checked(s);
   int fallbacks = 0;
   for (size_t i = 0; i < c.result.frames.size(); ++i) {
     const FrameRecord& f = c.result.frames[i];
@@ -156,8 +122,8 @@ TEST(InstrumentSession, AToolThatTouchesNothingLeavesTheSessionExactlyAsWithout)
   with_tool["instruments"][0]["track"] = {{{"t", 0.0}, {"position", {0.0, kFarAbove, 0.05}}}};
   json without = with_tool;
   without.erase("instruments");
-  const Checked a = run_checked(with_tool);
-  const Checked b = run_checked(without);
+  const lumen::test::CheckedRun a = run_checked(with_tool);
+  const lumen::test::CheckedRun b = run_checked(without);
   long self_contacts = 0;
   for (const FrameRecord& f : b.result.frames) self_contacts += f.contacts;
   EXPECT_GT(self_contacts, 0);  // the walls met, so the contact solve ran in both

@@ -11,6 +11,7 @@
 #include "engine/scene.hpp"
 #include "engine/simulation.hpp"
 #include "support/files.hpp"
+#include "support/instruments.hpp"
 
 using namespace lumen::engine;
 using lumen::test::message_of;
@@ -21,23 +22,17 @@ namespace {
 
 // A short tube with the issue's instrument example (shape, track, device_name, to_organ).
 json instrument_scene() {
-  return json::parse(R"({
-    "name": "tool",
-    "mesh": {"type": "hollow_cylinder", "inner_radius": 0.01, "outer_radius": 0.013, "length": 0.1,
-             "segments_around": 12, "segments_along": 10, "layers": 2},
-    "material": {"model": "linear", "young_modulus": 5000.0, "poisson_ratio": 0.45},
-    "fixed": ["ends"],
-    "probes": [],
-    "instruments": [{
-      "name": "probe",
-      "shape": {"type": "sphere_probe", "tip_radius": 0.003, "shaft_radius": 0.002, "shaft_length": 0.08},
-      "track": [{"t": 0.0, "position": [0.0, 0.03, 0.05], "rotation": [1, 0, 0, 0]},
-                {"t": 2.0, "position": [0.0, 0.012, 0.05], "rotation": [1, 0, 0, 0]}],
-      "device_name": "Tracker",
-      "to_organ": [1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0, 0, 0, 1]
-    }],
-    "frames": 10, "fps": 40
-  })");
+  json s = lumen::test::small_tube_scene("tool");
+  s["frames"] = 10;
+  s["instruments"] = json::parse(R"([{
+    "name": "probe",
+    "shape": {"type": "sphere_probe", "tip_radius": 0.003, "shaft_radius": 0.002, "shaft_length": 0.08},
+    "track": [{"t": 0.0, "position": [0.0, 0.03, 0.05], "rotation": [1, 0, 0, 0]},
+              {"t": 2.0, "position": [0.0, 0.012, 0.05], "rotation": [1, 0, 0, 0]}],
+    "device_name": "Tracker",
+    "to_organ": [1, 0, 0, 0,  0, 1, 0, 0,  0, 0, 1, 0,  0, 0, 0, 1]
+  }])");
+  return s;
 }
 
 const char* kScenePath = "dir/s.json";

@@ -12,33 +12,12 @@ using namespace lumen::engine;
 
 namespace {
 
-struct SceneRun {
-  std::unique_ptr<Model> model;
-  SessionResult result;
-  std::vector<lumen::test::ToolClearance> clearance;  // per frame
-  std::vector<Eigen::Vector3d> organ_force;           // per frame: K u summed over the free nodes, newtons
-};
-
-SceneRun run_instrument_scene(const std::string& file) {
-  const Scene scene = load_scene(std::string(LUMEN_SOURCE_DIR) + "/scenes/" + file);
-  SceneRun run;
-  run.model = compile_model(scene);
-  lumen::physics::LinearMaterial material;
-  material.young_modulus = scene.material.young_modulus;
-  material.poisson_ratio = scene.material.poisson_ratio;
-  SessionOptions opt;
-  opt.render = false;
-  opt.check = true;
-  opt.on_frame = [&](const Model& m, const State& s, const FrameRecord&) {
-    run.clearance.push_back(lumen::test::tool_clearance(m, s));
-    run.organ_force.push_back(lumen::test::elastic_load(m, s, material, Eigen::Vector3d::Zero()).force);
-  };
-  run.result = run_session(*run.model, make_inputs(scene), opt);
-  return run;
+lumen::test::CheckedRun run_instrument_scene(const std::string& file) {
+  return lumen::test::run_checked(load_scene(std::string(LUMEN_SOURCE_DIR) + "/scenes/" + file));
 }
 
 // The common checks; returns the number of frames on which some instrument touched the organ.
-int expect_tools_never_penetrate(const std::string& file, const SceneRun& run) {
+int expect_tools_never_penetrate(const std::string& file, const lumen::test::CheckedRun& run) {
   constexpr double kClearanceGapFraction = 0.25;  // the re-check clears half the gap
   const double gap = run.model->collision.gap;
   int touching = 0;
@@ -57,7 +36,7 @@ int expect_tools_never_penetrate(const std::string& file, const SceneRun& run) {
       contacts += in.contacts;
     }
     if (!f.fallback) {
-      EXPECT_LE((on_tools + run.organ_force[i]).norm(), 1e-6 * run.organ_force[i].norm() + 1e-12)
+      EXPECT_LE((on_tools + run.elastic[i].force).norm(), 1e-6 * run.elastic[i].force.norm() + 1e-12)
           << file << " frame " << f.frame;
     }
     touching += contacts > 0;
@@ -70,7 +49,7 @@ int expect_tools_never_penetrate(const std::string& file, const SceneRun& run) {
 // The paper's Fig. 4 done with a tool: a 3 mm sphere-tipped probe presses the tube 3.5 mm in.
 TEST(InstrumentScenes, ProbePressNeverPenetratesAndTheOrganPushesBack) {
   const std::string file = "instrument-probe-press.json";
-  const SceneRun run = run_instrument_scene(file);
+  const lumen::test::CheckedRun run = run_instrument_scene(file);
   EXPECT_GT(expect_tools_never_penetrate(file, run), 60);
   // The organ pushes the probe back, more the deeper it goes.
   const FrameRecord& mid = run.result.frames[run.result.frames.size() / 2];
@@ -82,7 +61,7 @@ TEST(InstrumentScenes, ProbePressNeverPenetratesAndTheOrganPushesBack) {
 // Two rods pinch the tube shut: tool contacts and the walls' self-contacts together.
 TEST(InstrumentScenes, TwoToolsPinchTheLumenShutWithoutIntersection) {
   const std::string file = "instrument-two-tools-pinch.json";
-  const SceneRun run = run_instrument_scene(file);
+  const lumen::test::CheckedRun run = run_instrument_scene(file);
   EXPECT_GT(expect_tools_never_penetrate(file, run), 60);
   // The lumen really shut: on the last frame the walls hold self-contacts besides the tools' contacts.
   const FrameRecord& last = run.result.frames.back();

@@ -8,8 +8,10 @@
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <nlohmann/json.hpp>
 
 #include "collision/distance.hpp"
+#include "engine/session.hpp"
 #include "engine/simulation.hpp"
 #include "physics/fem.hpp"
 
@@ -104,6 +106,47 @@ inline ElasticLoad elastic_load(const Model& m, const State& s, const physics::L
     load.torque += (s.x.row(v).transpose() - point).cross(fv);
   }
   return load;
+}
+
+// A small tube (the paper's radii and length, 12 x 10 x 2 cells, linear, ends fixed, 40 fps) without probes or
+// instruments, for a test to add them.
+inline nlohmann::json small_tube_scene(const std::string& name) {
+  nlohmann::json s = nlohmann::json::parse(R"({
+    "mesh": {"type": "hollow_cylinder", "inner_radius": 0.01, "outer_radius": 0.013, "length": 0.1,
+             "segments_around": 12, "segments_along": 10, "layers": 2},
+    "material": {"model": "linear", "young_modulus": 5000.0, "poisson_ratio": 0.45},
+    "fixed": ["ends"], "probes": [], "fps": 40
+  })");
+  s["name"] = name;
+  return s;
+}
+
+// A session without rendering, with the exact check, measured after every frame: the instruments' clearance, the
+// organ's elastic load about the first instrument's origin, and the last frame's positions.
+struct CheckedRun {
+  std::unique_ptr<Model> model;
+  engine::SessionResult result;
+  std::vector<ToolClearance> clearance;  // per frame
+  std::vector<ElasticLoad> elastic;      // per frame
+  Points final_x;
+};
+inline CheckedRun run_checked(const engine::Scene& scene) {
+  CheckedRun c;
+  c.model = engine::compile_model(scene);
+  physics::LinearMaterial material;
+  material.young_modulus = scene.material.young_modulus;
+  material.poisson_ratio = scene.material.poisson_ratio;
+  engine::SessionOptions opt;
+  opt.render = false;
+  opt.check = true;
+  opt.on_frame = [&](const Model& m, const State& s, const engine::FrameRecord&) {
+    c.clearance.push_back(tool_clearance(m, s));
+    const Eigen::Vector3d origin = s.tool_pose.empty() ? Eigen::Vector3d::Zero() : s.tool_pose[0].position;
+    c.elastic.push_back(elastic_load(m, s, material, origin));
+    c.final_x = s.x;
+  };
+  c.result = engine::run_session(*c.model, engine::make_inputs(scene), opt);
+  return c;
 }
 
 }  // namespace lumen::test
