@@ -129,7 +129,7 @@ struct TwistSpec {
 };
 
 // Where an instrument's pose comes from: key frames ("track"), a recorded pose CSV ("replay"), or only a device
-// of the (future) OpenIGTLink bridge ("device_name" without a track or replay: `lumen run` refuses it).
+// of the (future) OpenIGTLink bridge ("device_name" without a track or replay: `lumen run` and `bench` refuse it).
 enum class InstrumentDrive { kTrack, kReplay, kDevice };
 
 // A rigid instrument (key "instruments"): its shape, validated (make_instrument accepts it), and its poses.
