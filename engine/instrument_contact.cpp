@@ -42,6 +42,57 @@ HeldContact held_of(const collision::PairContact& pc, int part) {
   return h;
 }
 
+// The boxes of the organ's wall triangles the instruments touch, at x.
+std::vector<Box> organ_boxes(const Model& model, const Points& x) {
+  const Tris& organ = model.tool_target_tris;
+  std::vector<Box> boxes(static_cast<size_t>(organ.rows()));
+  for (int t = 0; t < organ.rows(); ++t) boxes[static_cast<size_t>(t)] = triangle_box(x, organ, t);
+  return boxes;
+}
+
+// Intersecting (triangle of tool part p at points y, organ wall triangle at x) pairs by the exact test; only the
+// organ triangles near the part at all, then the pairs whose boxes meet, are tested.
+long part_intersections(const Model& model, const std::vector<Box>& boxes, const Points& x, size_t p, const Points& y) {
+  const Tris& organ = model.tool_target_tris;
+  const ToolPart& tp = model.tool_parts[p];
+  const Tris& tris = model.instruments[tp.instrument].instrument.parts[tp.part].mesh.tris;
+  Box part_box;
+  for (int i = 0; i < y.rows(); ++i) part_box.add(y.row(i).transpose());
+  std::vector<int> near;
+  for (int t = 0; t < organ.rows(); ++t)
+    if (boxes[static_cast<size_t>(t)].overlaps(part_box)) near.push_back(t);
+  long count = 0;
+  for (int a = 0; a < tris.rows() && !near.empty(); ++a) {
+    const Box box = triangle_box(y, tris, a);
+    for (int t : near) {
+      if (!box.overlaps(boxes[static_cast<size_t>(t)])) continue;
+      count += collision::triangles_intersect(&y(tris(a, 0), 0), &y(tris(a, 1), 0), &y(tris(a, 2), 0),
+                                              &x(organ(t, 0), 0), &x(organ(t, 1), 0), &x(organ(t, 2), 0));
+    }
+  }
+  return count;
+}
+
+// Refuse an instrument whose track or replay starts it through the organ's walls at rest (the sweeps assume an
+// intersection-free start), naming the scene file, the key and the start position.
+void require_clear_start(const Scene& scene, const Model& m) {
+  const std::vector<Box> boxes = organ_boxes(m, m.mesh.rest);
+  for (size_t i = 0; i < m.instruments.size(); ++i) {
+    const InstrumentSpec& spec = scene.instruments[i];
+    if (spec.drive == InstrumentDrive::kDevice) continue;
+    const Pose start = PoseTrack(spec.poses, scene.path).at(0.0);
+    const std::vector<Points> posed = posed_parts(m.instruments[i].instrument, start);
+    long count = 0;
+    for (size_t j = 0; j < posed.size(); ++j)
+      count += part_intersections(m, boxes, m.mesh.rest, static_cast<size_t>(m.instruments[i].first_part) + j, posed[j]);
+    if (count == 0) continue;
+    const char* key = spec.drive == InstrumentDrive::kReplay ? "replay" : "track";
+    throw InputError(scene.path + ": instruments[" + std::to_string(i) + "]." + key + ": starts through the organ's " +
+                     "walls at t = 0 (" + std::to_string(count) + " intersecting triangle pairs; value position " +
+                     values_text(start.position.data(), 3) + ")");
+  }
+}
+
 }  // namespace
 
 void compile_instruments(const Scene& scene, Model& m) {
@@ -68,6 +119,7 @@ void compile_instruments(const Scene& scene, Model& m) {
     }
     m.instruments.push_back(std::move(ci));
   }
+  require_clear_start(scene, m);
 }
 
 void detect_tool_contacts(const Model& model, State& state, const Points& x0, const Points& x1, double gap,
@@ -120,29 +172,9 @@ physics::ContactRow tool_contact_row(const HeldContact& h, const Model& model, c
 }
 
 long count_tool_intersections(const Model& model, const Points& x, const std::vector<Points>& parts) {
-  const Tris& organ = model.tool_target_tris;
-  std::vector<Box> organ_boxes(static_cast<size_t>(organ.rows()));
-  for (int t = 0; t < organ.rows(); ++t) organ_boxes[static_cast<size_t>(t)] = triangle_box(x, organ, t);
+  const std::vector<Box> boxes = organ_boxes(model, x);
   long count = 0;
-  for (size_t p = 0; p < model.tool_parts.size(); ++p) {
-    const ToolPart& tp = model.tool_parts[p];
-    const Tris& tris = model.instruments[tp.instrument].instrument.parts[tp.part].mesh.tris;
-    const Points& y = parts[p];
-    // The organ triangles near the part at all, then every pair whose boxes meet, by the exact test.
-    Box part_box;
-    for (int i = 0; i < y.rows(); ++i) part_box.add(y.row(i).transpose());
-    std::vector<int> near;
-    for (int t = 0; t < organ.rows(); ++t)
-      if (organ_boxes[static_cast<size_t>(t)].overlaps(part_box)) near.push_back(t);
-    for (int a = 0; a < tris.rows() && !near.empty(); ++a) {
-      const Box box = triangle_box(y, tris, a);
-      for (int t : near) {
-        if (!box.overlaps(organ_boxes[static_cast<size_t>(t)])) continue;
-        count += collision::triangles_intersect(&y(tris(a, 0), 0), &y(tris(a, 1), 0), &y(tris(a, 2), 0),
-                                                &x(organ(t, 0), 0), &x(organ(t, 1), 0), &x(organ(t, 2), 0));
-      }
-    }
-  }
+  for (size_t p = 0; p < model.tool_parts.size(); ++p) count += part_intersections(model, boxes, x, p, parts[p]);
   return count;
 }
 

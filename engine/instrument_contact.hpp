@@ -38,7 +38,9 @@ struct ToolPart {
 };
 
 // Build the scene's instruments into the model: parts, their collision surfaces, and the organ surface they touch
-// (the outer and inner walls, Model::tool_target_surface). Needs the model's mesh and walls.
+// (the outer and inner walls, Model::tool_target_surface). Needs the model's mesh and walls. Throws InputError
+// (scene file, instruments[i].track or .replay, the start position) for an instrument whose pose at t = 0 puts it
+// through the organ's walls at rest.
 void compile_instruments(const Scene& scene, Model& model);
 
 // Every instrument part's contacts with the organ's walls for the organ motion x0 -> x1 (n_nodes x 3) while the

@@ -4,6 +4,8 @@
 // leaves the session exactly as it is without it.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include <nlohmann/json.hpp>
 
 #include "engine/session.hpp"
@@ -129,4 +131,36 @@ TEST(InstrumentSession, AToolThatTouchesNothingLeavesTheSessionExactlyAsWithout)
   EXPECT_GT(self_contacts, 0);  // the walls met, so the contact solve ran in both
   for (const FrameRecord& f : a.result.frames) EXPECT_EQ(f.instruments[0].contacts, 0);
   EXPECT_TRUE(a.final_x == b.final_x) << "largest difference " << (a.final_x - b.final_x).cwiseAbs().maxCoeff() << " m";
+}
+
+TEST(InstrumentSession, AReplayOfTheTrackGivesTheSameSessionAndTheSourceGetsTheForces) {
+  const json tracked = press_scene(0.002, 10, 12);
+  const Scene track_scene = parse_scene(tracked.dump(), "tool.json");
+  // The track's own keys written as a pose file, replayed.
+  const std::string csv = (std::filesystem::temp_directory_path() / "lumen_test_press_poses.csv").string();
+  write_pose_csv(csv, track_scene.instruments[0].poses);
+  json replayed = tracked;
+  replayed["instruments"][0].erase("track");
+  replayed["instruments"][0]["replay"] = csv;
+  const lumen::test::CheckedRun a = lumen::test::run_checked(track_scene);
+  const lumen::test::CheckedRun b = run_checked(replayed);
+  EXPECT_TRUE(a.final_x == b.final_x);
+  ASSERT_EQ(a.result.frames.size(), b.result.frames.size());
+  for (size_t i = 0; i < a.result.frames.size(); ++i)
+    EXPECT_EQ(a.result.frames[i].instruments[0].force, b.result.frames[i].instruments[0].force) << "frame " << i + 1;
+  // Stepped by hand, the pose source is handed the force and torque of every frame, as the session reported them.
+  Inputs inputs = make_inputs(track_scene);
+  State state = make_state(*a.model);
+  for (size_t i = 0; i < a.result.frames.size(); ++i) {
+    FrameRecord rec;
+    step(*a.model, inputs, state, rec);
+    EXPECT_EQ(rec.instruments[0].force, a.result.frames[i].instruments[0].force) << "frame " << i + 1;
+  }
+  const auto& source = dynamic_cast<const PoseTrackSource&>(*inputs.instruments[0]);
+  ASSERT_EQ(source.forces().size(), a.result.frames.size());
+  for (size_t i = 0; i < a.result.frames.size(); ++i) {
+    EXPECT_EQ(source.forces()[i], a.result.frames[i].instruments[0].force) << "frame " << i + 1;
+    EXPECT_EQ(source.torques()[i], a.result.frames[i].instruments[0].torque) << "frame " << i + 1;
+  }
+  EXPECT_GT(a.result.frames.back().instruments[0].force.norm(), 0.0);  // the press touched
 }

@@ -226,3 +226,14 @@ TEST(InstrumentScene, RunRefusesAnInstrumentDrivenOnlyByADevice) {
             "dir/s.json: instruments[0].device_name: poses from a device need the OpenIGTLink bridge (lumen serve), "
             "which is not built yet; give the instrument a \"track\" or a \"replay\" to run it (value \"Tracker\")");
 }
+
+TEST(InstrumentScene, AStartThroughTheOrgansWallsIsRefusedWhenTheModelCompiles) {
+  json s = instrument_scene();
+  s["instruments"][0]["track"][0]["position"] = {0.0, 0.012, 0.05};  // the 3 mm tip across the outer wall (13 mm)
+  const Scene scene = parse_scene(s.dump(), kScenePath);
+  const std::string msg = message_of<InputError>([&] { compile_model(scene); });
+  EXPECT_EQ(msg.rfind("dir/s.json: instruments[0].track: starts through the organ's walls at t = 0 (", 0), 0u) << msg;
+  EXPECT_NE(msg.find("intersecting triangle pairs; value position [0, 0.012, 0.05])"), std::string::npos) << msg;
+  // The example's start, 17 mm above the wall, compiles.
+  EXPECT_NO_THROW(compile_model(parse_scene(instrument_scene().dump(), kScenePath)));
+}
