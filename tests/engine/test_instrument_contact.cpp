@@ -164,3 +164,37 @@ TEST(InstrumentSession, AReplayOfTheTrackGivesTheSameSessionAndTheSourceGetsTheF
   }
   EXPECT_GT(a.result.frames.back().instruments[0].force.norm(), 0.0);  // the press touched
 }
+
+TEST(InstrumentSession, AProbeInsideTheLumenPressesTheInnerWallWithoutPenetrating) {
+  // The probe lies along the lumen (its shaft turned from +y onto +z) and moves up from the axis until its 3 mm
+  // tip reaches 2 mm past the inner wall (10 mm): it touches the inner wall only.
+  constexpr double kInnerRadius = 0.01, kTipRadius = 0.003, kPastWall = 0.002;
+  json s = press_scene(0.0, 1, 16);
+  // A short shaft, ending 27 mm before the fixed end: a contact on a face with fixed nodes would put part of the
+  // tool's force into the support, outside the free nodes' K u.
+  s["instruments"][0]["shape"]["shaft_length"] = 0.02;
+  const json along_lumen = {{"axis", {1, 0, 0}}, {"angle", EIGEN_PI / 2}};
+  s["instruments"][0]["track"] = {
+      {{"t", 0.0}, {"position", {0.0, 0.0, 0.05}}, {"rotation", along_lumen}},
+      {{"t", 0.3}, {"position", {0.0, kInnerRadius - kTipRadius + kPastWall, 0.05}}, {"rotation", along_lumen}}};
+  const lumen::test::CheckedRun c = run_checked(s);
+  const std::vector<int>& inner = c.model->inner_nodes;
+  int touching = 0;
+  for (size_t i = 0; i < c.result.frames.size(); ++i) {
+    const FrameRecord& f = c.result.frames[i];
+    EXPECT_EQ(f.instrument_intersecting_pairs, 0) << "frame " << f.frame;
+    EXPECT_EQ(f.intersecting_pairs, 0) << "frame " << f.frame;
+    EXPECT_GE(c.clearance[i].min_tool_vertex, 0.25 * kGap) << "frame " << f.frame;
+    EXPECT_EQ(c.clearance[i].organ_nodes_inside_tool, 0) << "frame " << f.frame;
+    const InstrumentRecord& tool = f.instruments[0];
+    EXPECT_LE((tool.force + c.elastic[i].force).norm(), 1e-6 * c.elastic[i].force.norm() + 1e-12) << "frame " << f.frame;
+    if (tool.contacts == 0) continue;
+    ++touching;
+    EXPECT_LT(tool.force.y(), 0.0) << "frame " << f.frame;  // the wall pushes the probe back down, to the axis
+  }
+  EXPECT_GT(touching, 4);
+  // The inner wall moved outwards (up) above the probe.
+  double highest_rise = 0.0;
+  for (int v : inner) highest_rise = std::max(highest_rise, c.final_x(v, 1) - c.model->mesh.rest(v, 1));
+  EXPECT_GT(highest_rise, 0.5 * kPastWall);
+}
