@@ -3,7 +3,7 @@
 // at the origin, shaft along +y, metres), one mesh per rigid part, built from named shapes or read from a mesh
 // file, and posed into the organ frame as the plain n x 3 arrays collision::detect_pair takes.
 //
-// Library only: no scene key builds these yet (issue 10's `instruments` key and the contact coupling will).
+// The scene key `instruments` builds these (engine/scene.cpp); engine/instrument_contact.hpp puts them in a session.
 // Dimensions and files are validated here with InputError messages naming `where`, the field and the value.
 #include <array>
 #include <string>

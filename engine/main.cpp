@@ -109,6 +109,9 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
   if (result.writer.frames > 0)
     std::printf("writer: %ld frames, %.1f frames/s on its thread\n", result.writer.frames, result.writer.frames_per_second());
   if (check) std::printf("frames with intersecting inner-wall pairs: %ld\n", result.report["frames_with_intersections"].get<long>());
+  if (check && !model->instruments.empty())
+    std::printf("frames with intersecting instrument-organ pairs: %ld\n",
+                result.report["frames_with_instrument_intersections"].get<long>());
   std::printf("outputs in %s\n", out_dir.c_str());
   return 0;
 }
@@ -118,13 +121,14 @@ int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_rend
   if (kdop > 0 && kdop != 6 && kdop != 14 && kdop != 18 && kdop != 26)
     throw engine::InputError("--kdop: must be one of 6, 14, 18, 26 (value " + std::to_string(kdop) + ")");
   if (kdop > 0) scene.collision.kdop = kdop;
+  engine::Inputs inputs = engine::make_inputs(scene);  // refuses a bad replay or a device-only instrument now
   auto model = engine::compile_model(scene);
   engine::SessionOptions opt;
   opt.frames = frames;
   opt.classify_overlaps = classify;
   opt.render = !no_render;
   opt.write_frames = false;
-  engine::SessionResult result = engine::run_session(*model, engine::make_inputs(scene), opt);
+  engine::SessionResult result = engine::run_session(*model, std::move(inputs), opt);
   if (json) {
     nlohmann::json j = result.report;
     j.erase("per_frame");
@@ -172,7 +176,7 @@ int main(int argc, char** argv) {
   run->add_flag("--export-volume", export_volume,
                 "write the volume mesh per frame as VTK XML (DIR/volume/volume_000001.vtu ..., DIR/volume.pvd)");
   run->add_option("--positions", positions_path, "write the final node positions as CSV (x, y, z per node, metres)");
-  run->add_flag("--check", check, "count intersecting inner-wall triangle pairs on every frame (exact predicates)");
+  run->add_flag("--check", check, "count intersecting inner-wall triangle pairs, and instrument-organ pairs, on every frame (exact predicates)");
 
   CLI::App* bench = app.add_subcommand("bench", "run a scene without writing images; print per-stage frame times");
   bench->add_option("scene", scene_path, "scene file (JSON)")->required();

@@ -2,7 +2,7 @@
 // Instrument poses: a position and a unit quaternion, key-frame tracks (positions linear, rotations by slerp),
 // recorded pose CSV files, the rigid device-to-organ transform, and the velocity between two poses.
 //
-// Library only: no scene key builds these yet (issue 10's `instruments` key will). Every input is validated
+// The scene key `instruments` reads its tracks and replays with these (engine/scene.cpp). Every input is validated
 // here, at the boundary, with InputError messages naming where (file and line, or key path), the field and the
 // value; past it a pose is finite and its quaternion unit.
 #include <array>

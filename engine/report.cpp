@@ -97,6 +97,7 @@ nlohmann::json frame_json(const FrameRecord& r) {
   j["response_iterations"] = r.response_iterations;
   j["fallback"] = r.fallback;
   if (r.intersecting_pairs >= 0) j["intersecting_pairs"] = r.intersecting_pairs;
+  if (r.instrument_intersecting_pairs >= 0) j["instrument_intersecting_pairs"] = r.instrument_intersecting_pairs;
   j["inverted_elements"] = r.inverted_elements;
   j["numerical_failure"] = r.numerical_failure;
   j["bad_input"] = r.bad_input;
@@ -119,6 +120,18 @@ nlohmann::json frame_json(const FrameRecord& r) {
   nlohmann::json pd = nlohmann::json::array();
   for (const auto& d : r.probe_displacement) pd.push_back({d.x(), d.y(), d.z()});
   j["probe_displacement_m"] = pd;
+  // Instruments: pose (rotation [w, x, y, z]), the contacts' force and torque on each, its contact rows.
+  nlohmann::json tools = nlohmann::json::array();
+  for (const InstrumentRecord& in : r.instruments) {
+    const Eigen::Quaterniond& q = in.rotation;
+    tools.push_back({{"name", in.name},
+                     {"position", {in.position.x(), in.position.y(), in.position.z()}},
+                     {"rotation", {q.w(), q.x(), q.y(), q.z()}},
+                     {"force_n", {in.force.x(), in.force.y(), in.force.z()}},
+                     {"torque_nm", {in.torque.x(), in.torque.y(), in.torque.z()}},
+                     {"contacts", in.contacts}});
+  }
+  j["instruments"] = tools;
   return j;
 }
 

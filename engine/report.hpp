@@ -5,6 +5,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
 #include "physics/types.hpp"
@@ -14,6 +15,16 @@ namespace lumen::engine {
 // Stages of one frame, in order; Total is the simulation thread's work for the frame.
 enum Stage : int { kInput = 0, kPhysics, kCollision, kResponse, kRender, kTotal, kStageCount };
 const char* stage_name(int stage);
+
+// What one instrument did in a frame (report.json per_frame[i].instruments).
+struct InstrumentRecord {
+  std::string name;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();            // its origin (the tip) at the frame's end, metres
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  // instrument frame -> organ frame
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();   // newtons: the contact force on the instrument
+  Eigen::Vector3d torque = Eigen::Vector3d::Zero();  // newton metres: the contacts' torque about its origin
+  int contacts = 0;                                  // its contact rows in the frame's last solve
+};
 
 // What one frame did and cost.
 struct FrameRecord {
@@ -26,6 +37,7 @@ struct FrameRecord {
   int response_iterations = 0;
   bool fallback = false;              // the safe fallback ended this frame's motion early
   long intersecting_pairs = -1;       // exact check (--check), -1 when not run
+  long instrument_intersecting_pairs = -1;  // exact check (--check) of instrument-organ pairs, -1 when not run
   int inverted_elements = 0;          // tets with non-positive volume after the frame
   bool numerical_failure = false;     // NaN/Inf or solver failure: the last good frame was kept
   bool bad_input = false;             // a source gave a non-finite sample; its last good sample was used
@@ -48,6 +60,7 @@ struct FrameRecord {
   // Per probe, the displacement from rest of its attachment point at the end of the frame (its nodes'
   // displacements by the barycentric weights), metres. A tip made of several probes is measured by their mean.
   std::vector<Eigen::Vector3d> probe_displacement;
+  std::vector<InstrumentRecord> instruments;  // per instrument, in the scene's order
 };
 
 struct StageSummary {

@@ -5,6 +5,7 @@
 #include <map>
 #include <set>
 
+#include "engine/instrument_contact.hpp"
 #include "engine/simulation.hpp"
 
 namespace lumen::engine {
@@ -18,7 +19,8 @@ Eigen::Vector3d at(const Points& x0, const Points& x1, int i, double tau) {
   return (1.0 - tau) * x0.row(i).transpose() + tau * x1.row(i).transpose();
 }
 
-// Barycentric-style weights of a contact's four vertices: sum_k w_k x_k is the separation vector.
+}  // namespace
+
 void weights_of(const collision::Contact& c, double w[4]) {
   if (c.kind == collision::FeatureKind::VertexFace) {
     w[0] = 1.0;
@@ -33,13 +35,15 @@ void weights_of(const collision::Contact& c, double w[4]) {
   }
 }
 
-}  // namespace
-
 bool FeatureKey::operator<(const FeatureKey& o) const {
+  if (part != o.part) return part < o.part;
+  if (tool != o.tool) return tool < o.tool;
   if (kind != o.kind) return kind < o.kind;
   return std::lexicographical_compare(v, v + 4, o.v, o.v + 4);
 }
-bool FeatureKey::operator==(const FeatureKey& o) const { return kind == o.kind && std::equal(v, v + 4, o.v); }
+bool FeatureKey::operator==(const FeatureKey& o) const {
+  return part == o.part && tool == o.tool && kind == o.kind && std::equal(v, v + 4, o.v);
+}
 
 FeatureKey key_of(const collision::Contact& c) {
   FeatureKey k;
@@ -48,17 +52,25 @@ FeatureKey key_of(const collision::Contact& c) {
   return k;
 }
 
-physics::ContactRow contact_row(const collision::Contact& c, const Points& rest, const Points& x0, const Points& x1,
-                                double gap) {
+FeatureKey key_of(const HeldContact& h) {
+  FeatureKey k = key_of(h.c);
+  k.part = h.part;
+  k.tool = h.tool;
+  return k;
+}
+
+physics::ContactRow row_of(const collision::Contact& c, const RowVertices& rv, double gap) {
   physics::ContactRow row;
   double w[4];
   weights_of(c, w);
-  // Separation vector at the time of contact and at the start of the frame.
-  Eigen::Vector3d d_toi = Eigen::Vector3d::Zero(), d0 = Eigen::Vector3d::Zero(), d_rest = Eigen::Vector3d::Zero();
+  // Separation vector at the time of contact, at the start of the frame, and its part that u does not move.
+  Eigen::Vector3d d_toi = Eigen::Vector3d::Zero(), d0 = Eigen::Vector3d::Zero(), d_fixed = Eigen::Vector3d::Zero();
+  Eigen::Vector3d p[4];
   for (int k = 0; k < 4; ++k) {
-    d_toi += w[k] * at(x0, x1, c.v[k], c.toi);
-    d0 += w[k] * x0.row(c.v[k]).transpose();
-    d_rest += w[k] * rest.row(c.v[k]).transpose();
+    p[k] = (1.0 - c.toi) * rv.x0[k] + c.toi * rv.x1[k];
+    d_toi += w[k] * p[k];
+    d0 += w[k] * rv.x0[k];
+    d_fixed += w[k] * rv.fixed[k];
   }
   // Contact normal: the separation direction at contact; when the features touch, the face normal (vf) or the
   // edges' common normal (ee), oriented to the side the first feature came from.
@@ -67,21 +79,33 @@ physics::ContactRow contact_row(const collision::Contact& c, const Points& rest,
   if (d_toi.norm() > 1e-3 * scale) {
     n = d_toi.normalized();
   } else {
-    const Eigen::Vector3d p0 = at(x0, x1, c.v[0], c.toi), p1 = at(x0, x1, c.v[1], c.toi);
-    const Eigen::Vector3d p2 = at(x0, x1, c.v[2], c.toi), p3 = at(x0, x1, c.v[3], c.toi);
-    n = (c.kind == collision::FeatureKind::VertexFace) ? (p2 - p1).cross(p3 - p1) : (p1 - p0).cross(p3 - p2);
+    n = (c.kind == collision::FeatureKind::VertexFace) ? (p[2] - p[1]).cross(p[3] - p[1]) : (p[1] - p[0]).cross(p[3] - p[2]);
     if (n.norm() == 0.0) n = d0.norm() > 0 ? d0 : Eigen::Vector3d::UnitZ();
     n.normalize();
     if (n.dot(d0) < 0) n = -n;
   }
-  // Row: n . sum_k w_k (X_k + u_k) >= gap  <=>  H u >= gap - n . sum_k w_k X_k.
+  // Row: n . sum_k w_k (fixed_k + u_k) >= gap over the organ nodes (u_k = 0 for a kinematic vertex)
+  // <=>  H u >= gap - n . sum_k w_k fixed_k.
   for (int k = 0; k < 4; ++k) {
-    row.node[k] = c.v[k];
-    row.weight[k] = w[k];
+    row.node[k] = rv.node[k];
+    row.weight[k] = rv.node[k] >= 0 ? w[k] : 0.0;
   }
   row.n = n;
-  row.g = gap - n.dot(d_rest);
+  row.g = gap - n.dot(d_fixed);
   return row;
+}
+
+physics::ContactRow contact_row(const collision::Contact& c, const Points& rest, const Points& x0, const Points& x1,
+                                double gap) {
+  // Every vertex an organ node: its end position is its rest position plus u.
+  RowVertices rv;
+  for (int k = 0; k < 4; ++k) {
+    rv.node[k] = c.v[k];
+    rv.x0[k] = x0.row(c.v[k]).transpose();
+    rv.x1[k] = x1.row(c.v[k]).transpose();
+    rv.fixed[k] = rest.row(c.v[k]).transpose();
+  }
+  return row_of(c, rv, gap);
 }
 
 namespace {
@@ -94,7 +118,7 @@ constexpr double kEqualityTolerance = 1e-9;   // paper response: metres
 
 // One frame's response rounds: the active constraints and the last solve.
 struct ResponseRounds {
-  std::map<FeatureKey, collision::Contact> active;  // contacts held as constraints
+  std::map<FeatureKey, HeldContact> active;         // contacts held as constraints (self and tool)
   std::set<FeatureKey> pushing;                     // those whose multiplier was positive in the last solve
   std::vector<physics::ContactRow> rows;            // the last solve's rows (active order)
   physics::ContactResult solved;                    // the last solve
@@ -111,7 +135,8 @@ void solve_paper(const Model& model, State& state, const Points& x_free, const E
   const Points& x0 = state.x;
   double toi_min = 1.0;
   std::map<int, Eigen::Vector3d> held;
-  for (const auto& [key, c] : rr.active) {
+  for (const auto& [key, h] : rr.active) {
+    const collision::Contact& c = h.c;
     toi_min = std::min(toi_min, c.toi);
     for (int k = 0; k < 4; ++k)
       if (!held.count(c.v[k])) held[c.v[k]] = at(x0, x_free, c.v[k], c.toi);
@@ -136,9 +161,10 @@ void solve_paper(const Model& model, State& state, const Points& x_free, const E
 void solve_constraint(const Model& model, State& state, const Points& x1, const Eigen::VectorXd& u_free,
                       ResponseRounds& rr) {
   std::vector<int> warm;
-  for (const auto& [key, c] : rr.active) {
+  for (const auto& [key, h] : rr.active) {
     if (rr.pushing.count(key)) warm.push_back(static_cast<int>(rr.rows.size()));
-    rr.rows.push_back(contact_row(c, model.mesh.rest, state.x, x1, model.collision.gap));
+    rr.rows.push_back(h.is_tool() ? tool_contact_row(h, model, state, state.x, x1, model.collision.gap)
+                                  : contact_row(h.c, model.mesh.rest, state.x, x1, model.collision.gap));
   }
   if (model.collision.lcp == LcpSolver::kNncg) {
     // Warm start: last frame's multiplier of each contact still held (0 for a new one).
@@ -183,17 +209,34 @@ void add_contact_to_probe_forces(const Model& model, State& state, const Respons
   }
 }
 
-// Fallback: stop the motion x0 -> x1 at a safe fraction of its earliest true contact (intersection-free by
-// construction); u follows. Returns whether a contact was found.
+// Every contact of the organ motion state.x -> x1 within gap: the walls' self-contacts (when they collide) and the
+// instruments' contacts along their sweeps; `out` is cleared first.
+void detect_all(const Model& model, State& state, const Points& x1, double gap, std::vector<HeldContact>& out,
+                collision::CollisionStats* stats) {
+  out.clear();
+  if (model.collision_surface) {
+    collision::detect_self(*model.collision_surface, *state.detector, state.x, x1, gap, state.contacts, stats);
+    for (const collision::Contact& c : state.contacts) out.push_back(HeldContact{c, -1, 0});
+  }
+  if (!model.tool_parts.empty()) detect_tool_contacts(model, state, state.x, x1, gap, out, stats);
+}
+
+// Fallback: stop the motion x0 -> x1, and the instruments' sweeps, at a safe fraction of the earliest true contact
+// (intersection-free by construction: every vertex moves linearly and nothing touched before); u follows, and the
+// instruments end the frame there (state.tool_target, state.tool_pose_target). Returns whether a contact was found.
 bool stop_before_contact(const Model& model, State& state, Points& x1, Eigen::VectorXd& u) {
-  std::vector<collision::Contact> hits;
-  collision::detect_self(*model.collision_surface, *state.detector, state.x, x1, 0.0, hits, nullptr);
+  std::vector<HeldContact> hits;
+  detect_all(model, state, x1, 0.0, hits, nullptr);
   double toi_min = 1.0;
-  for (const auto& c : hits) toi_min = std::min(toi_min, c.toi);
+  for (const HeldContact& h : hits) toi_min = std::min(toi_min, h.c.toi);
   const double tau = hits.empty() ? 1.0 : kFallbackTimeFraction * toi_min;
   x1 = state.x + tau * (x1 - state.x);
   const Points du = x1 - model.mesh.rest;
   u = Eigen::Map<const Eigen::VectorXd>(du.data(), du.size());
+  for (size_t p = 0; p < state.tool_target.size(); ++p)
+    state.tool_target[p] = state.tool_points[p] + tau * (state.tool_target[p] - state.tool_points[p]);
+  for (size_t i = 0; i < state.tool_pose_target.size(); ++i)
+    state.tool_pose_target[i] = interpolate(state.tool_pose[i], state.tool_pose_target[i], tau);
   return !hits.empty();
 }
 
@@ -204,20 +247,56 @@ void keep_for_next_frame(const Model& model, State& state, const ResponseRounds&
   state.active.clear();
   state.active_lambda.clear();
   state.active_total.clear();
+  state.tool_active.clear();
+  state.tool_active_lambda.clear();
   int r = 0;
-  for (const auto& [key, c] : rr.active) {
+  for (const auto& [key, h] : rr.active) {
     const double lambda = r < rr.solved.lambda.size() ? rr.solved.lambda[r] : 0.0;
     const auto solve = rr.in_solve.find(key);
     const double total = lambda + (solve == rr.in_solve.end() ? 0.0 : solve->second);
-    if (model.collision.response == ResponseKind::kPaper || total > 0.0) {
-      state.active.push_back(c);
+    if (h.is_tool() && total > 0.0) {
+      state.tool_active.push_back(h);
+      state.tool_active_lambda.push_back(lambda);
+    } else if (!h.is_tool() && (model.collision.response == ResponseKind::kPaper || total > 0.0)) {
+      state.active.push_back(h.c);
       state.active_lambda.push_back(lambda);
       state.active_total.push_back(total);
     }
     ++r;
   }
-  for (const auto& c : rr.active)
-    for (int k = 0; k < 4; ++k) state.in_contact[c.second.v[k]] = 1;
+  // The organ's nodes of every contact (a tool contact's part vertices are not mesh nodes).
+  for (const auto& entry : rr.active)
+    for (int k = 0; k < 4; ++k)
+      if (!entry.second.on_tool(k)) state.in_contact[entry.second.c.v[k]] = 1;
+}
+
+// The instruments end the frame where their sweep ended (the target, or short of it after the fallback); their
+// records carry the last solve's contact forces on them.
+void end_tool_sweeps(const Model& model, State& state, const ResponseRounds& rr) {
+  if (model.instruments.empty()) return;
+  state.tool_points = state.tool_target;
+  state.tool_pose = state.tool_pose_target;
+  std::vector<HeldContact> contacts;
+  for (const auto& entry : rr.active) contacts.push_back(entry.second);
+  state.tool_records = instrument_records(model, state, contacts, rr.rows, rr.solved.lambda);
+}
+
+// The constraint response's warm start: last frame's held self-contacts and tool contacts (these re-measured at
+// the frame's start), all guessed to push, with their multipliers.
+void warm_start(const State& state, ResponseRounds& rr) {
+  for (size_t i = 0; i < state.active.size(); ++i) {
+    const FeatureKey key = key_of(state.active[i]);
+    rr.active.emplace(key, HeldContact{state.active[i], -1, 0});
+    rr.pushing.insert(key);
+    if (i < state.active_lambda.size()) rr.carried[key] = state.active_lambda[i];
+    if (static_cast<Eigen::Index>(i) < state.carried_lambda.size()) rr.in_solve[key] = state.carried_lambda[i];
+  }
+  for (size_t i = 0; i < state.tool_active.size(); ++i) {
+    const FeatureKey key = key_of(state.tool_active[i]);
+    rr.active.emplace(key, remeasured(state.tool_active[i], state));
+    rr.pushing.insert(key);
+    rr.carried[key] = state.tool_active_lambda[i];
+  }
 }
 
 }  // namespace
@@ -226,7 +305,6 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   const int n = model.mesh.n_nodes();
   const CollisionSpec& cs = model.collision;
   const bool paper = cs.response == ResponseKind::kPaper;
-  const Points& x0 = state.x;
   const Eigen::VectorXd u_free = u;
   auto positions = [&](const Eigen::VectorXd& uu) { return Points(model.mesh.rest + Eigen::Map<const Points>(uu.data(), n, 3)); };
   const Points x_free = positions(u);
@@ -235,10 +313,11 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   const bool predict = state.last_correction.size() == u.size() && !state.last_correction.isZero(0.0);
   Points x1 = predict ? positions(u_free + state.last_correction) : x_free;
 
-  // First detection on the predicted motion.
+  // First detection on the predicted motion (the instruments sweep to their targets).
   auto clock = Clock::now();
   collision::CollisionStats stats;
-  collision::detect_self(*model.collision_surface, *state.detector, x0, x1, cs.gap, state.contacts, &stats);
+  std::vector<HeldContact> found;
+  detect_all(model, state, x1, cs.gap, found, &stats);
   rec.bv_overlaps = stats.bv_overlaps;
   rec.feature_tests = stats.feature_tests;
   rec.contacts = stats.contacts;
@@ -248,20 +327,12 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   // contacts that pushed last time are the active-set solver's first guess.
   clock = Clock::now();
   ResponseRounds rr;
-  if (!paper)
-    for (size_t i = 0; i < state.active.size(); ++i) {
-      const FeatureKey key = key_of(state.active[i]);
-      rr.active.emplace(key, state.active[i]);
-      rr.pushing.insert(key);
-      if (i < state.active_lambda.size()) rr.carried[key] = state.active_lambda[i];
-      if (static_cast<Eigen::Index>(i) < state.carried_lambda.size()) rr.in_solve[key] = state.carried_lambda[i];
-    }
-  std::vector<collision::Contact> found = state.contacts;
+  if (!paper) warm_start(state, rr);
   bool resolved = found.empty() && rr.active.empty();
   while (!resolved && rr.iterations < cs.max_iterations) {
     ++rr.iterations;
     // Add the contacts found on the current trial motion, solve for the correction.
-    for (const auto& c : found) rr.active[key_of(c)] = c;
+    for (const HeldContact& h : found) rr.active[key_of(h)] = h;
     rr.rows.clear();
     if (paper)
       solve_paper(model, state, x_free, u_free, rr);
@@ -275,8 +346,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     // Re-check the corrected motion with one CCD pass at a fraction of the gap (the rows ask for the full gap, so
     // a held contact is done when this is clear); what it finds joins the active set for the next round.
     clock = Clock::now();
-    collision::detect_self(*model.collision_surface, *state.detector, x0, x1, kRecheckGapFraction * cs.gap, found,
-                           nullptr);
+    detect_all(model, state, x1, kRecheckGapFraction * cs.gap, found, nullptr);
     resolved = found.empty();
     rec.ms[kCollision] += ms_since(clock);
     clock = Clock::now();
@@ -307,6 +377,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     rec.ms[kCollision] += ms_since(clock);
   }
   keep_for_next_frame(model, state, rr, u, u_free);
+  end_tool_sweeps(model, state, rr);
   rec.contacts = static_cast<long>(std::max<size_t>(rr.active.size(), static_cast<size_t>(stats.contacts)));
 }
 

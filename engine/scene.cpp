@@ -32,6 +32,10 @@ constexpr const char* kLengthUnitNames[] = {"m", "mm"};
 constexpr double kMetresPerUnit[] = {1.0, 1e-3};
 // A range end within this fraction of the centreline's arc length past it is its end (decimal rounding).
 constexpr double kRangeEndTolerance = 1e-9;
+constexpr const char* kRodEndNames[] = {"flat", "rounded"};
+// Entries of a row-major 4 x 4 transform, and of a quaternion [w, x, y, z].
+constexpr size_t kMatrixEntries = 16;
+constexpr size_t kQuaternionEntries = 4;
 
 // Reads one JSON object, checking keys, types and ranges; every error names file, key path and value.
 class Reader {
@@ -125,6 +129,8 @@ class Reader {
     return path.empty() ? key : path + "." + key;
   }
   static std::string index(const std::string& path, size_t i) { return path + "[" + std::to_string(i) + "]"; }
+  // "FILE: PATH", the prefix of messages made by the validators outside the reader (instrument, pose_track).
+  std::string where(const std::string& path) const { return file_ + ": " + path; }
 
  private:
   std::string file_;
@@ -441,6 +447,166 @@ void read_twist(const Reader& r, const json& m, TwistSpec& spec) {
   }
 }
 
+// A built-in shape's optional dimension or resolution: type-checked here; its range is make_instrument's check.
+void read_dimension(const Reader& r, const json& m, const std::string& path, const char* key, double& out) {
+  if (m.contains(key)) out = r.number(m.at(key), Reader::join(path, key));
+}
+void read_resolution(const Reader& r, const json& m, const std::string& path, const char* key, int& out) {
+  if (m.contains(key))
+    out = r.integer_in(m.at(key), Reader::join(path, key), std::numeric_limits<int>::min(),
+                       std::numeric_limits<int>::max());
+}
+// The resolutions of a round shape (the sphere-tipped probe's, the rod's).
+void read_round_resolutions(const Reader& r, const json& m, const std::string& path, int& segments_around, int& rings,
+                            int& shaft_segments) {
+  read_resolution(r, m, path, "segments_around", segments_around);
+  read_resolution(r, m, path, "rings", rings);
+  read_resolution(r, m, path, "shaft_segments", shaft_segments);
+}
+// The same for a dimension the shape needs.
+double required_dimension(const Reader& r, const json& m, const std::string& path, const char* key) {
+  return r.number(r.require(m, path, key), Reader::join(path, key));
+}
+
+// An instrument's shape: its type's keys only, then built once (make_instrument) so that every range, and a mesh
+// file's closedness, is refused here with the scene file and key path.
+ShapeSpec read_shape(const Reader& r, const json& m, const std::string& path, const std::filesystem::path& dir) {
+  if (!m.is_object()) r.fail(path, "must be an object", &m);
+  const std::string type =
+      r.one_of(r.require(m, path, "type"), Reader::join(path, "type"), {"sphere_probe", "rod", "grasper", "mesh"});
+  ShapeSpec shape;
+  if (type == "sphere_probe") {
+    r.only_keys(m, path, {"type", "tip_radius", "shaft_radius", "shaft_length", "segments_around", "rings",
+                          "shaft_segments"});
+    SphereProbeSpec s;
+    s.tip_radius = required_dimension(r, m, path, "tip_radius");
+    s.shaft_radius = required_dimension(r, m, path, "shaft_radius");
+    s.shaft_length = required_dimension(r, m, path, "shaft_length");
+    read_round_resolutions(r, m, path, s.segments_around, s.rings, s.shaft_segments);
+    shape = s;
+  } else if (type == "rod") {
+    r.only_keys(m, path, {"type", "radius", "length", "end", "segments_around", "rings", "shaft_segments"});
+    RodSpec s;
+    s.radius = required_dimension(r, m, path, "radius");
+    s.length = required_dimension(r, m, path, "length");
+    if (m.contains("end")) s.end = r.choice<RodEnd>(m.at("end"), Reader::join(path, "end"), kRodEndNames);
+    read_round_resolutions(r, m, path, s.segments_around, s.rings, s.shaft_segments);
+    shape = s;
+  } else if (type == "grasper") {
+    r.only_keys(m, path, {"type", "jaw_length", "jaw_width", "jaw_thickness", "opening_angle", "shaft_radius",
+                          "shaft_length", "segments_around", "shaft_segments"});
+    GrasperSpec s;
+    s.jaw_length = required_dimension(r, m, path, "jaw_length");
+    s.jaw_width = required_dimension(r, m, path, "jaw_width");
+    s.jaw_thickness = required_dimension(r, m, path, "jaw_thickness");
+    s.shaft_radius = required_dimension(r, m, path, "shaft_radius");
+    s.shaft_length = required_dimension(r, m, path, "shaft_length");
+    read_dimension(r, m, path, "opening_angle", s.opening_angle);
+    read_resolution(r, m, path, "segments_around", s.segments_around);
+    read_resolution(r, m, path, "shaft_segments", s.shaft_segments);
+    shape = s;
+  } else {
+    r.only_keys(m, path, {"type", "file", "units"});
+    MeshFileSpec s;
+    std::filesystem::path f = r.string(r.require(m, path, "file"), Reader::join(path, "file"));
+    if (f.is_relative()) f = dir / f;
+    s.file = f.lexically_normal().string();
+    if (m.contains("units")) s.units = r.choice<MeshUnits>(m.at("units"), Reader::join(path, "units"), kLengthUnitNames);
+    // The mesh file's own message (it names the file and the triangle or edge) under the scene's key.
+    try {
+      make_instrument(s, r.where(path));
+    } catch (const InputError& e) {
+      r.fail(Reader::join(path, "file"), e.what(), &m.at("file"));
+    }
+    return s;
+  }
+  make_instrument(shape, r.where(path));
+  return shape;
+}
+
+// A pose key's rotation: a unit quaternion [w, x, y, z] or {"axis": [x, y, z], "angle": radians}.
+Eigen::Quaterniond read_rotation(const Reader& r, const json& v, const std::string& path) {
+  if (v.is_object()) {
+    r.only_keys(v, path, {"axis", "angle"});
+    const Eigen::Vector3d axis = r.vec3(r.require(v, path, "axis"), Reader::join(path, "axis"));
+    const double angle = r.number(r.require(v, path, "angle"), Reader::join(path, "angle"));
+    return axis_angle_rotation(axis, angle, r.where(path));
+  }
+  if (!v.is_array() || v.size() != kQuaternionEntries)
+    r.fail(path, "must be a quaternion [w, x, y, z] or {\"axis\", \"angle\"}", &v);
+  double q[kQuaternionEntries];
+  for (size_t i = 0; i < kQuaternionEntries; ++i) q[i] = r.number(v[i], Reader::index(path, i));
+  return Eigen::Quaterniond(q[0], q[1], q[2], q[3]);  // unit norm: checked by PoseTrack
+}
+
+// Key frames {t, position, rotation}: times >= 0, then PoseTrack's checks (increasing, unit rotations).
+std::vector<PoseKey> read_pose_track(const Reader& r, const json& track, const std::string& path) {
+  if (!track.is_array()) r.fail(path, "must be an array of {\"t\", \"position\", \"rotation\"} keys", &track);
+  if (track.empty()) r.fail(path, "must not be empty", &track);
+  std::vector<PoseKey> keys;
+  for (size_t k = 0; k < track.size(); ++k) {
+    const std::string kpath = Reader::index(path, k);
+    r.only_keys(track[k], kpath, {"t", "position", "rotation"});
+    PoseKey key;
+    key.t = r.number(r.require(track[k], kpath, "t"), kpath + ".t");
+    if (key.t < 0) r.fail(kpath + ".t", "must be >= 0", &track[k].at("t"));
+    key.pose.position = r.vec3(r.require(track[k], kpath, "position"), kpath + ".position");
+    if (track[k].contains("rotation")) key.pose.rotation = read_rotation(r, track[k].at("rotation"), kpath + ".rotation");
+    keys.push_back(key);
+  }
+  return PoseTrack(std::move(keys), r.where(path)).keys();
+}
+
+// One instrument: name, shape, exactly one of track or replay (or a device_name alone), optional to_organ.
+InstrumentSpec read_instrument(const Reader& r, const json& p, const std::string& path, size_t i,
+                               const std::filesystem::path& dir) {
+  r.only_keys(p, path, {"name", "shape", "track", "replay", "device_name", "to_organ"});
+  InstrumentSpec spec;
+  spec.name = p.contains("name") ? r.string(p.at("name"), Reader::join(path, "name")) : "instrument" + std::to_string(i);
+  if (spec.name.empty()) r.fail(Reader::join(path, "name"), "must not be empty", &p.at("name"));
+  spec.shape = read_shape(r, r.require(p, path, "shape"), Reader::join(path, "shape"), dir);
+  if (p.contains("device_name")) {
+    spec.device_name = r.string(p.at("device_name"), Reader::join(path, "device_name"));
+    if (spec.device_name.empty()) r.fail(Reader::join(path, "device_name"), "must not be empty", &p.at("device_name"));
+  }
+  const bool has_track = p.contains("track"), has_replay = p.contains("replay");
+  if (has_track && has_replay) r.fail(path, "needs at most one of \"track\" or \"replay\"", nullptr);
+  if (!has_track && !has_replay && spec.device_name.empty())
+    r.fail(path, "needs one of \"track\", \"replay\" or \"device_name\"", nullptr);
+  if (has_track) {
+    spec.poses = read_pose_track(r, p.at("track"), Reader::join(path, "track"));
+  } else if (has_replay) {
+    spec.drive = InstrumentDrive::kReplay;
+    std::filesystem::path f = r.string(p.at("replay"), Reader::join(path, "replay"));
+    if (f.is_relative()) f = dir / f;
+    spec.replay = f.lexically_normal().string();
+    require_file(spec.replay, "pose replay file");
+    spec.poses = read_pose_csv(spec.replay).keys();
+  } else {
+    spec.drive = InstrumentDrive::kDevice;
+  }
+  if (p.contains("to_organ")) {
+    const std::string mpath = Reader::join(path, "to_organ");
+    const json& v = p.at("to_organ");
+    if (!v.is_array() || v.size() != kMatrixEntries) r.fail(mpath, "must be an array of 16 numbers (row-major 4 x 4)", &v);
+    std::array<double, kMatrixEntries> rows{};
+    for (size_t k = 0; k < kMatrixEntries; ++k) rows[k] = r.number(v[k], Reader::index(mpath, k));
+    spec.to_organ = rigid_to_organ(rows, r.where(mpath));
+  }
+  return spec;
+}
+
+void read_instruments(const Reader& r, const json& list, const std::filesystem::path& dir, Scene& s) {
+  if (!list.is_array()) r.fail("instruments", "must be an array", &list);
+  std::set<std::string> names;
+  for (size_t i = 0; i < list.size(); ++i) {
+    const std::string path = Reader::index("instruments", i);
+    s.instruments.push_back(read_instrument(r, list[i], path, i, dir));
+    if (!names.insert(s.instruments.back().name).second)
+      r.fail(Reader::join(path, "name"), "must be unique among the instruments", &list[i].at("name"));
+  }
+}
+
 // Checks across keys: what the compiled model cannot combine is refused here, naming the first key involved.
 void check_combinations(const Reader& r, const json& root, const Scene& s) {
   // Quadratic elements take their curved walls from the hollow cylinder's geometry.
@@ -474,6 +640,12 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   if (s.solver.tangent != Tangent::kWarped && s.element == ElementType::kTet10)
     r.fail("solver.tangent", std::string("\"") + name_of(s.solver.tangent) + "\" needs mesh.element \"tet4\" (got \"tet10\")",
            &root.at("solver").at("tangent"));
+  // Tool contacts are rows of the constraint response (the paper's response holds vertices, not tools), solved
+  // after the nonlinear solve (not carried into it).
+  if (!s.instruments.empty() && s.collision.response != ResponseKind::kConstraint)
+    r.fail("collision.response", "instruments need \"constraint\"", &root.at("collision").at("response"));
+  if (!s.instruments.empty() && s.collision.coupling == ContactCoupling::kCarried)
+    r.fail("collision.coupling", "instruments need \"correct\"", &root.at("collision").at("coupling"));
   // Displacement-driven probes (held points) are solved on the linear quasi-static model's probe compliance.
   int held = -1;
   for (size_t i = 0; i < s.probes.size() && held < 0; ++i)
@@ -516,7 +688,7 @@ Scene parse_scene(const std::string& text, const std::string& path) {
     throw InputError(path + ": malformed JSON: " + e.what());
   }
   r.only_keys(root, "", {"name", "mesh", "material", "fixed", "probes", "frames", "fps", "render", "collision",
-                          "solver", "twist"});
+                          "solver", "twist", "instruments"});
 
   Scene s;
   s.path = path;
@@ -543,6 +715,7 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   if (root.contains("collision")) read_collision(r, root.at("collision"), s.collision);
   if (root.contains("solver")) read_solver(r, root.at("solver"), s.solver);
   if (root.contains("twist")) read_twist(r, root.at("twist"), s.twist);
+  if (root.contains("instruments")) read_instruments(r, root.at("instruments"), dir, s);
   check_combinations(r, root, s);
   return s;
 }

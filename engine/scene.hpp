@@ -6,6 +6,8 @@
 
 #include <Eigen/Core>
 
+#include "engine/instrument.hpp"
+#include "engine/pose_track.hpp"
 #include "physics/mesh.hpp"
 #include "physics/swept_tube.hpp"
 #include "render/renderer.hpp"
@@ -142,6 +144,23 @@ struct TwistSpec {
   bool enabled() const { return end != TwistEnd::kNone; }
 };
 
+// Where an instrument's pose comes from: key frames ("track"), a recorded pose CSV ("replay"), or only a device
+// of the (future) OpenIGTLink bridge ("device_name" without a track or replay: `lumen run` and `bench` refuse it).
+enum class InstrumentDrive { kTrack, kReplay, kDevice };
+
+// A rigid instrument (key "instruments"): its shape, validated (make_instrument accepts it), and its poses.
+struct InstrumentSpec {
+  std::string name;                   // for reports; defaults to "instrument<i>", unique in the scene
+  ShapeSpec shape;                    // built-in shape with its dimensions, or a mesh file (absolute path)
+  InstrumentDrive drive = InstrumentDrive::kTrack;
+  std::vector<PoseKey> poses;         // track keys or the replay file's poses (organ frame, rotations unit)
+  std::string replay;                 // the replay file, absolute path ("" unless drive is kReplay)
+  std::string device_name;            // the bridge's device name ("" for none)
+  // Device coordinates (metres, after the wire's millimetres are converted) to the organ frame: applies to the
+  // device's poses; track and replay poses are in the organ frame already.
+  Eigen::Isometry3d to_organ = Eigen::Isometry3d::Identity();
+};
+
 struct Scene {
   std::string path;  // the file it was read from
   std::string name;
@@ -162,6 +181,7 @@ struct Scene {
   CollisionSpec collision;
   SolverSpec solver;
   TwistSpec twist;
+  std::vector<InstrumentSpec> instruments;
 };
 
 // Refuse a path that is a folder or does not exist, as an InputError "PATH: is a folder, not a WHAT" / "PATH: no

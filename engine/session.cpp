@@ -172,6 +172,8 @@ FrameRecord run_frame(const Model& model, const SessionOptions& opt, SessionOutp
   if (opt.check) {
     const auto c0 = Clock::now();
     rec.intersecting_pairs = collision::count_intersecting_pairs(state.x, model.collision_tris);
+    if (!model.instruments.empty())
+      rec.instrument_intersecting_pairs = count_tool_intersections(model, state.x, state.tool_points);
     check_ms = std::chrono::duration<double, std::milli>(Clock::now() - c0).count();
   }
   // Render the committed state and hand the image to the writer thread.
@@ -199,6 +201,7 @@ FrameRecord run_frame(const Model& model, const SessionOptions& opt, SessionOutp
 // Per-session sums of the per-frame records.
 struct SessionTotals {
   long over_budget = 0, fallbacks = 0, inverted_frames = 0, failures = 0, intersecting_frames = 0;
+  long instrument_intersecting_frames = 0;
   long bv_overlaps = 0, feature_tests = 0, contacts = 0, iterations = 0, preconditioner_failures = 0;
 };
 SessionTotals totals_of(const std::vector<FrameRecord>& frames) {
@@ -213,6 +216,7 @@ SessionTotals totals_of(const std::vector<FrameRecord>& frames) {
     t.inverted_frames += f.inverted_elements > 0;
     t.failures += f.numerical_failure;
     t.intersecting_frames += f.intersecting_pairs > 0;
+    t.instrument_intersecting_frames += f.instrument_intersecting_pairs > 0;
     t.preconditioner_failures += f.preconditioner_failures;
   }
   return t;
@@ -265,6 +269,8 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
   r["numerical_failures"] = t.failures;
   r["preconditioner_failures"] = t.preconditioner_failures;
   if (opt.check) r["frames_with_intersections"] = t.intersecting_frames;
+  if (opt.check && !model.instruments.empty())
+    r["frames_with_instrument_intersections"] = t.instrument_intersecting_frames;
   nlohmann::json per = nlohmann::json::array();
   for (const auto& f : result.frames) per.push_back(frame_json(f));
   r["per_frame"] = std::move(per);

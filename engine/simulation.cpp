@@ -217,6 +217,9 @@ void build_collision_topology(const Scene& scene, Model& m) {
     m.collision_tris.bottomRows(outer.rows()) = outer;
   }
   m.collision_nodes.assign(m.collision_tris.data(), m.collision_tris.data() + m.collision_tris.size());
+  // Instruments touch the outer wall: its nodes join the contact compliance's set, so that the response's
+  // correction the re-check sees there is exact.
+  if (!scene.instruments.empty()) m.collision_nodes.insert(m.collision_nodes.end(), outer.data(), outer.data() + outer.size());
   sort_unique(m.collision_nodes);
   if (scene.collision.self)
     m.collision_surface = std::make_shared<const collision::CollisionSurface>(m.collision_tris, m.mesh.rest);
@@ -314,6 +317,7 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   sort_unique(m->fixed_nodes);
   attach_probes(scene, *m);
   build_collision_topology(scene, *m);
+  compile_instruments(scene, *m);
   m->integrator = make_integrator(scene, *m, quadratic.get());
   if (m->collision_surface && scene.collision.coupling == ContactCoupling::kCarried)
     m->coupling_stiffness = coupling_stiffness(*m);
@@ -324,6 +328,16 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
 Inputs make_inputs(const Scene& scene) {
   Inputs in;
   for (const ProbeSpec& p : scene.probes) in.sources.push_back(make_source(p));
+  for (size_t i = 0; i < scene.instruments.size(); ++i) {
+    const InstrumentSpec& spec = scene.instruments[i];
+    if (spec.drive == InstrumentDrive::kDevice)
+      throw InputError(scene.path + ": instruments[" + std::to_string(i) + "].device_name: poses from a device need "
+                       "the OpenIGTLink bridge (lumen serve), which is not built yet; give the instrument a \"track\" "
+                       "or a \"replay\" to run it (value \"" + spec.device_name + "\")");
+    const bool replay = spec.drive == InstrumentDrive::kReplay;
+    in.instruments.push_back(std::make_unique<PoseTrackSource>(
+        PoseTrack(spec.poses, replay ? spec.replay : scene.path), replay ? "replay" : "track"));
+  }
   return in;
 }
 
@@ -336,8 +350,16 @@ State make_state(const Model& model) {
   s.samples.resize(model.probe_points.size());
   s.load_points = model.probe_points;
   s.in_contact.assign(n, 0);
-  if (model.collision_surface) {
-    s.detector = std::make_unique<collision::CollisionWorkspace>(model.collision.kdop);
+  if (model.collision_surface) s.detector = std::make_unique<collision::CollisionWorkspace>(model.collision.kdop);
+  // Instruments: a workspace for the organ side of their pair detection, one per part.
+  if (model.tool_target_surface) {
+    s.organ_tool_workspace = std::make_unique<collision::CollisionWorkspace>(model.collision.kdop);
+    for (size_t p = 0; p < model.tool_parts.size(); ++p)
+      s.tool_workspaces.push_back(std::make_unique<collision::CollisionWorkspace>(model.collision.kdop));
+    s.tool_pose.resize(model.instruments.size());
+    s.tool_points.resize(model.tool_parts.size());
+  }
+  if (model.collision_surface || model.tool_target_surface) {
     s.compliance = std::make_unique<physics::SurfaceCompliance>(model.contact_solver(), model.collision_nodes);
     // Whole-mesh columns of the probe nodes too, so a contact correction that changes probe forces stays cheap.
     std::vector<int> probe_nodes;
@@ -378,6 +400,37 @@ InputHealth sample_inputs(const Model& model, Inputs& inputs, State& state, doub
     h.all_fixed = h.all_fixed && fixed;
   }
   return h;
+}
+
+// Each instrument's points at a pose, into its parts' slots of `parts` (one array per tool part).
+void place_instrument(const Model& model, size_t i, const Pose& pose, std::vector<Points>& parts) {
+  const CompiledInstrument& ci = model.instruments[i];
+  std::vector<Points> posed = posed_parts(ci.instrument, pose);
+  for (size_t j = 0; j < posed.size(); ++j) parts[static_cast<size_t>(ci.first_part) + j] = std::move(posed[j]);
+}
+
+// The instruments' target poses at the end-of-frame time t1 (at the first frame, their start at t = 0 too). A
+// source that yields a non-finite pose is not believed: the instrument stays where it is (bad input).
+void sample_instruments(const Model& model, Inputs& inputs, State& state, double t1, InputHealth& h) {
+  if (model.instruments.empty()) return;
+  assert(inputs.instruments.size() == model.instruments.size());
+  if (!state.tools_placed)
+    for (size_t i = 0; i < model.instruments.size(); ++i) {
+      state.tool_pose[i] = inputs.instruments[i]->pose(state.t);
+      place_instrument(model, i, state.tool_pose[i], state.tool_points);
+    }
+  state.tools_placed = true;
+  state.tool_pose_target = state.tool_pose;
+  state.tool_target = state.tool_points;
+  for (size_t i = 0; i < model.instruments.size(); ++i) {
+    const Pose target = inputs.instruments[i]->pose(t1);
+    if (!target.position.allFinite() || !target.rotation.coeffs().allFinite()) {
+      h.bad_input = true;
+      continue;
+    }
+    state.tool_pose_target[i] = target;
+    place_instrument(model, i, target, state.tool_target);
+  }
 }
 
 // The frame's point loads at the probes' attachment points.
@@ -454,6 +507,16 @@ void feed_back(Inputs& inputs, const State& state, double t1, FrameRecord& rec) 
   }
 }
 
+// Each instrument's record (where it ended, the contacts' force and torque on it), handed back to its source. A
+// frame whose response did not run (a failed prediction) leaves the instruments where they were, without force.
+void feed_back_instruments(const Model& model, Inputs& inputs, State& state, double t1, FrameRecord& rec) {
+  if (model.instruments.empty()) return;
+  if (state.tool_records.empty()) state.tool_records = instrument_records(model, state, {}, {}, Eigen::VectorXd());
+  rec.instruments = state.tool_records;
+  for (size_t i = 0; i < rec.instruments.size(); ++i)
+    inputs.instruments[i]->feedback(t1, rec.instruments[i].force, rec.instruments[i].torque);
+}
+
 }  // namespace
 
 // The probes' forces as a nodal force vector (3n) at their attachment points of the last frame.
@@ -470,7 +533,8 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
 
   // Sample inputs.
   auto clock = Clock::now();
-  const InputHealth input = sample_inputs(model, inputs, state, t1);
+  InputHealth input = sample_inputs(model, inputs, state, t1);
+  sample_instruments(model, inputs, state, t1, input);
   rec.ms[kInput] = ms_since(clock);
 
   // Predict: the integrator's free motion with the probes' loads, the twisted ring at its end-of-frame angle;
@@ -500,13 +564,15 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   // Collide and respond: contacts constrain the solve on the contact compliance, CCD re-checks.
   std::fill(state.in_contact.begin(), state.in_contact.end(), 0);
   state.contacts.clear();
-  if (state.detector && pred.finite && u.allFinite()) collide_and_respond(model, state, u, rec);
+  state.tool_records.clear();
+  if (state.compliance && pred.finite && u.allFinite()) collide_and_respond(model, state, u, rec);
 
   // Commit (or keep the last good frame), then hand the reactions back to the sources.
   commit_frame(model, state, u, pred.finite, input.bad_input, rec);
   // Carried contacts: the next solve starts where this frame ended (its loads include the contacts).
   if (model.coupling_stiffness > 0.0 && !rec.numerical_failure) state.work.corotational.u = state.sim.u;
   feed_back(inputs, state, t1, rec);
+  feed_back_instruments(model, inputs, state, t1, rec);
   state.frame += 1;
   state.t = t1;
 }

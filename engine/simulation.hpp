@@ -10,6 +10,7 @@
 
 #include "collision/surface.hpp"
 #include "engine/input.hpp"
+#include "engine/instrument_contact.hpp"
 #include "engine/report.hpp"
 #include "engine/scene.hpp"
 #include "physics/compliance.hpp"
@@ -87,6 +88,12 @@ struct Model {
   // null when self-collision is off.
   std::shared_ptr<const collision::CollisionSurface> collision_surface;
   std::vector<int> collision_nodes;                // their node ids (sorted): the contact compliance's nodes
+  // Instruments (scene key "instruments"): their parts, flattened as collision surfaces, and the organ surface they
+  // touch: the outer and the inner wall (n x 3 node ids), whose nodes are then all in collision_nodes.
+  std::vector<CompiledInstrument> instruments;
+  std::vector<ToolPart> tool_parts;
+  Tris tool_target_tris;
+  std::shared_ptr<const collision::CollisionSurface> tool_target_surface;  // null without instruments
   // collision.coupling "carried": the augmentation penalty of the contacts carried into the corotational solve,
   // kCouplingStiffnessScale times the mean diagonal of K over the colliding walls' free DOFs, N/m (0 otherwise).
   double coupling_stiffness = 0.0;
@@ -113,11 +120,14 @@ Eigen::VectorXd twist_coefficients(const Model& model, double degrees);
 // every other node, 3 n_nodes, metres.
 Eigen::VectorXd twist_displacement(const Model& model, double degrees);
 
-// The session's input sources, one per probe in the scene's order (scripted tracks, replays, devices): owned by
-// the session, apart from the model and from the physics state.
+// The session's input sources, one per probe in the scene's order (scripted tracks, replays, devices), and one pose
+// source per instrument: owned by the session, apart from the model and from the physics state.
 struct Inputs {
   std::vector<std::unique_ptr<InputSource>> sources;
+  std::vector<std::unique_ptr<PoseSource>> instruments;
 };
+// Refuses (InputError naming the scene file, the key and the device) an instrument driven only by a device: the
+// bridge that would feed it (lumen serve) is not built.
 Inputs make_inputs(const Scene& scene);
 
 // The session's mutable state.
@@ -140,6 +150,16 @@ struct State {
   std::vector<double> active_total;
   Eigen::VectorXd carried_lambda;
   Eigen::VectorXd last_correction;                    // last frame's contact correction u - u_free, 3n, metres
+  // Instruments: each one's pose at the end of the last frame (where it really ended: short of its target when
+  // the fallback stopped the frame) and at this frame's target; per tool part, its points at both.
+  std::vector<Pose> tool_pose, tool_pose_target;
+  std::vector<Points> tool_points, tool_target;
+  bool tools_placed = false;                          // tool_pose holds the poses at t = 0 or a frame's end
+  std::vector<HeldContact> tool_active;               // tool contacts held at the end of the last frame
+  std::vector<double> tool_active_lambda;             // their multipliers, newtons
+  std::unique_ptr<collision::CollisionWorkspace> organ_tool_workspace;  // the organ side of detect_pair
+  std::vector<std::unique_ptr<collision::CollisionWorkspace>> tool_workspaces;  // per tool part
+  std::vector<InstrumentRecord> tool_records;         // this frame's instrument records
   int failures = 0;                                   // frames where the last good state was kept
 };
 

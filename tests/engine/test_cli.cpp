@@ -188,3 +188,32 @@ TEST(Cli, BenchPrintsStageTableAsJson) {
   EXPECT_TRUE(j["stages"].contains("total"));
   EXPECT_FALSE(fs::exists(fs::path("out") / "small" / "frames"));
 }
+
+// An instrument driven only by a device (the bridge is not built) and a bad instrument key: exit 2 from run and
+// bench, naming the scene file, the key and the value, and nothing written.
+TEST(Cli, InstrumentErrorsExitTwoBeforeWriting) {
+  const fs::path d = temp_dir("instrument");
+  nlohmann::json scene = nlohmann::json::parse(small_scene("instrument"));
+  scene["instruments"] = {{{"name", "probe"},
+                           {"shape", {{"type", "sphere_probe"}, {"tip_radius", 0.003}, {"shaft_radius", 0.002},
+                                      {"shaft_length", 0.08}}},
+                           {"device_name", "Tracker"}}};
+  std::ofstream(d / "device.json") << scene.dump();
+  for (const std::string& command : {"run " + (d / "device.json").string() + " --out " + (d / "out").string(),
+                                     "bench " + (d / "device.json").string()}) {
+    CliRun r = run_lumen(command);
+    EXPECT_EQ(r.code, 2) << command;
+    EXPECT_NE(r.output.find((d / "device.json").string() + ": instruments[0].device_name: poses from a device need "
+                            "the OpenIGTLink bridge (lumen serve)"),
+              std::string::npos)
+        << command << ": " << r.output;
+  }
+  scene["instruments"][0]["shape"]["tip_radius"] = 0.0;
+  std::ofstream(d / "zero.json") << scene.dump();
+  CliRun r = run_lumen("run " + (d / "zero.json").string() + " --out " + (d / "out").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find((d / "zero.json").string() + ": instruments[0].shape.tip_radius: must be > 0 (value 0)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_TRUE(is_empty_dir(d / "out"));
+}
