@@ -19,8 +19,6 @@ namespace {
 constexpr double kPi = static_cast<double>(EIGEN_PI);
 // Most sides, rings or bands a shape may ask for (a resolution past it is a typo, not a mesh).
 constexpr int kMaxResolution = 4096;
-// Metres per unit of a mesh file, indexed by MeshUnits.
-constexpr double kMetresPerUnit[] = {1.0, kMetresPerMillimetre};
 
 // A closed profile of revolution about +y: (radius, height) points from the tip end's pole (radius 0) to the far
 // end's pole (radius 0), the points between with radius > 0.

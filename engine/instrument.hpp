@@ -81,8 +81,12 @@ struct GrasperSpec {
   int shaft_segments = kDefaultShaftSegments;
 };
 
+// Length unit of a file (an instrument mesh, a centreline) and of the lengths given with it: "m" | "mm".
+enum class MeshUnits { kMetres, kMillimetres };
+// Metres per unit, indexed by MeshUnits.
+inline constexpr double kMetresPerUnit[] = {1.0, kMetresPerMillimetre};
+
 // A closed triangle mesh read through assimp (OBJ, STL, PLY), already in the instrument-frame convention.
-enum class MeshUnits { kMetres, kMillimetres };  // "m" | "mm"
 struct MeshFileSpec {
   std::string file;
   MeshUnits units = MeshUnits::kMetres;

@@ -26,10 +26,8 @@ constexpr const char* kTwistEndNames[] = {"", "start", "stop"};
 constexpr const char* kNodeSetNames[] = {"ends", "start", "stop"};
 constexpr const char* kCameraNames[] = {"side", "diagonal", "endoscope"};
 constexpr const char* kMeshTypeNames[] = {"hollow_cylinder", "swept_tube"};
-// mesh.units of a swept tube, and metres per unit.
-enum class LengthUnit { kMetre, kMillimetre };
+// Names of MeshUnits (mesh.units of a swept tube, an instrument mesh's units).
 constexpr const char* kLengthUnitNames[] = {"m", "mm"};
-constexpr double kMetresPerUnit[] = {1.0, 1e-3};
 // A range end within this fraction of the centreline's arc length past it is its end (decimal rounding).
 constexpr double kRangeEndTolerance = 1e-9;
 constexpr const char* kRodEndNames[] = {"flat", "rounded"};
@@ -252,8 +250,8 @@ void check_swept_tube(const Reader& r, const json& m, const physics::SweptTubeSp
 void read_swept_tube(const Reader& r, const json& m, const std::filesystem::path& dir, physics::SweptTubeSpec& spec) {
   r.only_keys(m, "mesh", {"type", "element", "centreline", "units", "range", "radius", "wall_thickness",
                           "segments_around", "segment_length", "layers", "haustra"});
-  const LengthUnit units = m.contains("units") ? r.choice<LengthUnit>(m.at("units"), "mesh.units", kLengthUnitNames)
-                                               : LengthUnit::kMetre;
+  const MeshUnits units = m.contains("units") ? r.choice<MeshUnits>(m.at("units"), "mesh.units", kLengthUnitNames)
+                                              : MeshUnits::kMetres;
   const double unit = kMetresPerUnit[static_cast<int>(units)];
   // The centreline file, relative to the scene file.
   std::filesystem::path file = r.string(r.require(m, "mesh", "centreline"), "mesh.centreline");

@@ -724,7 +724,8 @@ CorotationalModel::CorotationalModel(const TetMesh& mesh, const LinearMaterial& 
 CorotationalModel::CorotationalModel(const QuadraticMesh& mesh, const LinearMaterial& material,
                                      const std::vector<int>& fixed_nodes)
     : elements_(mesh, material),
-      K_(assemble_stiffness(mesh, material)),
+      // (The elements' stored K_e unrotated: assemble_stiffness(mesh) would evaluate every K_e a second time.)
+      K_(elements_.warped_stiffness(std::vector<Eigen::Matrix3d>(elements_.n_tets(), Eigen::Matrix3d::Identity()))),
       fixed_nodes_(fixed_nodes),
       solver_(K_, fixed_nodes) {}
 

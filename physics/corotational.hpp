@@ -191,7 +191,7 @@ class CorotationalModel {
   // fixed_nodes: nodes whose displacement is prescribed (0 unless a solve is given u_fixed); must remove all
   // rigid motion. Factorises K once (StaticSolver).
   CorotationalModel(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes);
-  // The same on 10-node tets (K from assemble_stiffness of the quadratic mesh).
+  // The same on 10-node tets (K: the elements' warped stiffness at rest, that of assemble_stiffness(mesh)).
   CorotationalModel(const QuadraticMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes);
 
   const CorotationalElements& elements() const { return elements_; }
