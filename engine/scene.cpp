@@ -134,9 +134,36 @@ class Reader {
   std::string file_;
 };
 
+// One graded direction of mesh.grading: {"at" | "at_deg": [foci...], "ratio": r}; angles in degrees.
+physics::CellGrading read_grading(const Reader& r, const json& g, const std::string& path, const char* at_key,
+                                  double to_model_units, double lo, double hi) {
+  r.only_keys(g, path, {at_key, "ratio"});
+  physics::CellGrading grading;
+  grading.ratio = r.number_in(r.require(g, path, "ratio"), Reader::join(path, "ratio"), 1.0,
+                              physics::kMaxGradingRatio, false, false);
+  const json& at = r.require(g, path, at_key);
+  const std::string at_path = Reader::join(path, at_key);
+  if (!at.is_array() || at.empty()) r.fail(at_path, "must be a non-empty array of numbers", &at);
+  for (size_t i = 0; i < at.size(); ++i)
+    grading.focus.push_back(to_model_units * r.number_in(at[i], Reader::index(at_path, i), lo, hi, false, false));
+  return grading;
+}
+
+// mesh.grading: {"around": {"at_deg": [...], "ratio"}, "along": {"at": [...] (metres along the axis), "ratio"}},
+// each optional: cells shrink toward those angles and arc lengths (physics::CellGrading).
+void read_cylinder_grading(const Reader& r, const json& g, physics::HollowCylinderSpec& spec) {
+  r.only_keys(g, "mesh.grading", {"around", "along"});
+  constexpr double kRadiansPerDegree = static_cast<double>(EIGEN_PI) / 180.0;
+  if (g.contains("around"))
+    spec.grading_around = read_grading(r, g.at("around"), "mesh.grading.around", "at_deg", kRadiansPerDegree,
+                                       -360.0, 360.0);
+  if (g.contains("along"))
+    spec.grading_along = read_grading(r, g.at("along"), "mesh.grading.along", "at", 1.0, 0.0, spec.length);
+}
+
 void read_hollow_cylinder(const Reader& r, const json& m, physics::HollowCylinderSpec& spec) {
   r.only_keys(m, "mesh", {"type", "inner_radius", "outer_radius", "length", "segments_around", "segments_along",
-                          "layers", "bend_radius", "element"});
+                          "layers", "bend_radius", "element", "grading"});
   spec.inner_radius = r.positive(r.require(m, "mesh", "inner_radius"), "mesh.inner_radius");
   spec.outer_radius = r.positive(r.require(m, "mesh", "outer_radius"), "mesh.outer_radius");
   if (spec.inner_radius >= spec.outer_radius)
@@ -151,6 +178,7 @@ void read_hollow_cylinder(const Reader& r, const json& m, physics::HollowCylinde
     if (spec.bend_radius != 0.0 && !(spec.bend_radius > spec.outer_radius))
       r.fail("mesh.bend_radius", "must be 0 (straight) or > mesh.outer_radius", &m.at("bend_radius"));
   }
+  if (m.contains("grading")) read_cylinder_grading(r, m.at("grading"), spec);
 }
 
 // Rows of 3 numbers (a centreline file's points, tangents or normals), n of them, times `scale`.

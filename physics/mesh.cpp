@@ -3,6 +3,7 @@
 
 #include "physics/detail/messages.hpp"
 
+#include <algorithm>
 #include <utility>
 
 #include <cmath>
@@ -43,10 +44,21 @@ void validate(const HollowCylinderSpec& s) {
 
 }  // namespace
 
-TetMesh make_structured_tube(const std::vector<TubeRing>& rings, int segments_around, int layers) {
+TetMesh make_structured_tube(const std::vector<TubeRing>& rings, int segments_around, int layers,
+                             const std::vector<double>& angles) {
+  constexpr double kTwoPi = 2.0 * static_cast<double>(EIGEN_PI);
   if (rings.size() < 2) detail::fail_value("make_structured_tube: rings", "must number at least 2", rings.size());
   if (segments_around < 3) detail::fail_value("make_structured_tube: segments_around", "must be >= 3", segments_around);
   if (layers < 1) detail::fail_value("make_structured_tube: layers", "must be >= 1", layers);
+  // Given angles: one per step around, increasing in [0, 2 pi).
+  if (!angles.empty()) {
+    if (static_cast<int>(angles.size()) != segments_around)
+      detail::fail_value("make_structured_tube: angles.size()", "must equal segments_around", angles.size());
+    for (int i = 0; i < segments_around; ++i)
+      if (!(angles[i] >= 0.0 && angles[i] < kTwoPi && (i == 0 || angles[i] > angles[i - 1])))
+        detail::fail_value("make_structured_tube: angles[" + std::to_string(i) + "]",
+                           "must increase within [0, 2 pi)", angles[i]);
+  }
   const int na = segments_around;                        // cells around (periodic)
   const int nl = static_cast<int>(rings.size()) - 1;     // cells along
   const int nr = layers;                                 // cells through the wall
@@ -63,7 +75,7 @@ TetMesh make_structured_tube(const std::vector<TubeRing>& rings, int segments_ar
     for (int k = 0; k <= nr; ++k) {
       const double r = ring.inner_radius + (ring.outer_radius - ring.inner_radius) * k / nr;
       for (int i = 0; i < na; ++i) {
-        const double theta = 2.0 * static_cast<double>(EIGEN_PI) * i / na;
+        const double theta = angles.empty() ? 2.0 * static_cast<double>(EIGEN_PI) * i / na : angles[i];
         mesh.rest.row(node(i, j, k)) = ring_point(ring.frame, r, theta).transpose();
       }
     }
@@ -130,12 +142,73 @@ TetMesh make_structured_tube(const std::vector<TubeRing>& rings, int segments_ar
 
 TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec) {
   validate(spec);
-  // Rings at equal arc-length steps along the centreline, all with the spec's radii.
+  // Rings at the grid's arc lengths along the centreline (equal steps unless graded), all with the spec's radii.
+  const CylinderGrid grid = hollow_cylinder_grid(spec);
   std::vector<TubeRing> rings(spec.segments_along + 1);
   for (int j = 0; j <= spec.segments_along; ++j)
-    rings[j] = {hollow_cylinder_frame(spec, spec.length * j / spec.segments_along), spec.inner_radius,
-                spec.outer_radius};
-  return make_structured_tube(rings, spec.segments_around, spec.layers);
+    rings[j] = {hollow_cylinder_frame(spec, grid.arc[j]), spec.inner_radius, spec.outer_radius};
+  // Angles: the grid's, when graded (the uniform default is make_structured_tube's own 2 pi i / around).
+  std::vector<double> angles;
+  if (spec.grading_around.ratio != 1.0) angles.assign(grid.angle.begin(), grid.angle.end() - 1);
+  return make_structured_tube(rings, spec.segments_around, spec.layers, angles);
+}
+
+CylinderGrid hollow_cylinder_grid(const HollowCylinderSpec& spec) {
+  constexpr double kTwoPi = 2.0 * static_cast<double>(EIGEN_PI);
+  return {graded_grid(spec.grading_around, kTwoPi, spec.segments_around, true, "HollowCylinderSpec.grading_around"),
+          graded_grid(spec.grading_along, spec.length, spec.segments_along, false, "HollowCylinderSpec.grading_along")};
+}
+
+std::vector<double> graded_grid(const CellGrading& grading, double extent, int cells, bool periodic,
+                                const char* what) {
+  const std::string w(what);
+  // Validate the interval, the ratio and the foci.
+  if (cells < 1) detail::fail_value(w + ": cells", "must be >= 1", cells);
+  if (!(extent > 0.0) || !std::isfinite(extent)) detail::fail_value(w + ": extent", "must be > 0 and finite", extent);
+  if (!(grading.ratio >= 1.0 && grading.ratio <= kMaxGradingRatio))
+    detail::fail_value(w + ".ratio", "must be in [1, 100]", grading.ratio);
+  std::vector<double> grid(cells + 1);
+  // Uniform: the plain formula (the same numbers as an ungraded mesh).
+  if (grading.ratio == 1.0) {
+    for (int i = 0; i <= cells; ++i) grid[i] = extent * i / cells;
+    return grid;
+  }
+  if (grading.focus.empty()) detail::fail_value(w + ".focus", "must hold at least one point when ratio > 1", 0);
+  for (size_t f = 0; f < grading.focus.size(); ++f) {
+    const double x = grading.focus[f];
+    if (!std::isfinite(x) || (!periodic && (x < 0.0 || x > extent)))
+      detail::fail_value(w + ".focus[" + std::to_string(f) + "]",
+                         periodic ? "must be finite" : "must be within [0, length]", x);
+  }
+  // Distance of every sample to its nearest focus (wrapping around when periodic), and the largest one.
+  const int n = kGradingSamples * cells;
+  std::vector<double> d(n + 1);
+  double d_max = 0.0;
+  for (int k = 0; k <= n; ++k) {
+    const double x = extent * k / n;
+    double best = extent;
+    for (double f : grading.focus) {
+      double dist = std::abs(x - (periodic ? f - extent * std::floor(f / extent) : f));
+      if (periodic) dist = std::min(dist, extent - dist);
+      best = std::min(best, dist);
+    }
+    d[k] = best;
+    d_max = std::max(d_max, best);
+  }
+  // Cumulative density 1 / h (trapezoid rule); grid point i where it reaches i / cells of its total.
+  std::vector<double> cumulative(n + 1, 0.0);
+  auto density = [&](int k) { return std::pow(grading.ratio, -d[k] / d_max); };
+  for (int k = 1; k <= n; ++k) cumulative[k] = cumulative[k - 1] + 0.5 * (density(k - 1) + density(k)) * extent / n;
+  grid[0] = 0.0;
+  grid[cells] = extent;
+  int k = 0;
+  for (int i = 1; i < cells; ++i) {
+    const double target = cumulative[n] * i / cells;
+    while (cumulative[k + 1] < target) ++k;
+    const double t = (target - cumulative[k]) / (cumulative[k + 1] - cumulative[k]);
+    grid[i] = extent * (k + t) / n;
+  }
+  return grid;
 }
 
 CentrelineFrame hollow_cylinder_frame(const HollowCylinderSpec& spec, double s) {

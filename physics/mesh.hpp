@@ -84,10 +84,32 @@ struct TubeRing {
 
 // The structured double-wall tet mesh over rings (at least 2, in order along the centreline): the hollow
 // cylinder's grid, numbering, tets, surfaces and node sets (make_hollow_cylinder below), ring j's nodes at
-// ring_point(rings[j].frame, r_k, 2 pi i / segments_around) with r_k from its inner to its outer radius in
-// `layers` equal steps. Every generated tube (hollow cylinder, swept tube) is built by it. Throws
-// std::invalid_argument when there are fewer than 2 rings, segments_around < 3 or layers < 1.
-TetMesh make_structured_tube(const std::vector<TubeRing>& rings, int segments_around, int layers);
+// ring_point(rings[j].frame, r_k, theta_i) with r_k from its inner to its outer radius in `layers` equal steps and
+// theta_i = 2 pi i / segments_around, or angles[i] when `angles` is given (segments_around increasing angles in
+// [0, 2 pi), radians). Every generated tube (hollow cylinder, swept tube) is built by it. Throws
+// std::invalid_argument when there are fewer than 2 rings, segments_around < 3, layers < 1, or angles of another
+// size or not increasing in [0, 2 pi).
+TetMesh make_structured_tube(const std::vector<TubeRing>& rings, int segments_around, int layers,
+                             const std::vector<double>& angles = {});
+
+// Grading of a structured tube's cells in one direction (around or along): cells shrink toward the foci, their
+// size growing geometrically with the distance d to the nearest focus, h(d) ~ ratio^(d / d_max) (d_max: the
+// largest such distance in the interval), so the largest cell is about `ratio` times the smallest. ratio 1 is
+// uniform (and then the foci are ignored).
+struct CellGrading {
+  std::vector<double> focus;  // around: angles from the rings' local x axis, radians; along: arc lengths, metres
+  double ratio = 1.0;         // largest / smallest cell, in [1, kMaxGradingRatio]
+};
+constexpr double kMaxGradingRatio = 100.0;
+
+// The cells + 1 grid coordinates of [0, extent] under `grading` (first 0, last extent, increasing): uniform
+// extent * i / cells when grading.ratio is 1; otherwise the equidistribution of the density 1 / h(d) (above),
+// integrated on kGradingSamples points per cell. `periodic`: distances wrap around extent (the angle around a
+// ring). Throws std::invalid_argument (naming `what`) when cells < 1, extent is not > 0, the ratio is out of
+// range, a graded direction has no focus, or a focus is not finite (or, not periodic, outside [0, extent]).
+std::vector<double> graded_grid(const CellGrading& grading, double extent, int cells, bool periodic,
+                                const char* what);
+constexpr int kGradingSamples = 64;
 
 // Parameters of a hollow cylinder along +z from z = 0 to z = length, axis through the origin.
 struct HollowCylinderSpec {
@@ -99,13 +121,17 @@ struct HollowCylinderSpec {
   int layers = 3;               // cells through the wall
   // Optional bend: the centreline is an arc of this radius in the x-z plane (0 = straight), metres.
   double bend_radius = 0.0;
+  // Optional grading toward where the tools work (uniform by default): around, by angle from the local x axis
+  // toward +y (radians); along, by arc length (metres).
+  CellGrading grading_around, grading_along;
 };
 
 // Structured hex grid (around x along x layers), 6 tets per hex (consistent diagonals, conforming).
 // Nodes: around * (along + 1) * (layers + 1); tets: 6 * around * along * layers;
 // inner triangles: 2 * around * along.
 // Node id of ring j (0..along), layer k (0 = inner wall .. layers = outer wall), angle step i (0..around-1):
-// (j * (layers + 1) + k) * around + i, at angle 2 pi i / around from the local x axis. Surfaces kInnerWall,
+// (j * (layers + 1) + k) * around + i, at angle 2 pi i / around from the local x axis (ring j at arc length
+// length j / along), or at hollow_cylinder_grid's graded angles and arc lengths. Surfaces kInnerWall,
 // kOuterWall, kEndCaps; node sets kStartEnd and kStopEnd: the rings j = 0 and j = along in that order (inner
 // layer first).
 // Bent tube: the centreline is the arc c(s) = (R - R cos(s/R), 0, R sin(s/R)), R = bend_radius, starting at the
@@ -114,6 +140,14 @@ struct HollowCylinderSpec {
 // Throws std::invalid_argument naming the field and value when the spec is invalid (also when a bend would
 // close the tube on itself: length / bend_radius must be < 2 pi).
 TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec);
+
+// The hollow cylinder's grid coordinates: angles (segments_around + 1, from 0 to 2 pi, radians) and arc lengths
+// (segments_along + 1, from 0 to length, metres), graded by spec.grading_around / grading_along (graded_grid).
+// Does not validate the rest of the spec.
+struct CylinderGrid {
+  std::vector<double> angle, arc;
+};
+CylinderGrid hollow_cylinder_grid(const HollowCylinderSpec& spec);
 
 // Frame of the hollow cylinder's centreline at arc length s (metres). Bent (bend_radius R > 0): the arc point
 // c(s) = (R - R cos(s/R), 0, R sin(s/R)), tangent (sin(s/R), 0, cos(s/R)), normal (cos(s/R), 0, -sin(s/R))

@@ -355,7 +355,11 @@ QuadraticMesh make_quadratic_cylinder(const TetMesh& mesh, const HollowCylinderS
   }
   QuadraticMesh q = make_quadratic(mesh);
   const int na = spec.segments_around;
-  // Edge nodes: image of the parametric midpoint; the angle step is taken the short way round the seam.
+  const bool graded_around = spec.grading_around.ratio != 1.0, graded_along = spec.grading_along.ratio != 1.0;
+  const CylinderGrid grid = hollow_cylinder_grid(spec);
+  constexpr double kTwoPi = 2.0 * static_cast<double>(EIGEN_PI);
+  // Edge nodes: image of the parametric midpoint (of the graded grid's coordinates when graded); the angle step
+  // is taken the short way round the seam.
   for (int e = 0; e < q.edges.rows(); ++e) {
     int i0, j0, k0, i1, j1, k1;
     grid_of(spec, q.edges(e, 0), i0, j0, k0);
@@ -363,9 +367,14 @@ QuadraticMesh make_quadratic_cylinder(const TetMesh& mesh, const HollowCylinderS
     int di = i1 - i0;
     if (2 * di > na) di -= na;
     if (2 * di < -na) di += na;
-    const double s = spec.length * 0.5 * (j0 + j1) / spec.segments_along;
+    const double s = graded_along ? 0.5 * (grid.arc[j0] + grid.arc[j1])
+                                  : spec.length * 0.5 * (j0 + j1) / spec.segments_along;
     const double r = spec.inner_radius + (spec.outer_radius - spec.inner_radius) * 0.5 * (k0 + k1) / spec.layers;
-    const double theta = 2.0 * static_cast<double>(EIGEN_PI) * (i0 + 0.5 * di) / na;
+    // Graded angle of the step's far end, unwrapped across the seam (index -1 or na).
+    const int i_far = i0 + di;
+    const double far = i_far < 0 ? grid.angle[na + i_far] - kTwoPi : grid.angle[i_far];
+    const double theta = graded_around ? 0.5 * (grid.angle[i0] + far)
+                                       : 2.0 * static_cast<double>(EIGEN_PI) * (i0 + 0.5 * di) / na;
     q.rest.row(q.n_corners + e) = hollow_cylinder_point(spec, s, r, theta).transpose();
   }
   return q;

@@ -351,3 +351,27 @@ TEST(Scene, TwistKeysAreValidated) {
   s["twist"]["track"][1]["radians"] = 3.14;
   EXPECT_EQ(error_of(s), "dir/s.json: twist.track[1].radians: unknown key");
 }
+
+// mesh.grading: angles in degrees become radians, arc lengths stay metres; bad values are named by key path.
+TEST(Scene, MeshGradingIsReadAndItsErrorsNamed) {
+  json s = good_scene();
+  s["mesh"]["grading"] = json::parse(R"({"around": {"at_deg": [90, 270], "ratio": 6}, "along": {"at": [0.05], "ratio": 12}})");
+  const lumen::engine::Scene scene = parse_scene(s.dump(), "dir/s.json");
+  ASSERT_EQ(scene.mesh.grading_around.focus.size(), 2u);
+  EXPECT_NEAR(scene.mesh.grading_around.focus[1], 1.5 * EIGEN_PI, 1e-15);
+  EXPECT_EQ(scene.mesh.grading_around.ratio, 6.0);
+  ASSERT_EQ(scene.mesh.grading_along.focus.size(), 1u);
+  EXPECT_EQ(scene.mesh.grading_along.focus[0], 0.05);
+  EXPECT_EQ(scene.mesh.grading_along.ratio, 12.0);
+  s["mesh"]["grading"]["around"]["ratio"] = 0.5;
+  EXPECT_EQ(error_of(s), "dir/s.json: mesh.grading.around.ratio: out of range [1, 100] (value 0.5)");
+  s["mesh"]["grading"]["around"]["ratio"] = 6;
+  s["mesh"]["grading"]["along"]["at"] = json::parse("[0.2]");
+  EXPECT_EQ(error_of(s), "dir/s.json: mesh.grading.along.at[0]: out of range [0, 0.1] (value 0.2)");
+  s["mesh"]["grading"]["along"]["at"] = json::parse("[]");
+  EXPECT_EQ(error_of(s), "dir/s.json: mesh.grading.along.at: must be a non-empty array of numbers (value [])");
+  s["mesh"]["grading"]["along"].erase("at");
+  EXPECT_EQ(error_of(s), "dir/s.json: mesh.grading.along.at: missing key");
+  s["mesh"]["grading"]["sideways"] = json::object();
+  EXPECT_EQ(error_of(s), "dir/s.json: mesh.grading.sideways: unknown key");
+}

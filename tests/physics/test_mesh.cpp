@@ -55,6 +55,11 @@ std::vector<HollowCylinderSpec> specs() {
   out.push_back(s);
   s.segments_around = 12, s.segments_along = 9, s.layers = 3, s.bend_radius = 0.02, s.length = 0.11;  // strong bend
   out.push_back(s);
+  HollowCylinderSpec g;  // graded toward two opposite tips at mid-length (the study's pinch)
+  g.segments_around = 16, g.segments_along = 10, g.layers = 2;
+  g.grading_around = {{0.5 * EIGEN_PI, 1.5 * EIGEN_PI}, 6.0};
+  g.grading_along = {{0.05}, 12.0};
+  out.push_back(g);
   return out;
 }
 
@@ -301,6 +306,114 @@ TEST(HollowCylinder, CentrelineFrameIsTheArcsFrenetFrame) {
                 Eigen::Vector3d(f.point + r * std::cos(theta) * f.normal + r * std::sin(theta) * f.binormal));
     }
   }
+}
+
+}  // namespace
+}  // namespace lumen::physics
+
+namespace lumen::physics {
+namespace {
+
+// Cell sizes of a grid.
+std::vector<double> cells_of(const std::vector<double>& grid) {
+  std::vector<double> h;
+  for (size_t i = 1; i < grid.size(); ++i) h.push_back(grid[i] - grid[i - 1]);
+  return h;
+}
+
+// Uniform (ratio 1) grids are the plain formula bit for bit, so an ungraded mesh is unchanged.
+TEST(Grading, RatioOneIsThePlainFormula) {
+  const std::vector<double> g = graded_grid(CellGrading{{0.3}, 1.0}, 0.1, 26, false, "t");
+  ASSERT_EQ(g.size(), 27u);
+  for (int j = 0; j <= 26; ++j) EXPECT_EQ(g[j], 0.1 * j / 26);
+  HollowCylinderSpec s;
+  const TetMesh plain = make_hollow_cylinder(s);
+  s.grading_along = {{0.05}, 1.0};
+  EXPECT_TRUE(make_hollow_cylinder(s).rest == plain.rest);
+}
+
+// Graded: increasing from 0 to the extent, the smallest cell at the focus, the largest farthest from it, their
+// ratio near the asked one (the continuum law gives it exactly; cells average the size over their width).
+TEST(Grading, CellsShrinkTowardTheFocusByTheRatio) {
+  const double L = 0.1;
+  const std::vector<double> g = graded_grid(CellGrading{{0.05}, 12.0}, L, 20, false, "t");
+  ASSERT_EQ(g.size(), 21u);
+  EXPECT_EQ(g.front(), 0.0);
+  EXPECT_EQ(g.back(), L);
+  const std::vector<double> h = cells_of(g);
+  for (double c : h) ASSERT_GT(c, 0.0);
+  const auto [lo, hi] = std::minmax_element(h.begin(), h.end());
+  // The smallest cells touch the focus (cells 9 and 10 share the node nearest 0.05), the largest are end cells.
+  EXPECT_TRUE(lo - h.begin() == 9 || lo - h.begin() == 10) << lo - h.begin();
+  EXPECT_TRUE(hi - h.begin() == 0 || hi - h.begin() == 19) << hi - h.begin();
+  // Cells average the size law over their width, so the end cells' ratio falls short of 12 on 20 cells.
+  EXPECT_GT(*hi / *lo, 0.5 * 12.0);
+  EXPECT_LT(*hi / *lo, 12.0);
+  // Equidistribution: each cell's size times the density 12^(-d / d_max) at its middle is the same (to the
+  // variation of the density within a cell).
+  std::vector<double> product;
+  for (size_t i = 0; i < h.size(); ++i) {
+    const double mid = 0.5 * (g[i] + g[i + 1]);
+    product.push_back(h[i] * std::pow(12.0, -std::abs(mid - 0.05) / 0.05));
+  }
+  const auto [plo, phi] = std::minmax_element(product.begin(), product.end());
+  EXPECT_LT(*phi / *plo, 1.1);
+  // Symmetric about the focus in the middle.
+  for (int j = 0; j <= 20; ++j) EXPECT_NEAR(g[j], L - g[20 - j], 1e-12 * L);
+}
+
+// Around a ring: distances wrap, so two opposite foci give a grid symmetric about each focus and about the x axis.
+TEST(Grading, PeriodicGridIsSymmetricAboutOppositeFoci) {
+  const double two_pi = 2.0 * EIGEN_PI;
+  const std::vector<double> g = graded_grid(CellGrading{{0.5 * EIGEN_PI, -0.5 * EIGEN_PI}, 6.0}, two_pi, 32, true, "t");
+  ASSERT_EQ(g.size(), 33u);
+  for (int i = 0; i <= 8; ++i) {
+    EXPECT_NEAR(g[8 + i] - 0.5 * EIGEN_PI, 0.5 * EIGEN_PI - g[8 - i], 1e-12);  // about 90 degrees
+    EXPECT_NEAR(g[16 + i] - EIGEN_PI, EIGEN_PI - g[16 - i], 1e-12);            // about 180 degrees
+  }
+  const std::vector<double> h = cells_of(g);
+  EXPECT_LT(h[8], h[0] / 4.0);  // cells at the focus a fraction of those at the sides
+}
+
+// A straight graded mesh fills the prism over its polygon exactly: the annulus of the graded polygon has area
+// (ro^2 - ri^2) / 2 * sum sin(d theta_i), an analytic truth independent of the tets.
+TEST(Grading, VolumeOfGradedStraightMeshIsItsPolygonPrism) {
+  HollowCylinderSpec s;
+  s.segments_around = 16, s.segments_along = 10, s.layers = 2;
+  s.grading_around = {{0.5 * EIGEN_PI, 1.5 * EIGEN_PI}, 6.0};
+  s.grading_along = {{0.05}, 12.0};
+  const TetMesh m = make_hollow_cylinder(s);
+  double v = 0.0;
+  for (int t = 0; t < m.tets.rows(); ++t) v += tet_volume(m.rest, m.tets, t);
+  const CylinderGrid grid = hollow_cylinder_grid(s);
+  double sum_sin = 0.0;
+  for (int i = 0; i < s.segments_around; ++i) sum_sin += std::sin(grid.angle[i + 1] - grid.angle[i]);
+  const double area = 0.5 * sum_sin * (s.outer_radius * s.outer_radius - s.inner_radius * s.inner_radius);
+  EXPECT_NEAR(v, area * s.length, 1e-12 * area * s.length);
+  // Rings at the grid's arc lengths, nodes at its angles.
+  for (int j = 0; j <= s.segments_along; ++j)
+    for (int i = 0; i < s.segments_around; ++i) {
+      const int node = (j * (s.layers + 1)) * s.segments_around + i;
+      EXPECT_NEAR(m.rest(node, 2), grid.arc[j], 1e-15);
+      EXPECT_NEAR(std::atan2(m.rest(node, 1), m.rest(node, 0)), std::remainder(grid.angle[i], 2.0 * EIGEN_PI), 1e-12);
+    }
+}
+
+TEST(Grading, BadGradingIsNamed) {
+  auto message = [](const CellGrading& g, bool periodic) {
+    try {
+      graded_grid(g, 0.1, 10, periodic, "spec.grading_along");
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message({{0.05}, 0.5}, false).find("spec.grading_along.ratio must be in [1, 100]"), std::string::npos);
+  EXPECT_NE(message({{0.05}, 101.0}, false).find("spec.grading_along.ratio"), std::string::npos);
+  EXPECT_NE(message({{}, 6.0}, false).find("spec.grading_along.focus must hold at least one point"), std::string::npos);
+  EXPECT_NE(message({{0.2}, 6.0}, false).find("spec.grading_along.focus[0] must be within [0, length]"),
+            std::string::npos);
+  EXPECT_NE(message({{0.05, NAN}, 6.0}, true).find("spec.grading_along.focus[1] must be finite"), std::string::npos);
 }
 
 }  // namespace

@@ -218,7 +218,7 @@ TEST(Quadratic, RejectsNonPositiveJacobian) {
   EXPECT_THROW(tet10_stiffness(X, kMat), std::invalid_argument);
   EXPECT_THROW(tet10_volume(X), std::invalid_argument);
   // In an assembled mesh the message names the element.
-  TetMesh lin = make_hollow_cylinder({0.01, 0.013, 0.01, 4, 1, 1, 0.0});
+  TetMesh lin = make_hollow_cylinder({0.01, 0.013, 0.01, 4, 1, 1, 0.0, {}, {}});
   QuadraticMesh q = make_quadratic(lin);
   q.rest.row(q.tets(5, 4)) += Eigen::RowVector3d(0.05, 0.05, 0.05);
   try {
@@ -270,7 +270,7 @@ TEST(Quadratic, PressureLoadCurvedTriangleTotal) {
 // Mesh construction
 
 TEST(Quadratic, MakeQuadraticMatchesBruteForceEdges) {
-  const HollowCylinderSpec spec{0.01, 0.013, 0.02, 6, 3, 2, 0.0};
+  const HollowCylinderSpec spec{0.01, 0.013, 0.02, 6, 3, 2, 0.0, {}, {}};
   const TetMesh lin = make_hollow_cylinder(spec);
   const QuadraticMesh q = make_quadratic(lin);
   // Brute-force edge and face sets.
@@ -384,8 +384,8 @@ void check_isoparametric(const HollowCylinderSpec& spec) {
     for (int c = 0; c < 6; ++c) EXPECT_NEAR(local_radius(spec, q.rest.row(q.surface(kInnerWall)(f, c)).transpose()), a, 1e-15);
 }
 
-TEST(Quadratic, IsoparametricNodesOnTheWallsStraight) { check_isoparametric({0.01, 0.013, 0.02, 8, 2, 2, 0.0}); }
-TEST(Quadratic, IsoparametricNodesOnTheWallsBent) { check_isoparametric({0.01, 0.013, 0.05, 8, 4, 2, 0.04}); }
+TEST(Quadratic, IsoparametricNodesOnTheWallsStraight) { check_isoparametric({0.01, 0.013, 0.02, 8, 2, 2, 0.0, {}, {}}); }
+TEST(Quadratic, IsoparametricNodesOnTheWallsBent) { check_isoparametric({0.01, 0.013, 0.05, 8, 4, 2, 0.04, {}, {}}); }
 
 TEST(Quadratic, IsoparametricVolumeConvergesAtFourthOrder) {
   // Exact volume pi (b^2 - a^2) L, also for the bent tube (Pappus: the annulus centroid is on the centreline).
@@ -394,7 +394,7 @@ TEST(Quadratic, IsoparametricVolumeConvergesAtFourthOrder) {
   for (double bend : {0.0, 0.04}) {
     double prev_quad = 0.0;
     for (int na : {8, 16}) {
-      const HollowCylinderSpec spec{0.01, 0.013, 0.02, na, na / 4, 1, bend};
+      const HollowCylinderSpec spec{0.01, 0.013, 0.02, na, na / 4, 1, bend, {}, {}};
       const TetMesh lin = make_hollow_cylinder(spec);
       const QuadraticMesh q = make_quadratic_cylinder(lin, spec);
       const double exact = EIGEN_PI * (0.013 * 0.013 - 0.01 * 0.01) * 0.02;
@@ -418,7 +418,9 @@ TEST(Quadratic, IsoparametricVolumeConvergesAtFourthOrder) {
 }
 
 TEST(Quadratic, CylinderRejectsForeignMesh) {
-  const HollowCylinderSpec spec{0.01, 0.013, 0.02, 8, 2, 2, 0.0};
+  HollowCylinderSpec spec;
+  spec.inner_radius = 0.01, spec.outer_radius = 0.013, spec.length = 0.02;
+  spec.segments_around = 8, spec.segments_along = 2, spec.layers = 2;
   HollowCylinderSpec other = spec;
   other.layers = 3;
   EXPECT_THROW(make_quadratic_cylinder(make_hollow_cylinder(other), spec), std::invalid_argument);
@@ -458,7 +460,7 @@ Eigen::VectorXd solve_with_boundary(const Eigen::SparseMatrix<double>& K, const 
 TEST(Quadratic, PatchTestLinearFieldOnCurvedMesh) {
   // Isoparametric elements contain every linear field: prescribed on the boundary, the interior reproduces it.
   for (double bend : {0.0, 0.04}) {
-    const HollowCylinderSpec spec{0.01, 0.013, 0.02, 8, 2, 2, bend};
+    const HollowCylinderSpec spec{0.01, 0.013, 0.02, 8, 2, 2, bend, {}, {}};
     const QuadraticMesh q = make_quadratic_cylinder(make_hollow_cylinder(spec), spec);
     const Eigen::SparseMatrix<double> K = assemble_stiffness(q, kMat);
     Eigen::Matrix3d A;
@@ -494,7 +496,9 @@ TEST(Quadratic, PatchTestQuadraticFieldOnStraightMesh) {
   // Straight-sided tet10 contain every quadratic field. u_i = sum_jk Q_ijk x_j x_k has constant stress
   // divergence; with the matching body force b = -div sigma as consistent load and u prescribed on the boundary,
   // the interior reproduces u exactly.
-  const HollowCylinderSpec spec{0.01, 0.013, 0.02, 8, 2, 2, 0.0};
+  HollowCylinderSpec spec;
+  spec.inner_radius = 0.01, spec.outer_radius = 0.013, spec.length = 0.02;
+  spec.segments_around = 8, spec.segments_along = 2, spec.layers = 2;
   const QuadraticMesh q = make_quadratic(make_hollow_cylinder(spec));
   const Eigen::SparseMatrix<double> K = assemble_stiffness(q, kMat);
   double Q[3][3][3];
@@ -597,7 +601,7 @@ TEST(Quadratic, PaperMeshSizesAndTimings) {
 // inscribed in the inner radius, so its area is exactly length x 2N a sin(pi / N), N = 2 around; every split
 // triangle faces the axis and every edge is shared by two triangles or lies on an end ring.
 TEST(Quadratic, LinearViewSplitsTheWallsIntoTheInscribedPolygonTube) {
-  HollowCylinderSpec spec{0.01, 0.013, 0.03, 8, 3, 2, 0.0};
+  HollowCylinderSpec spec{0.01, 0.013, 0.03, 8, 3, 2, 0.0, {}, {}};
   const TetMesh lin = make_hollow_cylinder(spec);
   const QuadraticMesh q = make_quadratic_cylinder(lin, spec);
   const TetMesh v = linear_view(q);
@@ -633,7 +637,7 @@ TEST(Quadratic, LinearViewSplitsTheWallsIntoTheInscribedPolygonTube) {
 // and the faces that only one sub-tet has (the view's own boundary, found by brute force) are exactly its split
 // surfaces, with the same orientation (out of the volume).
 TEST(Quadratic, LinearViewIsATetMeshWhoseBoundaryIsItsSurfaces) {
-  const HollowCylinderSpec spec{0.01, 0.013, 0.03, 6, 3, 2, 0.0};
+  const HollowCylinderSpec spec{0.01, 0.013, 0.03, 6, 3, 2, 0.0, {}, {}};
   const TetMesh lin = make_hollow_cylinder(spec);
   const QuadraticMesh q = make_quadratic(lin);  // straight-sided
   const TetMesh v = linear_view(q);
@@ -688,7 +692,7 @@ TEST(Quadratic, LinearViewIsATetMeshWhoseBoundaryIsItsSurfaces) {
 
 // Named lookups refuse a missing name and say what the mesh has.
 TEST(Quadratic, MissingSurfaceNameIsRefusedWithTheNamesThereAre) {
-  const TetMesh lin = make_hollow_cylinder(HollowCylinderSpec{0.01, 0.013, 0.03, 6, 3, 1, 0.0});
+  const TetMesh lin = make_hollow_cylinder(HollowCylinderSpec{0.01, 0.013, 0.03, 6, 3, 1, 0.0, {}, {}});
   try {
     lin.surface("lumen");
     FAIL() << "no throw";

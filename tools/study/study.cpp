@@ -62,11 +62,16 @@ struct Config {
   std::string element;  // "tet4" | "tet10"
   std::string model;    // "linear" | "corotational"
   double tolerance;     // corotational solve tolerance (0 for the direct linear solve)
+  // Cells graded toward the tips (mesh.grading, largest / smallest cell; 1 = uniform): around toward 90 and 270
+  // degrees, along toward the tips' section.
+  double grade_around = 1.0, grade_along = 1.0;
+  int tip_points = 7;  // load points per tip: 7 (centre and rim) or an equal-area spiral of that many
 };
 
 // What a squeeze session measured at its last frame, and its frame times.
 struct Outcome {
   double probe_disp = 0, opening = 0, contact_area = 0, contact_force = 0;  // metres, metres, m^2, newtons
+  double tip_mean = 0;  // metres: the top tip's load points' mean displacement along the pinch (-y), work-conjugate
   engine::StageSummary total, physics, collision, response, render;
   long over_budget = 0, not_converged = 0, fallbacks = 0, failures = 0, max_inverted = 0;
   int nodes = 0, tets = 0, inner_tris = 0;
@@ -109,21 +114,35 @@ engine::Scene squeeze_scene(const Config& c, double force, int frames, double fp
   s.material.young_modulus = 5000.0;
   s.material.poisson_ratio = 0.45;
   s.fixed = {engine::NodeSetName::kEnds};
+  if (c.grade_around != 1.0) s.mesh.grading_around = {{kPi / 2.0, 1.5 * kPi}, c.grade_around};
+  if (c.grade_along != 1.0) s.mesh.grading_along = {{kProbeZ}, c.grade_along};
   // Tip points sit at the mean radius of the faceted outer wall (between its corners and its facets' middles;
-  // a quadratic wall is drawn with twice the facets, over its corner and edge nodes).
-  const int facets = c.level.around * (c.element == "tet10" ? 2 : 1);
-  const double r = s.mesh.outer_radius * 0.5 * (1.0 + std::cos(kPi / facets));
+  // a quadratic wall is drawn with twice the facets, over its corner and edge nodes), the facets at the tip.
+  const physics::CylinderGrid grid = physics::hollow_cylinder_grid(s.mesh);
+  const int tip_cell = c.level.around / 4;
+  const double facet = (grid.angle[tip_cell + 1] - grid.angle[tip_cell]) / (c.element == "tet10" ? 2 : 1);
+  const double r = s.mesh.outer_radius * 0.5 * (1.0 + std::cos(0.5 * facet));
+  constexpr double kGoldenAngle = 2.399963229728653;  // radians, pi (3 - sqrt 5)
   for (int side = 0; side < 2; ++side) {
     const double sign = side == 0 ? 1.0 : -1.0;  // top tip: +y, pressing -y; bottom tip: -y, pressing +y
-    for (int k = 0; k < 7; ++k) {
-      // Tip point k: the centre (k = 0) or the rim at 60-degree steps, as an arc along the wall and an axial offset.
-      const double arc = k == 0 ? 0.0 : kPatchRadius * std::cos(kPi / 3.0 * (k - 1));
-      const double dz = k == 0 ? 0.0 : kPatchRadius * std::sin(kPi / 3.0 * (k - 1));
+    for (int k = 0; k < c.tip_points; ++k) {
+      // Tip point k, as an arc along the wall and an axial offset: 7 points: the centre (k = 0) or the rim at
+      // 60-degree steps; otherwise an equal-area (sunflower) spiral over the disk, each point a 1 / n of its area.
+      double arc = 0.0, dz = 0.0;
+      if (c.tip_points == 7) {
+        arc = k == 0 ? 0.0 : kPatchRadius * std::cos(kPi / 3.0 * (k - 1));
+        dz = k == 0 ? 0.0 : kPatchRadius * std::sin(kPi / 3.0 * (k - 1));
+      } else {
+        const double rho = kPatchRadius * std::sqrt((k + 0.5) / c.tip_points), phi = kGoldenAngle * k;
+        arc = rho * std::cos(phi);
+        dz = rho * std::sin(phi);
+      }
       const double angle = kPi / 2.0 - arc / r;
       engine::ProbeSpec p;
       p.name = (side == 0 ? "top" : "bottom") + std::to_string(k);
       p.point = {r * std::cos(angle), sign * r * std::sin(angle), kProbeZ + dz};
-      p.track = {{0.0, {0, 0, 0}}, {1.0, {0, -sign * force / 7.0, 0}}, {1e3, {0, -sign * force / 7.0, 0}}};
+      const double share = force / c.tip_points;
+      p.track = {{0.0, {0, 0, 0}}, {1.0, {0, -sign * share, 0}}, {1e3, {0, -sign * share, 0}}};
       s.probes.push_back(p);
     }
   }
@@ -177,6 +196,12 @@ Outcome run(const engine::Scene& scene, bool render) {
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (int v : patch) mean += st.sim.u.segment<3>(3 * v);
     o.probe_disp = patch.empty() ? 0.0 : (mean / static_cast<double>(patch.size())).norm();
+    // The top tip's load points (the first half of the probes): their mean displacement along the pinch.
+    const size_t per_tip = m.probe_points.size() / 2;
+    double along_pinch = 0.0;
+    for (size_t p = 0; p < per_tip; ++p)
+      along_pinch -= (engine::point_of(st.x, m.probe_points[p]) - engine::point_of(m.mesh.rest, m.probe_points[p])).y();
+    o.tip_mean = along_pinch / static_cast<double>(per_tip);
     o.opening = (st.x.row(top) - st.x.row(bottom)).norm();
     o.contact_area = 0.0;
     for (int v = 0; v < m.mesh.n_nodes(); ++v)
@@ -224,6 +249,7 @@ struct StudyOptions {
   bool quick = false, no_render = false;
   int max_corotational_tets = 30000;
   std::string reference_csv, reference_out;  // the CalculiX reference sweep (both set) or none
+  std::string reference_meshes = "all";       // the reference sweep's meshes: "uniform" | "graded" | "all"
 };
 
 // Two opposite probes at 1.25x the force that first shuts the lumen (0.08 N on the paper mesh, linear): the walls
@@ -360,17 +386,34 @@ void reference_sweep(const StudyOptions& opt) {
   };
   const ReferenceTip linear = lookup(kLinearReferenceForce, "linear");
   std::vector<Config> configs;
-  for (const Level& l : std::vector<Level>{{12, 16, 2}, {20, 26, 3}, {28, 36, 4}, {40, 52, 6}})
-    for (const char* model : {"linear", "corotational"})
-      if (std::string(model) == "linear" || 6 * l.around * l.along * l.layers <= opt.max_corotational_tets)
-        configs.push_back({l, "tet4", model, std::string(model) == "linear" ? 0.0 : 1e-4});
-  for (const Level& l : std::vector<Level>{{8, 10, 1}, {10, 13, 1}, {16, 20, 2}, {20, 26, 2}})
-    for (const char* model : {"linear", "corotational"})
-      configs.push_back({l, "tet10", model, std::string(model) == "linear" ? 0.0 : 1e-4});
+  auto tolerance_of = [](const char* model) { return std::string(model) == "linear" ? 0.0 : 1e-4; };
+  // Uniform meshes, the tips as 7 points (the sweep of docs/study_reference.csv before grading).
+  if (opt.reference_meshes != "graded") {
+    for (const Level& l : std::vector<Level>{{12, 16, 2}, {20, 26, 3}, {28, 36, 4}, {40, 52, 6}})
+      for (const char* model : {"linear", "corotational"})
+        if (std::string(model) == "linear" || 6 * l.around * l.along * l.layers <= opt.max_corotational_tets)
+          configs.push_back({l, "tet4", model, tolerance_of(model)});
+    for (const Level& l : std::vector<Level>{{8, 10, 1}, {10, 13, 1}, {16, 20, 2}, {20, 26, 2}})
+      for (const char* model : {"linear", "corotational"}) configs.push_back({l, "tet10", model, tolerance_of(model)});
+  }
+  // Graded toward the tips (the reference's own grading: 6 around, 12 along), the tips as an equal-area spiral of
+  // kGradedTipPoints points, so the load approaches the reference's uniform traction on the finer cells there.
+  if (opt.reference_meshes != "uniform") {
+    constexpr double kGradeAround = 6.0, kGradeAlong = 12.0;
+    constexpr int kGradedTipPoints = 61;
+    for (const Level& l : std::vector<Level>{{24, 16, 2}, {32, 20, 3}, {48, 30, 4}})
+      for (const char* model : {"linear", "corotational"})
+        if (std::string(model) == "linear" || 6 * l.around * l.along * l.layers <= opt.max_corotational_tets)
+          configs.push_back({l, "tet4", model, tolerance_of(model), kGradeAround, kGradeAlong, kGradedTipPoints});
+    for (const Level& l : std::vector<Level>{{12, 8, 1}, {16, 10, 1}, {24, 14, 1}, {32, 20, 2}})
+      for (const char* model : {"linear", "corotational"})
+        configs.push_back({l, "tet10", model, tolerance_of(model), kGradeAround, kGradeAlong, kGradedTipPoints});
+  }
   std::string csv =
-      "force_n,reference_linear_mm,reference_neohooke_mm,reference_dofs,around,along,layers,nodes,tets,element,model,"
-      "tolerance,frames,probe_disp_mm,err_vs_linear,err_vs_neohooke,total_median_ms,total_p99_ms,physics_median_ms,"
-      "physics_p99_ms,over_budget,not_converged,fallbacks,failures\n";
+      "force_n,reference_linear_mm,reference_neohooke_mm,reference_dofs,around,along,layers,grade_around,grade_along,"
+      "tip_points,nodes,tets,element,model,tolerance,frames,probe_disp_mm,err_vs_linear,err_vs_neohooke,tip_mean_mm,"
+      "tip_err_vs_linear,tip_err_vs_neohooke,total_median_ms,total_p99_ms,physics_median_ms,physics_p99_ms,"
+      "over_budget,not_converged,fallbacks,failures\n";
   char line[1024];  // one CSV row
   for (double force : {kLinearReferenceForce, 0.01}) {
     const ReferenceTip neohooke = lookup(force, "neohooke");
@@ -382,16 +425,23 @@ void reference_sweep(const StudyOptions& opt) {
       // Signed relative errors: < 0 too stiff.
       const double err_linear = (o.probe_disp - linear_tip) / linear_tip;
       const double err_neohooke = (o.probe_disp - neohooke.tip_m) / neohooke.tip_m;
+      const double tip_err_linear = (o.tip_mean - linear_tip) / linear_tip;
+      const double tip_err_neohooke = (o.tip_mean - neohooke.tip_m) / neohooke.tip_m;
       std::snprintf(line, sizeof line,
-                    "%g,%.6g,%.6g,%d,%d,%d,%d,%d,%d,%s,%s,%g,%d,%.6g,%.6g,%.6g,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld\n",
+                    "%g,%.6g,%.6g,%d,%d,%d,%d,%g,%g,%d,%d,%d,%s,%s,%g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4f,%.4f,%.4f,"
+                    "%.4f,%ld,%ld,%ld,%ld\n",
                     force, 1e3 * linear_tip, 1e3 * neohooke.tip_m, neohooke.dofs, c.level.around, c.level.along,
-                    c.level.layers, o.nodes, o.tets, c.element.c_str(), c.model.c_str(), c.tolerance, opt.frames,
-                    1e3 * o.probe_disp, err_linear, err_neohooke, o.total.median_ms, o.total.p99_ms,
+                    c.level.layers, c.grade_around, c.grade_along, c.tip_points, o.nodes, o.tets, c.element.c_str(),
+                    c.model.c_str(), c.tolerance, opt.frames, 1e3 * o.probe_disp, err_linear, err_neohooke,
+                    1e3 * o.tip_mean, tip_err_linear, tip_err_neohooke, o.total.median_ms, o.total.p99_ms,
                     o.physics.median_ms, o.physics.p99_ms, o.over_budget, o.not_converged, o.fallbacks, o.failures);
       csv += line;
       engine::write_text_file(opt.reference_out, csv);  // after every configuration
-      std::fprintf(stderr, " %.4f mm (%+.1f %% vs linear, %+.1f %% vs Neo-Hookean), total %.2f / %.2f ms\n",
-                   1e3 * o.probe_disp, 100.0 * err_linear, 100.0 * err_neohooke, o.total.median_ms, o.total.p99_ms);
+      std::fprintf(stderr,
+                   " patch %.4f mm (%+.1f %% vs linear, %+.1f %% vs Neo-Hookean), load points %.4f mm (%+.1f %%, "
+                   "%+.1f %%), total %.2f / %.2f ms\n",
+                   1e3 * o.probe_disp, 100.0 * err_linear, 100.0 * err_neohooke, 1e3 * o.tip_mean,
+                   100.0 * tip_err_linear, 100.0 * tip_err_neohooke, o.total.median_ms, o.total.p99_ms);
     }
   }
 }
@@ -479,6 +529,8 @@ int main(int argc, char** argv) {
   app.add_option("--reference", opt.reference_csv,
                  "CalculiX reference CSV (3 mm tips) for the reference sweep, e.g. docs/reference_convergence_tip3mm.csv");
   app.add_option("--reference-out", opt.reference_out, "CSV of the sweep against the CalculiX reference; runs only it");
+  app.add_option("--reference-meshes", opt.reference_meshes, "the reference sweep's meshes")
+      ->check(CLI::IsMember({"uniform", "graded", "all"}));
   CLI11_PARSE(app, argc, argv);
   if (opt.reference_out.empty() != opt.reference_csv.empty()) {
     std::fprintf(stderr, "lumen_study: --reference and --reference-out go together\n");
