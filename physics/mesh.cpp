@@ -46,7 +46,6 @@ void validate(const HollowCylinderSpec& s) {
 
 TetMesh make_structured_tube(const std::vector<TubeRing>& rings, int segments_around, int layers,
                              const std::vector<double>& angles) {
-  constexpr double kTwoPi = 2.0 * static_cast<double>(EIGEN_PI);
   if (rings.size() < 2) detail::fail_value("make_structured_tube: rings", "must number at least 2", rings.size());
   if (segments_around < 3) detail::fail_value("make_structured_tube: segments_around", "must be >= 3", segments_around);
   if (layers < 1) detail::fail_value("make_structured_tube: layers", "must be >= 1", layers);
@@ -75,7 +74,7 @@ TetMesh make_structured_tube(const std::vector<TubeRing>& rings, int segments_ar
     for (int k = 0; k <= nr; ++k) {
       const double r = ring.inner_radius + (ring.outer_radius - ring.inner_radius) * k / nr;
       for (int i = 0; i < na; ++i) {
-        const double theta = angles.empty() ? 2.0 * static_cast<double>(EIGEN_PI) * i / na : angles[i];
+        const double theta = angles.empty() ? kTwoPi * i / na : angles[i];
         mesh.rest.row(node(i, j, k)) = ring_point(ring.frame, r, theta).transpose();
       }
     }
@@ -147,14 +146,12 @@ TetMesh make_hollow_cylinder(const HollowCylinderSpec& spec) {
   std::vector<TubeRing> rings(spec.segments_along + 1);
   for (int j = 0; j <= spec.segments_along; ++j)
     rings[j] = {hollow_cylinder_frame(spec, grid.arc[j]), spec.inner_radius, spec.outer_radius};
-  // Angles: the grid's, when graded (the uniform default is make_structured_tube's own 2 pi i / around).
-  std::vector<double> angles;
-  if (spec.grading_around.ratio != 1.0) angles.assign(grid.angle.begin(), grid.angle.end() - 1);
+  // Angles: the grid's (uniform, it is the same 2 pi i / around as make_structured_tube's default), without 2 pi.
+  const std::vector<double> angles(grid.angle.begin(), grid.angle.end() - 1);
   return make_structured_tube(rings, spec.segments_around, spec.layers, angles);
 }
 
 CylinderGrid hollow_cylinder_grid(const HollowCylinderSpec& spec) {
-  constexpr double kTwoPi = 2.0 * static_cast<double>(EIGEN_PI);
   return {graded_grid(spec.grading_around, kTwoPi, spec.segments_around, true, "HollowCylinderSpec.grading_around"),
           graded_grid(spec.grading_along, spec.length, spec.segments_along, false, "HollowCylinderSpec.grading_along")};
 }
@@ -180,6 +177,10 @@ std::vector<double> graded_grid(const CellGrading& grading, double extent, int c
       detail::fail_value(w + ".focus[" + std::to_string(f) + "]",
                          periodic ? "must be finite" : "must be within [0, length]", x);
   }
+  // Foci in [0, extent) when periodic (an angle taken modulo a turn).
+  std::vector<double> focus = grading.focus;
+  if (periodic)
+    for (double& f : focus) f -= extent * std::floor(f / extent);
   // Distance of every sample to its nearest focus (wrapping around when periodic), and the largest one.
   const int n = kGradingSamples * cells;
   std::vector<double> d(n + 1);
@@ -187,8 +188,8 @@ std::vector<double> graded_grid(const CellGrading& grading, double extent, int c
   for (int k = 0; k <= n; ++k) {
     const double x = extent * k / n;
     double best = extent;
-    for (double f : grading.focus) {
-      double dist = std::abs(x - (periodic ? f - extent * std::floor(f / extent) : f));
+    for (double f : focus) {
+      double dist = std::abs(x - f);
       if (periodic) dist = std::min(dist, extent - dist);
       best = std::min(best, dist);
     }

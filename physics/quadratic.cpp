@@ -357,7 +357,6 @@ QuadraticMesh make_quadratic_cylinder(const TetMesh& mesh, const HollowCylinderS
   const int na = spec.segments_around;
   const bool graded_around = spec.grading_around.ratio != 1.0, graded_along = spec.grading_along.ratio != 1.0;
   const CylinderGrid grid = hollow_cylinder_grid(spec);
-  constexpr double kTwoPi = 2.0 * static_cast<double>(EIGEN_PI);
   // Edge nodes: image of the parametric midpoint (of the graded grid's coordinates when graded); the angle step
   // is taken the short way round the seam.
   for (int e = 0; e < q.edges.rows(); ++e) {
@@ -374,7 +373,7 @@ QuadraticMesh make_quadratic_cylinder(const TetMesh& mesh, const HollowCylinderS
     const int i_far = i0 + di;
     const double far = i_far < 0 ? grid.angle[na + i_far] - kTwoPi : grid.angle[i_far];
     const double theta = graded_around ? 0.5 * (grid.angle[i0] + far)
-                                       : 2.0 * static_cast<double>(EIGEN_PI) * (i0 + 0.5 * di) / na;
+                                       : kTwoPi * (i0 + 0.5 * di) / na;
     q.rest.row(q.n_corners + e) = hollow_cylinder_point(spec, s, r, theta).transpose();
   }
   return q;
