@@ -5,6 +5,7 @@
 
 #include "collision/distance.hpp"
 #include "collision/intersect.hpp"
+#include "engine/grasp.hpp"
 #include "engine/simulation.hpp"
 
 namespace lumen::engine {
@@ -81,7 +82,9 @@ void require_clear_start(const Scene& scene, const Model& m) {
     const InstrumentSpec& spec = scene.instruments[i];
     if (spec.drive == InstrumentDrive::kDevice) continue;
     const Pose start = PoseTrack(spec.poses, scene.path).at(0.0);
-    const std::vector<Points> posed = posed_parts(m.instruments[i].instrument, start);
+    const Instrument& instrument = m.instruments[i].instrument;
+    const double opening = commanded_opening(spec.openings, instrument.rest_opening, 0.0);
+    const std::vector<Points> posed = posed_parts(instrument, start, opening);
     long count = 0;
     for (size_t j = 0; j < posed.size(); ++j)
       count += part_intersections(m, boxes, m.mesh.rest, static_cast<size_t>(m.instruments[i].first_part) + j, posed[j]);
@@ -111,12 +114,15 @@ void compile_instruments(const Scene& scene, Model& m) {
     ci.name = spec.name;
     ci.instrument = make_instrument(spec.shape, scene.path + ": instruments[" + std::to_string(i) + "].shape");
     ci.drive = spec.drive;
+    ci.openings = spec.openings;
+    ci.grasp = spec.grasp;
     ci.first_part = static_cast<int>(m.tool_parts.size());
     for (size_t j = 0; j < ci.instrument.parts.size(); ++j) {
       const RigidMesh& mesh = ci.instrument.parts[j].mesh;
       m.tool_parts.push_back({static_cast<int>(i), static_cast<int>(j),
                               std::make_shared<const collision::CollisionSurface>(mesh.tris, mesh.points)});
     }
+    if (spec.name == scene.render.scope_instrument) m.scope_instrument = static_cast<int>(i);
     m.instruments.push_back(std::move(ci));
   }
   require_clear_start(scene, m);
@@ -130,7 +136,11 @@ void detect_tool_contacts(const Model& model, State& state, const Points& x0, co
     collision::detect_pair(*model.tool_target_surface, *state.organ_tool_workspace, x0, x1,
                            *model.tool_parts[p].surface, *state.tool_workspaces[p], state.tool_points[p],
                            state.tool_target[p], gap, pairs, &part_stats);
-    for (const collision::PairContact& pc : pairs) out.push_back(held_of(pc, static_cast<int>(p)));
+    // A contact whose organ nodes the part's instrument holds is frozen, not a constraint.
+    for (const collision::PairContact& pc : pairs) {
+      const HeldContact h = held_of(pc, static_cast<int>(p));
+      if (!held_by_own_instrument(model, state, h)) out.push_back(h);
+    }
     if (!stats) continue;
     stats->bv_overlaps += part_stats.bv_overlaps;
     stats->feature_tests += part_stats.feature_tests;
@@ -187,6 +197,17 @@ std::vector<InstrumentRecord> instrument_records(const Model& model, const State
     recs[i].name = model.instruments[i].name;
     recs[i].position = state.tool_pose[i].position;
     recs[i].rotation = state.tool_pose[i].rotation;
+    recs[i].opening = state.tool_opening[i];
+    recs[i].held_nodes = state.grasps[i].nodes;
+  }
+  // The holds' forces on the organ, at the held nodes where they ended the frame: minus that on the instrument.
+  const GraspHolds& g = state.grasp_holds;
+  for (size_t a = 0; a < g.held.points.size() && 3 * static_cast<Eigen::Index>(a) < state.grasp_force.size(); ++a) {
+    InstrumentRecord& rec = recs[static_cast<size_t>(g.instrument[a])];
+    const Eigen::Vector3d f = -state.grasp_force.segment<3>(3 * static_cast<Eigen::Index>(a));
+    const Eigen::Vector3d arm = state.x.row(g.held.points[a].node[0]).transpose() - rec.position;
+    rec.force += f;
+    rec.torque += arm.cross(f);
   }
   // Each tool row's force on the part's vertices, where they ended the frame; torque about the instrument's origin.
   for (size_t r = 0; r < contacts.size() && static_cast<Eigen::Index>(r) < lambda.size(); ++r) {

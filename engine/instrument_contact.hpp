@@ -27,6 +27,8 @@ struct CompiledInstrument {
   Instrument instrument;
   InstrumentDrive drive = InstrumentDrive::kTrack;
   int first_part = 0;  // its parts are Model::tool_parts[first_part, first_part + instrument.parts.size())
+  std::vector<OpeningKey> openings;  // a grasper's commanded jaw opening over time (empty: its rest opening)
+  GraspSpec grasp;                   // whether, and how, its jaws hold the tissue they close on
 };
 
 // One rigid part of an instrument as a collision surface over its own points (BVH topology over its points in
@@ -65,7 +67,8 @@ physics::ContactRow tool_contact_row(const HeldContact& h, const Model& model, c
 // bounding boxes are apart are skipped (they cannot intersect).
 long count_tool_intersections(const Model& model, const Points& x, const std::vector<Points>& parts);
 
-// Each instrument's record for the frame: its end pose, and the force and torque the contacts put on it. For a
+// Each instrument's record for the frame: its end pose and opening, the nodes it holds, and the force and torque
+// the contacts and its hold put on it (the hold's: minus state.grasp_force at the held nodes' end positions). For a
 // tool contact with multiplier lambda and row normal n, the force on the part's vertex k is lambda w_k n (w the
 // contact's weights, so the sum over the four vertices is zero: the instrument gets minus what the organ gets);
 // the torque is about the instrument's origin (its tip) at the end of the frame.

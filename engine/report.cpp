@@ -129,7 +129,9 @@ nlohmann::json frame_json(const FrameRecord& r) {
                      {"rotation", {q.w(), q.x(), q.y(), q.z()}},
                      {"force_n", {in.force.x(), in.force.y(), in.force.z()}},
                      {"torque_nm", {in.torque.x(), in.torque.y(), in.torque.z()}},
-                     {"contacts", in.contacts}});
+                     {"contacts", in.contacts},
+                     {"opening", in.opening},
+                     {"held_nodes", in.held_nodes}});
   }
   j["instruments"] = tools;
   return j;

@@ -24,6 +24,8 @@ struct InstrumentRecord {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();   // newtons: the contact force on the instrument
   Eigen::Vector3d torque = Eigen::Vector3d::Zero();  // newton metres: the contacts' torque about its origin
   int contacts = 0;                                  // its contact rows in the frame's last solve
+  double opening = 0.0;                              // radians: a grasper's jaw opening at the frame's end (else 0)
+  std::vector<int> held_nodes;                       // organ node ids its jaws hold (a grasping grasper), sorted
 };
 
 // What one frame did and cost.

@@ -5,6 +5,7 @@
 #include <map>
 #include <set>
 
+#include "engine/grasp.hpp"
 #include "engine/instrument_contact.hpp"
 #include "engine/simulation.hpp"
 
@@ -160,6 +161,8 @@ void solve_paper(const Model& model, State& state, const Points& x_free, const E
 // matrix computed on demand, warm-started from the rows that pushed last time.
 void solve_constraint(const Model& model, State& state, const Points& x1, const Eigen::VectorXd& u_free,
                       ResponseRounds& rr) {
+  // The points the solve keeps where u_free put them: the graspers' held nodes, or the held probes.
+  const physics::HeldPoints* held = state.grasp_holds.empty() ? model.integrator->held_points() : &state.grasp_holds.held;
   std::vector<int> warm;
   for (const auto& [key, h] : rr.active) {
     if (rr.pushing.count(key)) warm.push_back(static_cast<int>(rr.rows.size()));
@@ -178,11 +181,9 @@ void solve_constraint(const Model& model, State& state, const Points& x1, const 
       if (carried != rr.carried.end()) o.warm[r] = carried->second;
       ++r;
     }
-    rr.solved = physics::solve_contacts_iterative(*state.compliance, rr.rows, u_free, o, false,
-                                                  model.integrator->held_points());
+    rr.solved = physics::solve_contacts_iterative(*state.compliance, rr.rows, u_free, o, false, held);
   } else {
-    rr.solved = physics::solve_contacts(*state.compliance, rr.rows, u_free, warm, {}, false,
-                                        model.integrator->held_points());
+    rr.solved = physics::solve_contacts(*state.compliance, rr.rows, u_free, warm, {}, false, held);
   }
   rr.lcp_iterations += rr.solved.iterations;
   rr.pushing.clear();
@@ -235,8 +236,10 @@ bool stop_before_contact(const Model& model, State& state, Points& x1, Eigen::Ve
   u = Eigen::Map<const Eigen::VectorXd>(du.data(), du.size());
   for (size_t p = 0; p < state.tool_target.size(); ++p)
     state.tool_target[p] = state.tool_points[p] + tau * (state.tool_target[p] - state.tool_points[p]);
-  for (size_t i = 0; i < state.tool_pose_target.size(); ++i)
+  for (size_t i = 0; i < state.tool_pose_target.size(); ++i) {
     state.tool_pose_target[i] = interpolate(state.tool_pose[i], state.tool_pose_target[i], tau);
+    state.tool_opening_target[i] = state.tool_opening[i] + tau * (state.tool_opening_target[i] - state.tool_opening[i]);
+  }
   return !hits.empty();
 }
 
@@ -276,6 +279,10 @@ void end_tool_sweeps(const Model& model, State& state, const ResponseRounds& rr)
   if (model.instruments.empty()) return;
   state.tool_points = state.tool_target;
   state.tool_pose = state.tool_pose_target;
+  state.tool_opening = state.tool_opening_target;
+  // The holds' forces: what held the nodes on the free motion, and what kept them there through the contacts.
+  if (!state.grasp_holds.empty() && rr.solved.held_force.size() == state.grasp_force.size())
+    state.grasp_force += rr.solved.held_force;
   std::vector<HeldContact> contacts;
   for (const auto& entry : rr.active) contacts.push_back(entry.second);
   state.tool_records = instrument_records(model, state, contacts, rr.rows, rr.solved.lambda);
@@ -283,7 +290,7 @@ void end_tool_sweeps(const Model& model, State& state, const ResponseRounds& rr)
 
 // The constraint response's warm start: last frame's held self-contacts and tool contacts (these re-measured at
 // the frame's start), all guessed to push, with their multipliers.
-void warm_start(const State& state, ResponseRounds& rr) {
+void warm_start(const Model& model, const State& state, ResponseRounds& rr) {
   for (size_t i = 0; i < state.active.size(); ++i) {
     const FeatureKey key = key_of(state.active[i]);
     rr.active.emplace(key, HeldContact{state.active[i], -1, 0});
@@ -292,6 +299,7 @@ void warm_start(const State& state, ResponseRounds& rr) {
     if (static_cast<Eigen::Index>(i) < state.carried_lambda.size()) rr.in_solve[key] = state.carried_lambda[i];
   }
   for (size_t i = 0; i < state.tool_active.size(); ++i) {
+    if (held_by_own_instrument(model, state, state.tool_active[i])) continue;  // grasped since: frozen
     const FeatureKey key = key_of(state.tool_active[i]);
     rr.active.emplace(key, remeasured(state.tool_active[i], state));
     rr.pushing.insert(key);
@@ -327,7 +335,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   // contacts that pushed last time are the active-set solver's first guess.
   clock = Clock::now();
   ResponseRounds rr;
-  if (!paper) warm_start(state, rr);
+  if (!paper) warm_start(model, state, rr);
   bool resolved = found.empty() && rr.active.empty();
   while (!resolved && rr.iterations < cs.max_iterations) {
     ++rr.iterations;

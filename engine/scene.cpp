@@ -1,5 +1,6 @@
 #include "engine/scene.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -393,7 +394,15 @@ void read_render(const Reader& r, const json& m, RenderSpec& spec) {
   if (m.contains("height")) spec.height = r.integer_in(m.at("height"), "render.height", 16, 8192);
   if (spec.width % 2) r.fail("render.width", "must be even (video encoding)", &m.at("width"));
   if (spec.height % 2) r.fail("render.height", "must be even (video encoding)", &m.at("height"));
-  if (m.contains("camera")) spec.camera = r.choice<render::CameraPreset>(m.at("camera"), "render.camera", kCameraNames);
+  // A preset by name, or {"endoscope": NAME}: the endoscope on an instrument (the name is checked with them).
+  if (m.contains("camera") && m.at("camera").is_object()) {
+    const json& c = m.at("camera");
+    r.only_keys(c, "render.camera", {"endoscope"});
+    spec.camera = render::CameraPreset::Endoscope;
+    spec.scope_instrument = r.string(r.require(c, "render.camera", "endoscope"), "render.camera.endoscope");
+  } else if (m.contains("camera")) {
+    spec.camera = r.choice<render::CameraPreset>(m.at("camera"), "render.camera", kCameraNames);
+  }
   if (m.contains("video")) spec.video = r.boolean(m.at("video"), "render.video");
   if (m.contains("force_scale")) spec.force_scale = r.positive(m.at("force_scale"), "render.force_scale");
 }
@@ -565,28 +574,48 @@ Eigen::Quaterniond read_rotation(const Reader& r, const json& v, const std::stri
   return Eigen::Quaterniond(q[0], q[1], q[2], q[3]);  // unit norm: checked by PoseTrack
 }
 
-// Key frames {t, position, rotation}: times >= 0, then PoseTrack's checks (increasing, unit rotations).
-std::vector<PoseKey> read_pose_track(const Reader& r, const json& track, const std::string& path) {
+// Key frames {t, position, rotation[, opening]}: times >= 0, then PoseTrack's checks (increasing, unit rotations);
+// a grasper's keys may give its jaws' opening (radians), collected into `openings`.
+std::vector<PoseKey> read_pose_track(const Reader& r, const json& track, const std::string& path, bool grasper,
+                                     std::vector<OpeningKey>& openings) {
   if (!track.is_array()) r.fail(path, "must be an array of {\"t\", \"position\", \"rotation\"} keys", &track);
   if (track.empty()) r.fail(path, "must not be empty", &track);
   std::vector<PoseKey> keys;
   for (size_t k = 0; k < track.size(); ++k) {
     const std::string kpath = Reader::index(path, k);
-    r.only_keys(track[k], kpath, {"t", "position", "rotation"});
+    if (grasper)
+      r.only_keys(track[k], kpath, {"t", "position", "rotation", "opening"});
+    else
+      r.only_keys(track[k], kpath, {"t", "position", "rotation"});
     PoseKey key;
     key.t = r.number(r.require(track[k], kpath, "t"), kpath + ".t");
     if (key.t < 0) r.fail(kpath + ".t", "must be >= 0", &track[k].at("t"));
     key.pose.position = r.vec3(r.require(track[k], kpath, "position"), kpath + ".position");
     if (track[k].contains("rotation")) key.pose.rotation = read_rotation(r, track[k].at("rotation"), kpath + ".rotation");
+    if (track[k].contains("opening"))
+      openings.push_back({key.t, r.number_in(track[k].at("opening"), kpath + ".opening", 0.0, kMaxOpeningAngle, false, false)});
     keys.push_back(key);
   }
   return PoseTrack(std::move(keys), r.where(path)).keys();
 }
 
+// A grasper's "grasp": {grip_force_n (> 0), release_margin (radians, in (0, kMaxOpeningAngle])}, both optional.
+GraspSpec read_grasp(const Reader& r, const json& g, const std::string& path) {
+  if (!g.is_object()) r.fail(path, "must be an object {\"grip_force_n\", \"release_margin\"}", &g);
+  r.only_keys(g, path, {"grip_force_n", "release_margin"});
+  GraspSpec spec;
+  spec.enabled = true;
+  if (g.contains("grip_force_n")) spec.grip_force_n = r.positive(g.at("grip_force_n"), Reader::join(path, "grip_force_n"));
+  if (g.contains("release_margin"))
+    spec.release_margin = r.number_in(g.at("release_margin"), Reader::join(path, "release_margin"), 0.0,
+                                      kMaxOpeningAngle, true, false);
+  return spec;
+}
+
 // One instrument: name, shape, exactly one of track or replay (or a device_name alone), optional to_organ.
 InstrumentSpec read_instrument(const Reader& r, const json& p, const std::string& path, size_t i,
                                const std::filesystem::path& dir) {
-  r.only_keys(p, path, {"name", "shape", "track", "replay", "device_name", "to_organ"});
+  r.only_keys(p, path, {"name", "shape", "track", "replay", "device_name", "to_organ", "grasp"});
   InstrumentSpec spec;
   spec.name = p.contains("name") ? r.string(p.at("name"), Reader::join(path, "name")) : "instrument" + std::to_string(i);
   if (spec.name.empty()) r.fail(Reader::join(path, "name"), "must not be empty", &p.at("name"));
@@ -599,8 +628,12 @@ InstrumentSpec read_instrument(const Reader& r, const json& p, const std::string
   if (has_track && has_replay) r.fail(path, "needs at most one of \"track\" or \"replay\"", nullptr);
   if (!has_track && !has_replay && spec.device_name.empty())
     r.fail(path, "needs one of \"track\", \"replay\" or \"device_name\"", nullptr);
+  const bool grasper = std::holds_alternative<GrasperSpec>(spec.shape);
+  if (p.contains("grasp") && !grasper)
+    r.fail(Reader::join(path, "grasp"), "needs shape.type \"grasper\"", &p.at("grasp"));
+  if (p.contains("grasp")) spec.grasp = read_grasp(r, p.at("grasp"), Reader::join(path, "grasp"));
   if (has_track) {
-    spec.poses = read_pose_track(r, p.at("track"), Reader::join(path, "track"));
+    spec.poses = read_pose_track(r, p.at("track"), Reader::join(path, "track"), grasper, spec.openings);
   } else if (has_replay) {
     spec.drive = InstrumentDrive::kReplay;
     std::filesystem::path f = r.string(p.at("replay"), Reader::join(path, "replay"));
@@ -666,6 +699,11 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   if (s.solver.tangent != Tangent::kWarped && s.element == ElementType::kTet10)
     r.fail("solver.tangent", std::string("\"") + name_of(s.solver.tangent) + "\" needs mesh.element \"tet4\" (got \"tet10\")",
            &root.at("solver").at("tangent"));
+  // The endoscope rides on one of the scene's instruments.
+  const std::string& scope = s.render.scope_instrument;
+  if (!scope.empty() && std::none_of(s.instruments.begin(), s.instruments.end(),
+                                     [&](const InstrumentSpec& in) { return in.name == scope; }))
+    r.fail("render.camera.endoscope", "names no instrument of the scene", &root.at("render").at("camera").at("endoscope"));
   // Tool contacts are rows of the constraint response (the paper's response holds vertices, not tools), solved
   // after the nonlinear solve (not carried into it).
   if (!s.instruments.empty() && s.collision.response != ResponseKind::kConstraint)
@@ -676,6 +714,15 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   int held = -1;
   for (size_t i = 0; i < s.probes.size() && held < 0; ++i)
     if (s.probes[i].drive == ProbeDrive::Displacement) held = static_cast<int>(i);
+  // Grasped nodes are held the same way, on the rest stiffness, as the only held points of the session.
+  for (size_t i = 0; i < s.instruments.size(); ++i) {
+    if (!s.instruments[i].grasp.enabled) continue;
+    const std::string gpath = Reader::join(Reader::index("instruments", i), "grasp");
+    const json* at = &root.at("instruments")[i].at("grasp");
+    if (s.material.model != MaterialModel::kLinear || s.solver.type != SolverType::kQuasiStatic)
+      r.fail(gpath, "needs material.model \"linear\" and solver.type \"quasi_static\"", at);
+    if (held >= 0) r.fail(gpath, "cannot be combined with displacement-driven probes (probes[" + std::to_string(held) + "])", at);
+  }
   if (held < 0) return;
   const std::string held_path = Reader::index("probes", held);
   for (size_t i = 0; i < s.probes.size(); ++i)

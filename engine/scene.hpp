@@ -87,6 +87,9 @@ struct MaterialSpec {
 struct RenderSpec {
   int width = 640, height = 480;   // pixels, even
   render::CameraPreset camera = render::CameraPreset::Diagonal;  // side | diagonal | endoscope
+  // render.camera {"endoscope": NAME}: the endoscope rides on that instrument, its eye at the tip looking out of
+  // it (along the instrument's -y), the instrument itself not drawn ("": on the lumen axis).
+  std::string scope_instrument;
   bool video = false;               // write DIR/video.mp4 by default
   double force_scale = 1.0;         // arrow length per newton, metres / N
 };
@@ -148,6 +151,29 @@ struct TwistSpec {
 // of the (future) OpenIGTLink bridge ("device_name" without a track or replay: `lumen run` and `bench` refuse it).
 enum class InstrumentDrive { kTrack, kReplay, kDevice };
 
+// One key of a grasper's jaw opening (track[k].opening): the opening between the jaws reached at time t, radians;
+// linear between keys, held before the first and after the last (the shape's opening_angle without keys).
+struct OpeningKey {
+  double t = 0.0;      // seconds
+  double angle = 0.0;  // radians, [0, kMaxOpeningAngle]
+};
+
+// Default of grasp.release_margin: how far past the opening it grasped at the commanded opening must go before the
+// jaws let go, radians (about 3 degrees: a jitter of the command does not drop the tissue).
+inline constexpr double kDefaultReleaseMargin = 0.05;
+// Default of grasp.grip_force_n: the normal force each jaw must press on the tissue for the jaws to hold it,
+// newtons (a firm pinch of the 5 kPa tube wall; much less than its closing force).
+inline constexpr double kDefaultGripForce = 0.01;
+
+// A grasper that grasps (key "grasp"): when its jaws are closing and each presses the tissue with at least
+// grip_force_n, they stop at that opening and hold the organ nodes they touch, rigidly in the instrument frame,
+// until the commanded opening exceeds the held one by release_margin; the jaws then follow the command again.
+struct GraspSpec {
+  bool enabled = false;
+  double grip_force_n = kDefaultGripForce;         // newtons, > 0
+  double release_margin = kDefaultReleaseMargin;  // radians, > 0
+};
+
 // A rigid instrument (key "instruments"): its shape, validated (make_instrument accepts it), and its poses.
 struct InstrumentSpec {
   std::string name;                   // for reports; defaults to "instrument<i>", unique in the scene
@@ -159,6 +185,8 @@ struct InstrumentSpec {
   // Device coordinates (metres, after the wire's millimetres are converted) to the organ frame: applies to the
   // device's poses; track and replay poses are in the organ frame already.
   Eigen::Isometry3d to_organ = Eigen::Isometry3d::Identity();
+  std::vector<OpeningKey> openings;   // a grasper's commanded jaw opening over time (track keys' "opening")
+  GraspSpec grasp;                    // a grasper's key "grasp"
 };
 
 struct Scene {

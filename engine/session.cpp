@@ -55,6 +55,25 @@ render::FrameView frame_view(const Model& model, const State& state) {
     s.style = d.style;
     view.surfaces.push_back(s);
   }
+  // The instruments, as metal over their posed points; the one carrying the endoscope places the camera instead
+  // (eye at its tip, looking out of it along its -y, up its +z) and is not drawn.
+  for (const ToolPart& part : model.tool_parts) {
+    if (part.instrument == model.scope_instrument) continue;
+    const Points& points = state.tool_points[static_cast<size_t>(&part - model.tool_parts.data())];
+    const Tris& tris = model.instruments[static_cast<size_t>(part.instrument)].instrument.parts[static_cast<size_t>(part.part)].mesh.tris;
+    render::Surface s;
+    s.triangles = tris.data();
+    s.n_triangles = static_cast<int>(tris.rows());
+    s.positions = points.data();
+    s.n_points = static_cast<int>(points.rows());
+    s.style = render::SurfaceStyle::metal();
+    view.surfaces.push_back(s);
+  }
+  if (model.scope_instrument >= 0) {
+    const Pose& pose = state.tool_pose[static_cast<size_t>(model.scope_instrument)];
+    view.camera = render::CameraPose{pose.position, pose.rotation * -Eigen::Vector3d::UnitY(),
+                                     pose.rotation * Eigen::Vector3d::UnitZ()};
+  }
   view.contact = state.in_contact.data();
   view.force_scale = model.render.force_scale;
   for (size_t p = 0; p < state.samples.size(); ++p) {
@@ -250,6 +269,7 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
                     {"coupling", name_of(model.collision.coupling)}, {"gap_m", model.collision.gap},
                     {"surfaces", model.collision.outer_wall ? nlohmann::json{"inner", "outer"} : nlohmann::json{"inner"}}};
   r["render"] = {{"enabled", opt.render}, {"width", rs.width}, {"height", rs.height}, {"camera", name_of(rs.camera)}};
+  if (!rs.scope_instrument.empty()) r["render"]["endoscope_on"] = rs.scope_instrument;
   r["stages"] = stages_json(result.frames);
   r["writer"] = {{"frames", result.writer.frames}, {"busy_seconds", result.writer.busy_seconds},
                  {"frames_per_second", result.writer.frames_per_second()},

@@ -358,6 +358,9 @@ State make_state(const Model& model) {
       s.tool_workspaces.push_back(std::make_unique<collision::CollisionWorkspace>(model.collision.kdop));
     s.tool_pose.resize(model.instruments.size());
     s.tool_points.resize(model.tool_parts.size());
+    for (const CompiledInstrument& ci : model.instruments) s.tool_opening.push_back(ci.instrument.rest_opening);
+    s.tool_opening_target = s.tool_opening;
+    s.grasps.resize(model.instruments.size());
   }
   if (model.collision_surface || model.tool_target_surface) {
     s.compliance = std::make_unique<physics::SurfaceCompliance>(model.contact_solver(), model.collision_nodes);
@@ -403,9 +406,9 @@ InputHealth sample_inputs(const Model& model, Inputs& inputs, State& state, doub
 }
 
 // Each instrument's points at a pose, into its parts' slots of `parts` (one array per tool part).
-void place_instrument(const Model& model, size_t i, const Pose& pose, std::vector<Points>& parts) {
+void place_instrument(const Model& model, size_t i, const Pose& pose, double opening, std::vector<Points>& parts) {
   const CompiledInstrument& ci = model.instruments[i];
-  std::vector<Points> posed = posed_parts(ci.instrument, pose);
+  std::vector<Points> posed = posed_parts(ci.instrument, pose, opening);
   for (size_t j = 0; j < posed.size(); ++j) parts[static_cast<size_t>(ci.first_part) + j] = std::move(posed[j]);
 }
 
@@ -416,9 +419,13 @@ void sample_instruments(const Model& model, Inputs& inputs, State& state, double
   assert(inputs.instruments.size() == model.instruments.size());
   if (!state.tools_placed)
     for (size_t i = 0; i < model.instruments.size(); ++i) {
+      const CompiledInstrument& ci = model.instruments[i];
       state.tool_pose[i] = inputs.instruments[i]->pose(state.t);
-      place_instrument(model, i, state.tool_pose[i], state.tool_points);
+      state.tool_opening[i] = commanded_opening(ci.openings, ci.instrument.rest_opening, state.t);
+      place_instrument(model, i, state.tool_pose[i], state.tool_opening[i], state.tool_points);
     }
+  // Graspers: the jaws' opening at t1 (held at a grasp), and holds that begin or end.
+  update_grasps(model, state, t1);
   state.tools_placed = true;
   state.tool_pose_target = state.tool_pose;
   state.tool_target = state.tool_points;
@@ -429,7 +436,7 @@ void sample_instruments(const Model& model, Inputs& inputs, State& state, double
       continue;
     }
     state.tool_pose_target[i] = target;
-    place_instrument(model, i, target, state.tool_target);
+    place_instrument(model, i, target, state.tool_opening_target[i], state.tool_target);
   }
 }
 
@@ -559,6 +566,8 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   rec.truncated_steps = pred.truncated_steps;
   rec.preconditioner_failures = pred.preconditioner_failures;
   state.carried_lambda = loads.contacts ? pred.contact_lambda : Eigen::VectorXd();
+  // Grasped nodes follow their graspers (prescribed displacements of the free motion).
+  if (pred.finite) hold_grasped_nodes(model, state, u);
   rec.ms[kPhysics] = ms_since(clock);
 
   // Collide and respond: contacts constrain the solve on the contact compliance, CCD re-checks.

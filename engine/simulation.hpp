@@ -9,6 +9,7 @@
 #include <Eigen/SparseCore>
 
 #include "collision/surface.hpp"
+#include "engine/grasp.hpp"
 #include "engine/input.hpp"
 #include "engine/instrument_contact.hpp"
 #include "engine/report.hpp"
@@ -94,6 +95,7 @@ struct Model {
   std::vector<ToolPart> tool_parts;
   Tris tool_target_tris;
   std::shared_ptr<const collision::CollisionSurface> tool_target_surface;  // null without instruments
+  int scope_instrument = -1;  // index into instruments of the one the endoscope camera rides on (-1: none)
   // collision.coupling "carried": the augmentation penalty of the contacts carried into the corotational solve,
   // kCouplingStiffnessScale times the mean diagonal of K over the colliding walls' free DOFs, N/m (0 otherwise).
   double coupling_stiffness = 0.0;
@@ -160,6 +162,12 @@ struct State {
   std::unique_ptr<collision::CollisionWorkspace> organ_tool_workspace;  // the organ side of detect_pair
   std::vector<std::unique_ptr<collision::CollisionWorkspace>> tool_workspaces;  // per tool part
   std::vector<InstrumentRecord> tool_records;         // this frame's instrument records
+  // Graspers: each instrument's jaw opening at the last frame's end and this frame's target (radians; 0 without
+  // jaws), its grasp, all holds as one for the contact solve, and their forces on the organ this frame (3d, N).
+  std::vector<double> tool_opening, tool_opening_target;
+  std::vector<GraspHold> grasps;
+  GraspHolds grasp_holds;
+  Eigen::VectorXd grasp_force;
   int failures = 0;                                   // frames where the last good state was kept
 };
 

@@ -52,6 +52,7 @@ constexpr double kOrbitFovyDeg = 30.0;       // side and diagonal, vertical fiel
 constexpr double kEndoscopeFovyDeg = 72.0;   // endoscope, vertical (about 88 degrees across at 4:3)
 constexpr double kDiagonalElevationDeg = 40.0;
 constexpr double kDiagonalAzimuthDeg = 40.0;  // from the side direction toward the start end
+constexpr double kMinCameraSine = 1e-6;      // a placed camera's forward and up must be further apart than this
 constexpr double kEndoscopeDepth = 0.85;      // eye at this fraction of the half length from the centre
 constexpr int kArrowSegments = 16;
 
@@ -135,6 +136,8 @@ struct Renderer::Impl {
   // Camera, world -> eye and eye -> clip, and the frame basis of the organ.
   Mat4 view = Mat4::Identity(), proj = Mat4::Identity();
   Vec3 eye = Vec3::Zero();
+  Mat4 preset_view = Mat4::Identity();  // the preset's own placement, restored after a frame that moved the camera
+  Vec3 preset_eye = Vec3::Zero();
   Vec3 axis = Vec3::UnitZ(), up = Vec3::UnitY(), side = Vec3::UnitX();  // orthonormal organ frame
   double half_length = 0.0;                                            // metres
   // Cut-away wedge: kept where plane_a >= 0 or plane_b >= 0 (world-space plane equations).
@@ -153,6 +156,8 @@ struct Renderer::Impl {
 
   void setup_camera();
   void setup_gl_state();
+  // This frame's view: the caller's pose (endoscope only) or the preset's, loaded as the GL modelview.
+  void place_camera(const std::optional<CameraPose>& pose);
   void make_current();
   void build_surface(SurfaceScratch& s, const float* points, const int* tris, int n_tris, const float base[3],
                      const std::uint8_t* contact, int n_points);
@@ -213,6 +218,8 @@ Renderer::Renderer(int width, int height, CameraPreset camera, const Framing& fr
     throw;
   }
   m.setup_camera();
+  m.preset_view = m.view;
+  m.preset_eye = m.eye;
   m.setup_gl_state();
   // Release the context: each draw() binds it on the calling thread and releases it again (a fraction of a
   // microsecond), so no thread keeps it bound between frames.
@@ -547,6 +554,15 @@ void validate_frame(const FrameView& f) {
   }
   if (!(f.force_scale >= 0) || !std::isfinite(f.force_scale))
     throw std::invalid_argument("FrameView.force_scale must be finite and >= 0 (value " + std::to_string(f.force_scale) + ")");
+  // A placed camera: finite, forward and up non-zero and not parallel (look_at needs their cross product).
+  if (f.camera) {
+    const CameraPose& c = *f.camera;
+    const bool finite = finite3(c.eye) && finite3(c.forward) && finite3(c.up);
+    const double fn = c.forward.norm(), un = c.up.norm();
+    if (!finite || !(fn > 0) || !(un > 0) || !(c.forward.cross(c.up).norm() > kMinCameraSine * fn * un))
+      throw std::invalid_argument("FrameView.camera must be finite with forward and up non-zero and not parallel (eye " +
+                                  vec_text(c.eye) + ", forward " + vec_text(c.forward) + ", up " + vec_text(c.up) + ")");
+  }
   for (size_t i = 0; i < f.probes.size(); ++i) {
     if (!finite3(f.probes[i].point) || !finite3(f.probes[i].force))
       throw std::invalid_argument("FrameView.probes[" + std::to_string(i) + "] must be finite (point " + vec_text(f.probes[i].point) +
@@ -555,6 +571,19 @@ void validate_frame(const FrameView& f) {
 }
 
 }  // namespace
+
+void Renderer::Impl::place_camera(const std::optional<CameraPose>& pose) {
+  if (pose) {
+    eye = pose->eye;
+    view = look_at(eye, eye + pose->forward.normalized(), pose->up);
+  } else {
+    eye = preset_eye;
+    view = preset_view;
+  }
+  // Lights were placed in eye coordinates, so the endoscope's head light follows the eye.
+  glMatrixMode(GL_MODELVIEW);
+  glLoadMatrixd(view.data());
+}
 
 void Renderer::Impl::build_frame(const FrameView& f) {
   pos.resize(static_cast<size_t>(f.n_points) * 3);
@@ -653,11 +682,14 @@ void Renderer::Impl::read_back(Image& out) {
 void Renderer::draw(const FrameView& f, Image& out) {
   validate_frame(f);
   Impl& m = *impl_;
+  if (f.camera && m.preset != CameraPreset::Endoscope)
+    throw std::invalid_argument("FrameView.camera is for the endoscope camera only");
   // Bind the context on this thread for the duration of the call.
   m.make_current();
   struct Release {
     ~Release() { OSMesaMakeCurrent(nullptr, nullptr, 0, 0, 0); }
   } release;
+  m.place_camera(f.camera);
   m.build_frame(f);
   glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
   m.draw_background();

@@ -3,6 +3,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -60,6 +61,14 @@ struct Surface {
   int n_points = 0;
 };
 
+// A camera the caller places for one frame (the endoscope riding on an instrument's tip): eye position, metres,
+// and the viewing and up directions (finite, non-zero, not parallel; up is made perpendicular to forward).
+struct CameraPose {
+  Eigen::Vector3d eye = Eigen::Vector3d::Zero();
+  Eigen::Vector3d forward = Eigen::Vector3d::UnitZ();
+  Eigen::Vector3d up = Eigen::Vector3d::UnitY();
+};
+
 // Everything one frame draws; arrays are borrowed for the call.
 struct FrameView {
   const double* positions = nullptr;  // n_points x 3, metres, row-major: the organ's points
@@ -70,6 +79,8 @@ struct FrameView {
   const std::uint8_t* contact = nullptr;  // per frame point, 1 = in contact (coloured), may be null
   std::vector<ProbeGlyph> probes;
   double force_scale = 0.02;  // arrow length per newton, metres / N
+  // The endoscope camera only: placed here for this frame instead of on the lumen axis (the preset's place).
+  std::optional<CameraPose> camera;
 };
 
 // Scene framing: where the organ and its lumen are, so cameras are placed once per session. frame_organ() fills
@@ -116,11 +127,12 @@ class Renderer {
   Renderer(const Renderer&) = delete;
   Renderer& operator=(const Renderer&) = delete;
   // Draw one frame and read it back into `out` (resized to width x height). Throws std::invalid_argument
-  // on a malformed frame (null arrays, indices out of range, non-finite probes).
+  // on a malformed frame (null arrays, indices out of range, non-finite probes, a camera pose that is not finite
+  // or degenerate, or given to a preset other than the endoscope).
   void draw(const FrameView& frame, Image& out);
   // Pixel coordinates (x right, y down, pixel centres at +0.5) of a world point; NaN behind the camera.
   Eigen::Vector2d project(const Eigen::Vector3d& world) const;
-  // Camera position, metres.
+  // Camera position, metres (the last frame's, for an endoscope placed by FrameView::camera).
   Eigen::Vector3d eye() const;
 
  private:

@@ -237,3 +237,97 @@ TEST(InstrumentScene, AStartThroughTheOrgansWallsIsRefusedWhenTheModelCompiles) 
   // The example's start, 17 mm above the wall, compiles.
   EXPECT_NO_THROW(compile_model(parse_scene(instrument_scene().dump(), kScenePath)));
 }
+
+// render.camera {"endoscope": NAME}: the endoscope preset riding on the named instrument; the name must be one of
+// the scene's instruments, and the object holds that key alone.
+TEST(InstrumentScene, EndoscopeCameraRidesOnANamedInstrument) {
+  json s = instrument_scene();
+  s["render"] = {{"camera", {{"endoscope", "probe"}}}};
+  const Scene ok = parse_scene(s.dump(), kScenePath);
+  EXPECT_EQ(ok.render.camera, lumen::render::CameraPreset::Endoscope);
+  EXPECT_EQ(ok.render.scope_instrument, "probe");
+  EXPECT_TRUE(parse_scene(instrument_scene().dump(), kScenePath).render.scope_instrument.empty());
+  s["render"]["camera"]["endoscope"] = "scope";
+  EXPECT_EQ(error_of(s), "dir/s.json: render.camera.endoscope: names no instrument of the scene (value \"scope\")");
+  s["render"]["camera"] = {{"endoscope", 3}};
+  EXPECT_NE(error_of(s).find("render.camera.endoscope"), std::string::npos) << error_of(s);
+  s["render"]["camera"] = {{"endoscope", "probe"}, {"fov", 70}};
+  EXPECT_NE(error_of(s).find("render.camera"), std::string::npos) << error_of(s);
+  EXPECT_NE(error_of(s).find("fov"), std::string::npos) << error_of(s);
+  s["render"]["camera"] = json::object();
+  EXPECT_NE(error_of(s).find("render.camera"), std::string::npos) << error_of(s);
+  EXPECT_NE(error_of(s).find("endoscope"), std::string::npos) << error_of(s);
+}
+
+namespace {
+// The example with its probe replaced by a grasper (jaws open 60 degrees).
+json grasper_scene() {
+  json s = instrument_scene();
+  s["instruments"][0]["shape"] = {{"type", "grasper"}, {"jaw_length", 0.012}, {"jaw_width", 0.004},
+                                  {"jaw_thickness", 0.0015}, {"opening_angle", 1.0}, {"shaft_radius", 0.0025},
+                                  {"shaft_length", 0.08}};
+  return s;
+}
+}  // namespace
+
+// A grasper's track keys may give the jaws' opening, and "grasp" makes it hold what it closes on; both are a
+// grasper's alone, checked with the key path and the value.
+TEST(InstrumentScene, GrasperOpeningTrackAndGraspKeys) {
+  json s = grasper_scene();
+  s["instruments"][0]["track"][0]["opening"] = 1.0;
+  s["instruments"][0]["track"][1]["opening"] = 0.25;
+  s["instruments"][0]["grasp"] = {{"grip_force_n", 0.02}, {"release_margin", 0.1}};
+  const Scene ok = parse_scene(s.dump(), kScenePath);
+  const InstrumentSpec& in = ok.instruments[0];
+  ASSERT_EQ(in.openings.size(), 2u);
+  EXPECT_EQ(in.openings[1].t, 2.0);
+  EXPECT_EQ(in.openings[1].angle, 0.25);
+  EXPECT_TRUE(in.grasp.enabled);
+  EXPECT_EQ(in.grasp.grip_force_n, 0.02);
+  EXPECT_EQ(in.grasp.release_margin, 0.1);
+  // Defaults, and no grasp without the key.
+  json d = grasper_scene();
+  d["instruments"][0]["grasp"] = json::object();
+  const GraspSpec g = parse_scene(d.dump(), kScenePath).instruments[0].grasp;
+  EXPECT_TRUE(g.enabled);
+  EXPECT_EQ(g.grip_force_n, kDefaultGripForce);
+  EXPECT_EQ(g.release_margin, kDefaultReleaseMargin);
+  EXPECT_FALSE(parse_scene(grasper_scene().dump(), kScenePath).instruments[0].grasp.enabled);
+
+  json bad = s;
+  bad["instruments"][0]["track"][1]["opening"] = 4.0;
+  EXPECT_NE(error_of(bad).find("instruments[0].track[1].opening"), std::string::npos) << error_of(bad);
+  bad = s;
+  bad["instruments"][0]["grasp"]["grip_force_n"] = -1.0;
+  EXPECT_NE(error_of(bad).find("instruments[0].grasp.grip_force_n"), std::string::npos) << error_of(bad);
+  bad = s;
+  bad["instruments"][0]["grasp"]["release_margin"] = 0.0;
+  EXPECT_NE(error_of(bad).find("instruments[0].grasp.release_margin"), std::string::npos) << error_of(bad);
+  bad = s;
+  bad["instruments"][0]["grasp"]["hold"] = true;
+  EXPECT_NE(error_of(bad).find("hold"), std::string::npos) << error_of(bad);
+  // A probe has no jaws.
+  json probe = instrument_scene();
+  probe["instruments"][0]["grasp"] = json::object();
+  EXPECT_EQ(error_of(probe), "dir/s.json: instruments[0].grasp: needs shape.type \"grasper\" (value {})");
+  probe = instrument_scene();
+  probe["instruments"][0]["track"][0]["opening"] = 0.5;
+  EXPECT_NE(error_of(probe).find("instruments[0].track[0]"), std::string::npos) << error_of(probe);
+  EXPECT_NE(error_of(probe).find("opening"), std::string::npos) << error_of(probe);
+  // Holds are prescribed displacements of the linear quasi-static model.
+  bad = s;
+  bad["material"]["model"] = "corotational";
+  EXPECT_EQ(error_of(bad), "dir/s.json: instruments[0].grasp: needs material.model \"linear\" and solver.type "
+                           "\"quasi_static\" (value {\"grip_force_n\":0.02,\"release_margin\":0.1})");
+}
+
+// The commanded opening: linear between keys, held outside them, the rest opening without keys.
+TEST(Grasp, CommandedOpeningInterpolatesTheKeys) {
+  const std::vector<OpeningKey> keys = {{0.5, 1.0}, {1.5, 0.0}, {2.5, 0.4}};
+  EXPECT_EQ(commanded_opening({}, 0.7, 3.0), 0.7);
+  EXPECT_EQ(commanded_opening(keys, 0.7, 0.0), 1.0);
+  EXPECT_DOUBLE_EQ(commanded_opening(keys, 0.7, 0.75), 0.75);
+  EXPECT_DOUBLE_EQ(commanded_opening(keys, 0.7, 1.5), 0.0);
+  EXPECT_DOUBLE_EQ(commanded_opening(keys, 0.7, 2.0), 0.2);
+  EXPECT_EQ(commanded_opening(keys, 0.7, 9.0), 0.4);
+}

@@ -280,6 +280,44 @@ TEST(Renderer, EndoscopeSeesTheInnerWallAroundAndTheFarLumenInTheCentre) {
   EXPECT_LT(centre_lum / centre, 0.5 * border_lum / border);
 }
 
+// The endoscope placed per frame (riding on an instrument): the eye where it is put, the viewing direction at the
+// image centre, the preset's place back on a frame without a pose, and bad poses refused.
+TEST(Renderer, PlacedEndoscopeLooksWhereItIsPutAndReturnsToItsPreset) {
+  const Tube t;
+  Renderer r(kW, kH, CameraPreset::Endoscope, t.framing(100));
+  const Eigen::Vector3d preset_eye = r.eye();
+  // Inside the lumen at mid-length, 4 mm off the axis, looking at the wall straight up (+y), up along the axis.
+  FrameView v = t.view();
+  v.camera = CameraPose{Eigen::Vector3d(0, 0.004, 0.05), Eigen::Vector3d(0, 2.0, 0), Eigen::Vector3d(0, 0.3, 1.0)};
+  const Image bg = background(r);
+  const Image im = draw(r, v);
+  EXPECT_LT((r.eye() - Eigen::Vector3d(0, 0.004, 0.05)).norm(), 1e-15);
+  // The wall point straight ahead projects to the image centre, the axis direction (+z) to the image's top half.
+  const Eigen::Vector2d ahead = r.project(Eigen::Vector3d(0, t.inner_radius, 0.05));
+  EXPECT_NEAR(ahead.x(), kW / 2.0, 1e-6);
+  EXPECT_NEAR(ahead.y(), kH / 2.0, 1e-6);
+  EXPECT_LT(r.project(Eigen::Vector3d(0, t.inner_radius, 0.055)).y(), kH / 2.0);
+  // What is seen there is the inner wall, lit by the head light (brighter than the preset's far lumen centre).
+  EXPECT_TRUE(differs(im, bg, kW / 2, kH / 2));
+  EXPECT_TRUE(is_inner_colour(pixel(im, kW / 2, kH / 2)));
+  // The next frame without a pose is drawn from the preset's place again.
+  const Image back = draw(r, t.view());
+  EXPECT_LT((r.eye() - preset_eye).norm(), 1e-15);
+  Renderer fresh(kW, kH, CameraPreset::Endoscope, t.framing(100));
+  EXPECT_EQ(back.rgb, draw(fresh, t.view()).rgb);
+  // Refused: a pose for an orbit camera, forward parallel to up, a zero or non-finite direction.
+  Renderer side(kW, kH, CameraPreset::Side, t.framing(100));
+  Image out;
+  EXPECT_THROW(side.draw(v, out), std::invalid_argument);
+  FrameView bad = t.view();
+  bad.camera = CameraPose{Eigen::Vector3d(0, 0, 0.05), Eigen::Vector3d::UnitZ(), 3.0 * Eigen::Vector3d::UnitZ()};
+  EXPECT_THROW(r.draw(bad, out), std::invalid_argument);
+  bad.camera->forward = Eigen::Vector3d::Zero();
+  EXPECT_THROW(r.draw(bad, out), std::invalid_argument);
+  bad.camera->forward = Eigen::Vector3d(0, std::nan(""), 1);
+  EXPECT_THROW(r.draw(bad, out), std::invalid_argument);
+}
+
 TEST(Renderer, CutAwayShowsTheInnerWall) {
   // Without the cut only the outer wall is seen from the side; with it the inner wall shows through.
   const Tube t;

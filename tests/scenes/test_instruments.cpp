@@ -70,3 +70,85 @@ TEST(InstrumentScenes, TwoToolsPinchTheLumenShutWithoutIntersection) {
   EXPECT_GT(last.instruments[0].force.y(), 0.0);
   EXPECT_LT(last.instruments[1].force.y(), 0.0);
 }
+
+// A scope advanced along the lumen, then tilted about the tube's entry until its rounded tip presses the inner
+// wall from inside: tool contacts on the inner wall, the wall pushed outward (+y), the scope pushed back (-y).
+TEST(InstrumentScenes, ScopeInTheLumenPressesTheInnerWallWithoutIntersection) {
+  const std::string file = "instrument-scope-lumen.json";
+  const lumen::test::CheckedRun run = run_instrument_scene(file);
+  EXPECT_EQ(run.model->scope_instrument, 0);
+  // Advancing along the axis (the first 2 s) it touches nothing; tilted, it touches.
+  constexpr int kAdvanceFrames = 70;
+  for (int i = 0; i < kAdvanceFrames; ++i) EXPECT_EQ(run.result.frames[static_cast<size_t>(i)].instruments[0].contacts, 0) << "frame " << i;
+  EXPECT_GT(expect_tools_never_penetrate(file, run), 20);
+  const FrameRecord& last = run.result.frames.back();
+  EXPECT_GT(last.instruments[0].contacts, 0);
+  EXPECT_LT(last.instruments[0].force.y(), 0.0);
+  // Every tool contact is on the inner wall: the organ's contact nodes there moved outward.
+  const Eigen::Index top = [&] {
+    Eigen::Index best = 0;
+    for (Eigen::Index n = 0; n < run.final_x.rows(); ++n)
+      if (run.final_x(n, 1) - run.model->mesh.rest(n, 1) > run.final_x(best, 1) - run.model->mesh.rest(best, 1)) best = n;
+    return best;
+  }();
+  const Eigen::Vector3d rest = run.model->mesh.rest.row(top);
+  EXPECT_NEAR(std::hypot(rest.x(), rest.y()), 0.01, 1e-9) << "largest outward motion is not on the inner wall";
+  EXPECT_GT(run.final_x(top, 1) - rest.y(), 1e-3);
+}
+
+// A grasper closes on the top of the tube, lifts the wall 8 mm, opens and withdraws. Besides the common checks
+// (no intersection, every tool vertex outside, the instrument's force balancing the organ's K u, which now
+// includes the hold's force): the jaws grasp while closing and stop at that opening; the held nodes stay rigidly
+// where they were in the grasper's frame on every held frame; lifting pulls them up with the grasper and the wall
+// pulls the grasper down; opening the jaws lets go.
+TEST(InstrumentScenes, GrasperHoldsTheWallRigidlyWhileLiftingAndLetsGoWhenOpened) {
+  const std::string file = "instrument-grasper-lift.json";
+  const lumen::test::CheckedRun run = run_instrument_scene(file);
+  // Contact rows while closing and letting go (a held node's contacts with the jaws are frozen, not rows).
+  EXPECT_GT(expect_tools_never_penetrate(file, run), 10);
+  const auto& frames = run.result.frames;
+  // The hold: first and last held frame, the same nodes throughout.
+  int first = -1, last = -1;
+  for (size_t i = 0; i < frames.size(); ++i)
+    if (!frames[i].instruments[0].held_nodes.empty()) {
+      if (first < 0) first = static_cast<int>(i);
+      last = static_cast<int>(i);
+    }
+  ASSERT_GE(first, 0) << "the jaws never grasped";
+  constexpr double kCloseStart = 0.5, kCloseEnd = 1.5, kLiftEnd = 2.5, kOpenStart = 3.0, kOpenEnd = 3.5;  // s
+  EXPECT_GT(frames[static_cast<size_t>(first)].t, kCloseStart);
+  EXPECT_LT(frames[static_cast<size_t>(first)].t, kCloseEnd);
+  EXPECT_GT(frames[static_cast<size_t>(last)].t, kOpenStart);
+  EXPECT_LT(frames[static_cast<size_t>(last)].t, kOpenEnd);
+  const std::vector<int> held = frames[static_cast<size_t>(first)].instruments[0].held_nodes;
+  EXPECT_GE(held.size(), 4u);
+  const double opening = frames[static_cast<size_t>(first)].instruments[0].opening;
+  EXPECT_GT(opening, 0.0);
+  // Held: same nodes, same opening, and each node fixed in the grasper's frame (from the reported pose).
+  auto in_grasper = [&](size_t i, int node) {
+    const InstrumentRecord& in = frames[i].instruments[0];
+    return Eigen::Vector3d(in.rotation.conjugate() * (run.x[i].row(node).transpose() - in.position));
+  };
+  for (int i = first; i <= last; ++i) {
+    const size_t f = static_cast<size_t>(i);
+    EXPECT_EQ(frames[f].instruments[0].held_nodes, held) << "frame " << frames[f].frame;
+    EXPECT_DOUBLE_EQ(frames[f].instruments[0].opening, opening) << "frame " << frames[f].frame;
+    if (frames[f].fallback) continue;  // a stopped frame ends short of its target poses
+    for (int node : held)
+      EXPECT_LT((in_grasper(f, node) - in_grasper(static_cast<size_t>(first), node)).norm(), 1e-9)
+          << "node " << node << " frame " << frames[f].frame;
+  }
+  // At the end of the lift the held nodes rose with the grasper (8 mm up), and the wall pulls it down.
+  size_t lifted = 0;
+  while (lifted + 1 < frames.size() && frames[lifted + 1].t <= kLiftEnd + 1e-9) ++lifted;
+  constexpr double kLift = 0.008;
+  for (int node : held)
+    EXPECT_GT(run.x[lifted](node, 1) - run.x[static_cast<size_t>(first)](node, 1), 0.9 * kLift) << "node " << node;
+  EXPECT_LT(frames[lifted].instruments[0].force.y(), 0.0);
+  // Let go: the jaws follow the command again, and once clear of the wall nothing pulls the grasper.
+  const InstrumentRecord& end = frames.back().instruments[0];
+  EXPECT_TRUE(end.held_nodes.empty());
+  EXPECT_NEAR(end.opening, 1.0471975511965976, 1e-12);
+  EXPECT_EQ(end.contacts, 0);
+  EXPECT_EQ(end.force.norm(), 0.0);
+}

@@ -128,6 +128,7 @@ struct CheckedRun {
   engine::SessionResult result;
   std::vector<ToolClearance> clearance;  // per frame
   std::vector<ElasticLoad> elastic;      // per frame
+  std::vector<Points> x;                 // per frame, the organ's positions at its end
   Points final_x;
 };
 inline CheckedRun run_checked(const engine::Scene& scene) {
@@ -143,6 +144,7 @@ inline CheckedRun run_checked(const engine::Scene& scene) {
     c.clearance.push_back(tool_clearance(m, s));
     const Eigen::Vector3d origin = s.tool_pose.empty() ? Eigen::Vector3d::Zero() : s.tool_pose[0].position;
     c.elastic.push_back(elastic_load(m, s, material, origin));
+    c.x.push_back(s.x);
     c.final_x = s.x;
   };
   c.result = engine::run_session(*c.model, engine::make_inputs(scene), opt);

@@ -1,0 +1,153 @@
+#include "engine/grasp.hpp"
+
+#include <algorithm>
+#include <cassert>
+
+#include <Eigen/Cholesky>
+
+#include "engine/response.hpp"
+#include "engine/simulation.hpp"
+
+namespace lumen::engine {
+namespace {
+
+// The organ nodes of a grasper's force-carrying jaw contacts (last frame's held tool contacts), if each jaw
+// presses with at least the grip force; none otherwise. Nodes on fixed DOFs or held by another instrument are
+// left out.
+std::vector<int> nodes_between_jaws(const Model& model, const State& state, size_t instrument) {
+  const CompiledInstrument& ci = model.instruments[instrument];
+  const physics::StaticSolver& solver = model.contact_solver();
+  double pressing[2] = {0.0, 0.0};  // normal force of jaw_positive, jaw_negative, newtons
+  std::vector<int> nodes;
+  for (size_t c = 0; c < state.tool_active.size(); ++c) {
+    const HeldContact& h = state.tool_active[c];
+    const ToolPart& tp = model.tool_parts[static_cast<size_t>(h.part)];
+    if (tp.instrument != static_cast<int>(instrument)) continue;
+    const PartJoint joint = ci.instrument.parts[static_cast<size_t>(tp.part)].joint;
+    if (joint == PartJoint::kFixed) continue;
+    pressing[joint == PartJoint::kJawPositive ? 0 : 1] += state.tool_active_lambda[c];
+    for (int k = 0; k < 4; ++k)
+      if (!h.on_tool(k) && !solver.is_fixed_dof(3 * h.c.v[k])) nodes.push_back(h.c.v[k]);
+  }
+  if (!(pressing[0] >= ci.grasp.grip_force_n) || !(pressing[1] >= ci.grasp.grip_force_n)) return {};
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  // A node another grasper already holds stays with it.
+  for (size_t j = 0; j < state.grasps.size(); ++j) {
+    if (j == instrument) continue;
+    const std::vector<int>& other = state.grasps[j].nodes;
+    nodes.erase(std::remove_if(nodes.begin(), nodes.end(),
+                               [&](int n) { return std::binary_search(other.begin(), other.end(), n); }),
+                nodes.end());
+  }
+  return nodes;
+}
+
+// state.grasp_holds from every instrument's hold: U = K^-1 E by one multi-right-hand-side solve, S = (E^T U)^-1.
+void rebuild_holds(const Model& model, State& state) {
+  GraspHolds& g = state.grasp_holds;
+  g = GraspHolds{};
+  std::vector<int> nodes;
+  for (size_t i = 0; i < state.grasps.size(); ++i)
+    for (int node : state.grasps[i].nodes) {
+      physics::LoadPoint p;
+      p.node[0] = node;
+      p.weight[0] = 1.0;
+      g.held.points.push_back(p);
+      g.instrument.push_back(static_cast<int>(i));
+      nodes.push_back(node);
+    }
+  const Eigen::Index d3 = 3 * static_cast<Eigen::Index>(nodes.size());
+  state.grasp_force = Eigen::VectorXd::Zero(d3);
+  if (nodes.empty()) return;
+  const physics::StaticSolver& solver = model.contact_solver();
+  // E: unit loads on every held DOF (3n x 3d).
+  Eigen::MatrixXd E = Eigen::MatrixXd::Zero(solver.n_dofs(), d3);
+  for (size_t a = 0; a < nodes.size(); ++a)
+    for (int k = 0; k < 3; ++k) E(3 * nodes[a] + k, 3 * static_cast<Eigen::Index>(a) + k) = 1.0;
+  g.held.U = solver.solve_many(E);
+  // The held nodes' point compliance E^T U (symmetric positive definite: no held DOF is fixed) and its inverse.
+  Eigen::MatrixXd P(d3, d3);
+  for (size_t b = 0; b < nodes.size(); ++b) P.middleRows(3 * static_cast<Eigen::Index>(b), 3) = g.held.U.middleRows(3 * nodes[b], 3);
+  g.held.S = P.ldlt().solve(Eigen::MatrixXd::Identity(d3, d3));
+}
+
+}  // namespace
+
+double commanded_opening(const std::vector<OpeningKey>& keys, double rest, double t) {
+  if (keys.empty()) return rest;
+  if (t <= keys.front().t) return keys.front().angle;
+  if (t >= keys.back().t) return keys.back().angle;
+  const auto next = std::upper_bound(keys.begin(), keys.end(), t, [](double v, const OpeningKey& k) { return v < k.t; });
+  const OpeningKey& a = *(next - 1);
+  const OpeningKey& b = *next;
+  const double w = (t - a.t) / (b.t - a.t);
+  return (1.0 - w) * a.angle + w * b.angle;
+}
+
+bool update_grasps(const Model& model, State& state, double t1) {
+  bool changed = false;
+  for (size_t i = 0; i < model.instruments.size(); ++i) {
+    const CompiledInstrument& ci = model.instruments[i];
+    const double command = commanded_opening(ci.openings, ci.instrument.rest_opening, t1);
+    GraspHold& hold = state.grasps[i];
+    double& target = state.tool_opening_target[i];
+    // Holding: keep the opening until the command opens past it by the margin, then let go and follow it.
+    if (hold.holding()) {
+      if (command > hold.opening + ci.grasp.release_margin) {
+        hold = GraspHold{};
+        target = command;
+        changed = true;
+      } else {
+        target = hold.opening;
+      }
+      continue;
+    }
+    target = command;
+    // Free: grasp when closing with tissue on both jaws.
+    if (!ci.grasp.enabled || !(command < state.tool_opening[i])) continue;
+    std::vector<int> nodes = nodes_between_jaws(model, state, i);
+    if (nodes.empty()) continue;
+    const Eigen::Isometry3d to_instrument = state.tool_pose[i].transform().inverse();
+    hold.local.resize(static_cast<Eigen::Index>(nodes.size()), 3);
+    for (size_t a = 0; a < nodes.size(); ++a)
+      hold.local.row(static_cast<Eigen::Index>(a)) = (to_instrument * state.x.row(nodes[a]).transpose()).transpose();
+    hold.nodes = std::move(nodes);
+    hold.opening = state.tool_opening[i];
+    target = hold.opening;
+    changed = true;
+  }
+  if (changed) rebuild_holds(model, state);
+  return changed;
+}
+
+void hold_grasped_nodes(const Model& model, State& state, Eigen::VectorXd& u) {
+  const GraspHolds& g = state.grasp_holds;
+  if (g.empty()) return;
+  // Each held node's shortfall from its target, in the holds' point order (instrument, then node order).
+  Eigen::VectorXd shortfall(3 * static_cast<Eigen::Index>(g.held.points.size()));
+  Eigen::Index a = 0;
+  for (size_t i = 0; i < state.grasps.size(); ++i) {
+    const GraspHold& hold = state.grasps[i];
+    const Eigen::Isometry3d to_organ = state.tool_pose_target[i].transform();
+    for (size_t j = 0; j < hold.nodes.size(); ++j, ++a) {
+      const int node = hold.nodes[j];
+      assert(g.held.points[static_cast<size_t>(a)].node[0] == node);
+      const Eigen::Vector3d target = to_organ * hold.local.row(static_cast<Eigen::Index>(j)).transpose();
+      shortfall.segment<3>(3 * a) = target - model.mesh.rest.row(node).transpose() - u.segment<3>(3 * node);
+    }
+  }
+  state.grasp_force = g.held.S * shortfall;
+  u += g.held.U * state.grasp_force;
+}
+
+bool held_by_own_instrument(const Model& model, const State& state, const HeldContact& h) {
+  if (!h.is_tool() || state.grasps.empty()) return false;
+  const std::vector<int>& held = state.grasps[static_cast<size_t>(model.tool_parts[static_cast<size_t>(h.part)].instrument)].nodes;
+  if (held.empty()) return false;
+  for (int k = 0; k < 4; ++k)
+    if (!h.on_tool(k) && !std::binary_search(held.begin(), held.end(), h.c.v[k])) return false;
+  return true;
+}
+
+}  // namespace lumen::engine
