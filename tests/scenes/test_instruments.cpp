@@ -152,3 +152,16 @@ TEST(InstrumentScenes, GrasperHoldsTheWallRigidlyWhileLiftingAndLetsGoWhenOpened
   EXPECT_EQ(end.contacts, 0);
   EXPECT_EQ(end.force.norm(), 0.0);
 }
+
+// A procedural oesophagus (22 cm, 3 mm wall): a 9 mm gastroscope advanced 15 cm down the lumen, then tilted until
+// its tip presses the wall from inside; its view is the video. No intersection, the wall pushes the scope back.
+TEST(InstrumentScenes, GastroscopeInTheOesophagusTouchesTheWallFromInside) {
+  const std::string file = "oesophagus-scope.json";
+  const lumen::test::CheckedRun run = run_instrument_scene(file);
+  EXPECT_GT(expect_tools_never_penetrate(file, run), 5);
+  const FrameRecord& last = run.result.frames.back();
+  EXPECT_GT(last.instruments[0].contacts, 0);
+  EXPECT_LT(last.instruments[0].force.y(), 0.0);
+  // Advancing on the axis (the first 2 s) it touches nothing.
+  for (size_t i = 0; i < 80; ++i) EXPECT_EQ(run.result.frames[i].instruments[0].contacts, 0) << "frame " << i + 1;
+}
