@@ -251,6 +251,15 @@ std::map<long, int> read_entities(Tokens& t) {
   return surface_tag;
 }
 
+// A v4.1 $Nodes / $Elements header "numEntityBlocks num<what>s min<what>Tag max<what>Tag": the number of blocks.
+long read_block_header(Tokens& t, const std::string& what) {
+  const long blocks = t.count("number of " + what + " blocks");
+  t.count("number of " + what + "s");
+  t.integer("minimum " + what + " tag");
+  t.integer("maximum " + what + " tag");
+  return blocks;
+}
+
 void read_gmsh_nodes(Tokens& t, GmshVersion v, Collector& c) {
   if (v == GmshVersion::kV2) {
     for (long n = t.count("number of nodes"); n > 0; --n) {
@@ -259,11 +268,7 @@ void read_gmsh_nodes(Tokens& t, GmshVersion v, Collector& c) {
     }
     return;
   }
-  const long blocks = t.count("number of node blocks");
-  t.count("number of nodes");
-  t.integer("minimum node tag");
-  t.integer("maximum node tag");
-  for (long b = 0; b < blocks; ++b) {
+  for (long b = read_block_header(t, "node"); b > 0; --b) {
     const long dim = t.count("entity dimension", 3);
     t.integer("entity tag");
     const long parametric = t.count("parametric flag", 1);
@@ -302,11 +307,7 @@ void read_gmsh_elements(Tokens& t, GmshVersion v, const std::map<long, int>& sur
     }
     return;
   }
-  const long blocks = t.count("number of element blocks");
-  t.count("number of elements");
-  t.integer("minimum element tag");
-  t.integer("maximum element tag");
-  for (long b = 0; b < blocks; ++b) {
+  for (long b = read_block_header(t, "element"); b > 0; --b) {
     const long dim = t.count("entity dimension", 3);
     const long entity = t.integer("entity tag");
     const long type = t.integer("element type");
