@@ -52,6 +52,14 @@ class Tokens {
     if (v < 0 || v > hi) fail(file_, where(), what + " out of range [0, " + std::to_string(hi) + "] (value " + std::to_string(v) + ")");
     return v;
   }
+  // A count of items of `tokens` tokens each that the rest of the text can hold (each token and its separator
+  // take at least 2 characters), so that a corrupt count is refused before anything is allocated for it.
+  long items(const std::string& what, long tokens) {
+    const long v = count(what);
+    if (v > static_cast<long>((text_.size() - pos_) / 2 + 1) / tokens)
+      fail(file_, where(), what + " " + std::to_string(v) + " is more than the rest of the file holds (truncated?)");
+    return v;
+  }
   double real(const std::string& what) {
     const std::string_view t = next(what);
     double v = 0;
@@ -272,7 +280,7 @@ void read_gmsh_nodes(Tokens& t, GmshVersion v, Collector& c) {
     const long dim = t.count("entity dimension", 3);
     t.integer("entity tag");
     const long parametric = t.count("parametric flag", 1);
-    const long n = t.count("number of nodes in block");
+    const long n = t.items("number of nodes in block", 4);
     std::vector<long> ids(static_cast<size_t>(n));
     for (long& id : ids) id = t.integer("node tag");
     for (long id : ids) {
@@ -465,7 +473,7 @@ void parse_vtk_legacy(const std::string& text, Collector& c) {
     const std::string where = t.where();
     t.set_context(key + " (from " + where + ")");
     if (key == "POINTS") {
-      const long n = t.count("number of points");
+      const long n = t.items("number of points", 3);
       t.next("data type");
       xyz.resize(static_cast<size_t>(3 * n));
       for (double& x : xyz) x = t.real("point coordinate");
@@ -477,8 +485,8 @@ void parse_vtk_legacy(const std::string& text, Collector& c) {
         offsets.push_back(static_cast<long>(conn.size()));
       }
     } else if (key == "CELLS") {
-      const long n_offsets = t.count("number of offsets");
-      const long n_conn = t.count("connectivity size");
+      const long n_offsets = t.items("number of offsets", 1);
+      const long n_conn = t.items("connectivity size", 1);
       t.expect("OFFSETS");
       t.next("data type");
       offsets.resize(static_cast<size_t>(n_offsets));
@@ -488,7 +496,7 @@ void parse_vtk_legacy(const std::string& text, Collector& c) {
       conn.resize(static_cast<size_t>(n_conn));
       for (long& p : conn) p = t.count("point index");
     } else if (key == "CELL_TYPES") {
-      types.resize(static_cast<size_t>(t.count("number of cell types")));
+      types.resize(static_cast<size_t>(t.items("number of cell types", 1)));
       for (long& ty : types) ty = t.integer("cell type");
     } else if (key == "CELL_DATA" || key == "POINT_DATA") {
       data_cells = key == "CELL_DATA";

@@ -201,6 +201,11 @@ constexpr const char* kOneTet =
     "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n"
     "$Elements\n2\n1 4 2 1 1 1 2 3 4\n2 2 2 5 1 1 3 2\n$EndElements\n";
 
+// The line of a text the first `what` is on.
+std::string line_of(const std::string& text, const std::string& what) {
+  return "line " + std::to_string(1 + std::count(text.begin(), text.begin() + static_cast<long>(text.find(what)), '\n'));
+}
+
 std::string refusal(const std::string& text, const std::string& format) {
   return lumen::test::message_of<std::invalid_argument>([&] { parse_volume_mesh(text, format, "f." + format); });
 }
@@ -240,6 +245,11 @@ TEST(VolumeMeshFiles, RefusesTruncatedSectionsAndUndefinedNodes) {
             "f.msh: line 15: the file ends inside $Elements (from line 11) (expected $EndElements)");
   EXPECT_EQ(refusal(replaced(kOneTet, "1 1 2 3 4", "1 1 2 3 9"), "msh"),
             "f.msh: line 13, element id 1: node id 9 is used but not defined");
+  const std::string v41 = lumen::test::write_msh41(tagged(make_hollow_cylinder(small_cylinder())));
+  const std::string block = "\n3 1 0 " + std::to_string(make_hollow_cylinder(small_cylinder()).rest.rows()) + "\n";
+  EXPECT_EQ(refusal(replaced(v41, block, "\n3 1 0 2000000000\n"), "msh"),
+            "f.msh: " + line_of(v41, block.substr(1)) + ": number of nodes in block 2000000000 is more than the rest "
+            "of the file holds (truncated?)");
   EXPECT_EQ(refusal(replaced(kOneTet, "4 0 0 1", "4 0 0 x"), "msh"),
             "f.msh: line 9: expected z coordinate in $Nodes (from line 4) (got \"x\")");
 }
@@ -252,11 +262,6 @@ TEST(VolumeMeshFiles, RefusesOtherVolumeElementsTet10AndFilesWithoutTets) {
             "supported; export the mesh with linear (4-node) tets");
   EXPECT_EQ(refusal(replaced(replaced(kOneTet, "1 4 2 1 1 1 2 3 4\n", ""), "$Elements\n2", "$Elements\n1"), "msh"),
             "f.msh: elements: no tetrahedra (4 nodes, 1 elements, none a linear tetrahedron)");
-}
-
-// The line of a text the first `what` is on.
-std::string line_of(const std::string& text, const std::string& what) {
-  return "line " + std::to_string(1 + std::count(text.begin(), text.begin() + static_cast<long>(text.find(what)), '\n'));
 }
 
 // The cylinder as a legacy VTK file, and as .vtu.
