@@ -56,7 +56,8 @@ std::vector<std::vector<int>> connected_faces(const std::vector<Face>& faces, co
     for (int k = 0; k < 3; ++k) faces_of[edge(faces[f][k], faces[f][(k + 1) % 3])].push_back(static_cast<int>(f));
   for (const auto& [e, list] : faces_of)
     if (list.size() != 2)
-      fail(file, "boundary edge (" + std::to_string(e.first) + ", " + std::to_string(e.second) + ")",
+      fail(file, "boundary edge (nodes " + std::to_string(e.first) + ", " + std::to_string(e.second) +
+                     "; 0-based, in the file's order of the nodes the tets use)",
            "has " + std::to_string(list.size()) + " boundary faces: the boundary is not a manifold surface");
   std::vector<int> component(faces.size(), -1);
   std::vector<std::vector<int>> out;

@@ -506,8 +506,9 @@ void parse_vtk_legacy(const std::string& text, Collector& c) {
       t.line_text();
       while (!t.line_text().empty() && !t.done()) {
       }
-    } else if (data_n > 0) {
-      read_legacy_attribute(t, key, data_n, data_cells, cell_data);
+    } else if (data_n > 0 || key == "FIELD") {
+      // Point or cell data, or field data of the whole dataset (read past: not a cell array).
+      read_legacy_attribute(t, key, data_n, data_cells && data_n > 0, cell_data);
     } else {
       fail(file, where, "unexpected keyword \"" + key + "\"");
     }

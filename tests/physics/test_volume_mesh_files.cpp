@@ -268,6 +268,14 @@ TEST(VolumeMeshFiles, RefusesOtherVolumeElementsTet10AndFilesWithoutTets) {
 std::string cylinder_vtk() { return lumen::test::write_vtk(tagged(make_hollow_cylinder(small_cylinder()))); }
 std::string cylinder_vtu() { return lumen::test::write_vtu(tagged(make_hollow_cylinder(small_cylinder()))); }
 
+// Field data of the whole dataset (as VTK writes a time value) is read past.
+TEST(VolumeMeshFiles, LegacyVtkDatasetFieldDataIsReadPast) {
+  const std::string vtk = replaced(cylinder_vtk(), "POINTS", "FIELD FieldData 1\nTIME 1 1 double\n0.5\nPOINTS");
+  const VolumeMeshFile f = parse_volume_mesh(vtk, "vtk", "f.vtk");
+  EXPECT_EQ(f.tets, make_hollow_cylinder(small_cylinder()).tets);
+  EXPECT_EQ(f.triangle_tags.front(), kInnerTag);
+}
+
 TEST(VolumeMeshFiles, RefusesBinaryAndOtherVtkDatasets) {
   EXPECT_EQ(refusal(replaced(cylinder_vtk(), "ASCII", "BINARY"), "vtk"),
             "f.vtk: line 3: binary VTK file: only ASCII .vtk files are supported");
@@ -320,6 +328,21 @@ TEST(VolumeMeshFiles, RefusesATaggedTriangleInsideTheVolume) {
   const VolumeMeshFile f = parse_volume_mesh(lumen::test::write_msh22(v), "msh", "f.msh");
   EXPECT_EQ(lumen::test::message_of<std::invalid_argument>([&] { make_volume_mesh(f, 1.0, {true, kInnerTag, kOuterTag}); }),
             "f.msh: triangle " + std::to_string(cylinder.surface(kInnerWall).rows()) + " (tag 1): is not a boundary face of the tets");
+}
+
+// Two tets sharing only an edge: that edge has four boundary faces.
+TEST(VolumeMeshFiles, RefusesANonManifoldBoundary) {
+  VolumeMeshFile f;
+  f.file = "bowtie.vtk";
+  f.nodes.resize(6, 3);
+  f.nodes << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, -1, 0, 0, 0, -1;
+  f.tets.resize(2, 4);
+  f.tets << 0, 1, 2, 3, 0, 1, 4, 5;
+  f.tet_ids = {0, 1};
+  ASSERT_GT(tet_volume(f.nodes, f.tets, 1), 0.0);
+  EXPECT_EQ(lumen::test::message_of<std::invalid_argument>([&] { make_volume_mesh(f, 1.0, {}); }),
+            "bowtie.vtk: boundary edge (nodes 0, 1; 0-based, in the file's order of the nodes the tets use): has 4 "
+            "boundary faces: the boundary is not a manifold surface");
 }
 
 TEST(VolumeMeshFiles, RefusesABoundaryWithoutWallsFacingEachOther) {
