@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <array>
 #include <cstdlib>
 #include <filesystem>
@@ -138,6 +139,49 @@ TEST(VolumeMeshFiles, TheInnerOfTwoClosedBoundaryComponentsIsTheLumenWall) {
   EXPECT_EQ(oriented_set(m.surface(kOuterWall)), oriented_set(open.surface(kOuterWall).unaryExpr(merged)));
   EXPECT_EQ(m.surface(kEndCaps).rows(), 0);
   EXPECT_FALSE(m.has_node_set(kStartEnd));
+}
+
+// gmsh's own files (tests/data/volume/tube.geo meshed by Debian's gmsh 4.8 into .msh 4.1, .msh 2.2 and legacy
+// .vtk): the same mesh from each; the tagged walls on the geometry's cylinders; the found walls equal them.
+TEST(VolumeMeshFiles, FilesWrittenByGmshReadTheSameAndTheirWallsLieOnTheCylinders) {
+  constexpr double kInner = 0.010, kOuter = 0.013, kLength = 0.040, kMetresPerMm = 1e-3;
+  constexpr double kOnSurface = 1e-9;  // metres: gmsh places boundary nodes on the exact geometry
+  const std::string dir = std::string(LUMEN_TEST_DATA_DIR) + "/volume/";
+  const VolumeMeshFile v41 = read_volume_mesh_file(dir + "tube41.msh");
+  const TetMesh tagged41 = make_volume_mesh(v41, kMetresPerMm, {true, 1, 2});
+  for (const char* name : {"tube41.msh", "tube22.msh", "tube.vtk"}) {
+    SCOPED_TRACE(name);
+    const VolumeMeshFile f = read_volume_mesh_file(dir + name);
+    EXPECT_EQ(f.nodes, v41.nodes);
+    EXPECT_EQ(f.tets, v41.tets);
+    expect_same_walls_as_sets(make_volume_mesh(f, kMetresPerMm, {}), tagged41);
+  }
+  EXPECT_EQ(read_volume_mesh_file(dir + "tube22.msh").triangle_tags, v41.triangle_tags);
+  // Each wall's nodes on its cylinder, the end caps' on the end planes, the end sets one plane each.
+  auto radius = [&](int v) { return std::hypot(tagged41.rest(v, 0), tagged41.rest(v, 1)); };
+  const Tris& inner = tagged41.surface(kInnerWall);
+  const Tris& outer = tagged41.surface(kOuterWall);
+  ASSERT_GT(inner.rows(), 0);
+  ASSERT_GT(outer.rows(), 0);
+  for (int t = 0; t < inner.rows(); ++t)
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(radius(inner(t, k)), kInner, kOnSurface);
+  for (int t = 0; t < outer.rows(); ++t)
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(radius(outer(t, k)), kOuter, kOnSurface);
+  for (int v : tagged41.node_set(kStartEnd)) EXPECT_NEAR(tagged41.rest(v, 2), tagged41.rest(tagged41.node_set(kStartEnd)[0], 2), kOnSurface);
+  for (int v : tagged41.node_set(kStopEnd)) EXPECT_NEAR(tagged41.rest(v, 2), tagged41.rest(tagged41.node_set(kStopEnd)[0], 2), kOnSurface);
+  EXPECT_NEAR(std::abs(tagged41.rest(tagged41.node_set(kStartEnd)[0], 2) - tagged41.rest(tagged41.node_set(kStopEnd)[0], 2)), kLength, kOnSurface);
+  // Outward walls: the inner wall's normals point to the axis, the outer wall's away from it.
+  for (const auto& [wall, sign] : {std::pair<const Tris*, double>{&inner, -1.0}, {&outer, 1.0}})
+    for (int t = 0; t < wall->rows(); ++t) {
+      const Eigen::Vector3d a = tagged41.rest.row((*wall)(t, 0)), b = tagged41.rest.row((*wall)(t, 1)), c = tagged41.rest.row((*wall)(t, 2));
+      const Eigen::Vector3d centre = (a + b + c) / 3.0;
+      EXPECT_GT(sign * (b - a).cross(c - a).dot(Eigen::Vector3d(centre.x(), centre.y(), 0.0)), 0.0) << t;
+    }
+  // The volume: the annulus prism's, within the facets' chords (inscribed in both cylinders: under 1 %).
+  double volume = 0.0;
+  for (int t = 0; t < tagged41.tets.rows(); ++t) volume += tet_volume(tagged41.rest, tagged41.tets, t);
+  const double annulus = static_cast<double>(EIGEN_PI) * (kOuter * kOuter - kInner * kInner) * kLength;
+  EXPECT_NEAR(volume, annulus, 0.01 * annulus);
 }
 
 // meshio (Debian's python3-meshio for /usr/bin/python3) writes the generator's mesh from plain arrays in each
