@@ -83,7 +83,10 @@ physics::TetMesh generate_mesh(const Scene& scene, Model& m) {
     return std::move(tube.mesh);
   }
   // A volume mesh was built at load (no end rings: it has no twist).
-  if (scene.mesh_type == MeshType::kVolume) return scene.volume.mesh;
+  if (scene.mesh_type == MeshType::kVolume) {
+    m.mesh_file = scene.volume.file;
+    return scene.volume.mesh;
+  }
   const physics::HollowCylinderSpec& c = scene.mesh;
   m.end_rings = {physics::TubeRing{physics::hollow_cylinder_frame(c, 0.0), c.inner_radius, c.outer_radius},
                  physics::TubeRing{physics::hollow_cylinder_frame(c, c.length), c.inner_radius, c.outer_radius}};

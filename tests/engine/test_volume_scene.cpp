@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "engine/mesh_check.hpp"
 #include "engine/scene.hpp"
 #include "engine/simulation.hpp"
 #include "physics/mesh.hpp"
@@ -84,6 +85,12 @@ TEST(VolumeScene, TheShippedTubeFileIsTheGeneratorsTube) {
   EXPECT_EQ(a.node_set(physics::kStopEnd), b.node_set(physics::kStopEnd));
   EXPECT_EQ(from_file->fixed_nodes, generated->fixed_nodes);
   EXPECT_EQ(from_file->mesh_type, lumen::engine::MeshType::kVolume);
+  // The terminal line names the source and its file.
+  const std::string file = fs::path(kScenes + "../data/volume-tube.msh").lexically_normal().string();
+  EXPECT_EQ(from_file->mesh_file, file);
+  const std::string line = lumen::engine::mesh_quality_line(*from_file, physics::mesh_quality(a.rest, a.tets));
+  EXPECT_NE(line.find("0 inverted or zero-volume tets; volume built in "), std::string::npos) << line;
+  EXPECT_NE(line.find(" ms from " + file), std::string::npos) << line;
 }
 
 // Tags by number or by physical name; without tags the walls are found; millimetres scaled.
