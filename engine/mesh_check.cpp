@@ -39,20 +39,21 @@ std::string mesh_quality_line(const Model& model, const physics::MeshQuality& q)
   // A tet10 model's quality is measured on the linear tets its elements split into (the mesh the state holds).
   const std::string measured =
       q.tets == model.n_elements ? std::string() : " (quality over their " + std::to_string(q.tets) + " linear sub-tets)";
-  // A swept tube also says how many of its rings the bend clamp reduced.
-  const std::string clamped = model.mesh_type == MeshType::kSweptTube
+  // A swept tube also says how many of its rings the bend clamp reduced; a volume mesh names its file.
+  const std::string suffix = model.mesh_type == MeshType::kSweptTube
                                   ? ", " + std::to_string(model.clamped_rings) + " rings clamped at bends"
-                                  : std::string();
+                              : model.mesh_type == MeshType::kVolume ? " from " + model.mesh_file
+                                                                     : std::string();
   char line[400];
   std::snprintf(line, sizeof line,
                 "mesh: %d nodes, %d tets%s, %ld inner + %ld outer wall triangles; min dihedral angle %.1f deg (p1 %.1f, "
                 "median %.1f), radius ratio %.3f (p1 %.3f, median %.3f), %d inverted or zero-volume tets; %s built in "
-                "%.1f ms%s",
+                "%.1f ms",
                 model.mesh.n_nodes(), model.n_elements, measured.c_str(), static_cast<long>(model.inner_wall().rows()),
                 static_cast<long>(model.outer_wall().rows()), q.min_dihedral_deg.min, q.min_dihedral_deg.p1,
                 q.min_dihedral_deg.p50, q.radius_ratio.min, q.radius_ratio.p1, q.radius_ratio.p50, q.degenerate_tets,
-                name_of(model.mesh_type), model.mesh_build_ms, clamped.c_str());
-  return line;
+                name_of(model.mesh_type), model.mesh_build_ms);
+  return line + suffix;
 }
 
 }  // namespace lumen::engine

@@ -1,6 +1,8 @@
 #include "engine/scene.hpp"
 
 #include <algorithm>
+#include <chrono>
+#include <climits>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -26,7 +28,7 @@ constexpr const char* kTangentNames[] = {"warped", "projected", "exact"};
 constexpr const char* kTwistEndNames[] = {"", "start", "stop"};
 constexpr const char* kNodeSetNames[] = {"ends", "start", "stop"};
 constexpr const char* kCameraNames[] = {"side", "diagonal", "endoscope"};
-constexpr const char* kMeshTypeNames[] = {"hollow_cylinder", "swept_tube"};
+constexpr const char* kMeshTypeNames[] = {"hollow_cylinder", "swept_tube", "volume"};
 // Names of MeshUnits (mesh.units of a swept tube, an instrument mesh's units).
 constexpr const char* kLengthUnitNames[] = {"m", "mm"};
 // A range end within this fraction of the centreline's arc length past it is its end (decimal rounding).
@@ -302,12 +304,54 @@ void read_swept_tube(const Reader& r, const json& m, const std::filesystem::path
   check_swept_tube(r, m, spec);
 }
 
+// mesh.inner_tag / outer_tag of a volume mesh: a tag number, or (gmsh) a physical surface's name.
+int read_wall_tag(const Reader& r, const json& v, const std::string& path, const physics::VolumeMeshFile& f) {
+  if (v.is_number_integer()) return r.integer_in(v, path, INT_MIN + 1, INT_MAX);
+  const std::string name = r.string(v, path);
+  std::string names;
+  for (const physics::TagName& t : f.tag_names) {
+    if (t.name == name) return t.tag;
+    names += (names.empty() ? "" : ", ") + ("\"" + t.name + "\"");
+  }
+  r.fail(path, "no physical surface of that name in " + f.file + " (it has: " + (names.empty() ? "none" : names) + ")",
+         &v);
+}
+
+// A volume mesh file (mesh.type "volume"), relative to the scene file: read, its walls found and built at load.
+void read_volume(const Reader& r, const json& m, const std::filesystem::path& dir, VolumeSourceSpec& spec) {
+  r.only_keys(m, "mesh", {"type", "element", "file", "units", "inner_tag", "outer_tag"});
+  const auto t0 = std::chrono::steady_clock::now();
+  const MeshUnits units = m.contains("units") ? r.choice<MeshUnits>(m.at("units"), "mesh.units", kLengthUnitNames)
+                                              : MeshUnits::kMetres;
+  std::filesystem::path file = r.string(r.require(m, "mesh", "file"), "mesh.file");
+  if (file.is_relative()) file = dir / file;
+  spec.file = file.lexically_normal().string();
+  if (m.contains("inner_tag") != m.contains("outer_tag"))
+    r.fail(m.contains("inner_tag") ? "mesh.inner_tag" : "mesh.outer_tag",
+           "give both mesh.inner_tag and mesh.outer_tag, or neither (the walls are then found on the boundary)", nullptr);
+  try {
+    const physics::VolumeMeshFile f = physics::read_volume_mesh_file(spec.file);
+    if (m.contains("inner_tag")) {
+      spec.tags = {true, read_wall_tag(r, m.at("inner_tag"), "mesh.inner_tag", f),
+                   read_wall_tag(r, m.at("outer_tag"), "mesh.outer_tag", f)};
+      if (spec.tags.inner == spec.tags.outer)
+        r.fail("mesh.outer_tag", "must differ from mesh.inner_tag", &m.at("outer_tag"));
+    }
+    spec.mesh = physics::make_volume_mesh(f, kMetresPerUnit[static_cast<int>(units)], spec.tags);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(e.what());
+  }
+  spec.build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
 void read_mesh(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& s) {
   if (!m.is_object()) r.fail("mesh", "must be an object", &m);
   s.mesh_type = r.choice<MeshType>(r.require(m, "mesh", "type"), "mesh.type", kMeshTypeNames);
   if (m.contains("element")) s.element = r.choice<ElementType>(m.at("element"), "mesh.element", kElementNames);
   if (s.mesh_type == MeshType::kSweptTube)
     read_swept_tube(r, m, dir, s.swept_tube);
+  else if (s.mesh_type == MeshType::kVolume)
+    read_volume(r, m, dir, s.volume);
   else
     read_hollow_cylinder(r, m, s.mesh);
 }
@@ -672,6 +716,16 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   if (s.element == ElementType::kTet10 && s.mesh_type != MeshType::kHollowCylinder)
     r.fail("mesh.element", std::string("\"tet10\" needs mesh.type \"hollow_cylinder\" (got \"") + name_of(s.mesh_type) + "\")",
            &root.at("mesh").at("element"));
+  // A volume mesh has no generated centreline: no twist; its end sets exist when its end caps are two pieces.
+  if (s.mesh_type == MeshType::kVolume) {
+    if (s.twist.enabled())
+      r.fail("twist", "needs a generated tube (mesh.type \"hollow_cylinder\" or \"swept_tube\"; got \"volume\")",
+             nullptr);
+    for (size_t i = 0; i < s.fixed.size(); ++i)
+      if (s.fixed[i].kind == FixedKind::kNamed && !s.volume.mesh.has_node_set(physics::kStartEnd))
+        r.fail(Reader::index("fixed", i), "the volume mesh " + s.volume.file + " has no end node sets (its end caps "
+               "are not two separate pieces): hold nodes by {\"box\": ...} or {\"plane\": ...}", &root.at("fixed")[i]);
+  }
   // Quadratic elements come with the quasi-static models only (linear prefactorised, or corotational).
   if (s.element == ElementType::kTet10 && s.solver.type != SolverType::kQuasiStatic)
     r.fail("mesh.element", std::string("\"tet10\" needs solver.type \"quasi_static\" (got \"") + name_of(s.solver.type) + "\")",

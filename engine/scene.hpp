@@ -10,6 +10,7 @@
 #include "engine/pose_track.hpp"
 #include "physics/mesh.hpp"
 #include "physics/swept_tube.hpp"
+#include "physics/volume_mesh.hpp"
 #include "render/renderer.hpp"
 
 namespace lumen::engine {
@@ -51,7 +52,7 @@ enum class ContactCoupling { kCorrect, kCarried };    // "correct" | "carried"
 enum class Tangent { kWarped, kProjected, kExact };  // "warped" | "projected" | "exact"
 enum class TwistEnd { kNone, kStart, kStop };         // (no twist) | "start" | "stop"
 enum class NodeSetName { kEnds, kStart, kStop };      // "ends" | "start" | "stop"
-enum class MeshType { kHollowCylinder, kSweptTube };  // "hollow_cylinder" | "swept_tube"
+enum class MeshType { kHollowCylinder, kSweptTube, kVolume };  // "hollow_cylinder" | "swept_tube" | "volume"
 // The JSON name of a choice (what the scene file says and report.json repeats).
 const char* name_of(MaterialModel v);
 const char* name_of(ElementType v);
@@ -189,14 +190,25 @@ struct InstrumentSpec {
   GraspSpec grasp;                    // a grasper's key "grasp"
 };
 
+// A tet mesh made elsewhere (mesh.type "volume"): its file read, its walls found and the mesh built at load (so
+// that every problem with the file is a load error), in metres.
+struct VolumeSourceSpec {
+  std::string file;                 // absolute path
+  physics::WallTags tags;           // mesh.inner_tag / outer_tag (gmsh physical names resolved), or none
+  physics::TetMesh mesh;            // physics::make_volume_mesh of the file
+  double build_ms = 0.0;            // reading and building it at load, milliseconds
+};
+
 struct Scene {
   std::string path;  // the file it was read from
   std::string name;
   // The volume mesh's source (key mesh.type): the generated hollow cylinder (`mesh`) or a tube swept along a
-  // centreline file (`swept_tube`, its centreline read, validated and converted to metres at load).
+  // centreline file (`swept_tube`, its centreline read, validated and converted to metres at load), or a tet mesh
+  // file (`volume`: gmsh .msh, VTK .vtu / .vtk).
   MeshType mesh_type = MeshType::kHollowCylinder;
   physics::HollowCylinderSpec mesh;
   physics::SweptTubeSpec swept_tube;
+  VolumeSourceSpec volume;
   // Element of the volume mesh (key mesh.element): "tet4" (linear, the paper's) or "tet10" (quadratic,
   // isoparametric; its walls are drawn and collide as each face split into 4 triangles over the edge nodes).
   ElementType element = ElementType::kTet4;

@@ -261,6 +261,7 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
   r["mesh"]["source"] = name_of(model.mesh_type);
   r["mesh"]["build_ms"] = model.mesh_build_ms;
   if (model.mesh_type == MeshType::kSweptTube) r["mesh"]["clamped_rings"] = model.clamped_rings;
+  if (model.mesh_type == MeshType::kVolume) r["mesh"]["file"] = model.mesh_file;
   r["model"] = {{"material", name_of(model.material)}, {"element", name_of(model.element)},
                 {"solver", name_of(model.solver)},
                 {"tangent", name_of(model.tangent)}, {"compile_seconds", model.compile_seconds}};

@@ -82,6 +82,11 @@ physics::TetMesh generate_mesh(const Scene& scene, Model& m) {
     m.end_rings = {tube.rings.front(), tube.rings.back()};
     return std::move(tube.mesh);
   }
+  // A volume mesh was built at load (no end rings: it has no twist).
+  if (scene.mesh_type == MeshType::kVolume) {
+    m.mesh_file = scene.volume.file;
+    return scene.volume.mesh;
+  }
   const physics::HollowCylinderSpec& c = scene.mesh;
   m.end_rings = {physics::TubeRing{physics::hollow_cylinder_frame(c, 0.0), c.inner_radius, c.outer_radius},
                  physics::TubeRing{physics::hollow_cylinder_frame(c, c.length), c.inner_radius, c.outer_radius}};
@@ -97,7 +102,7 @@ physics::TetMesh build_mesh(const Scene& scene, std::unique_ptr<physics::Quadrat
   m.mesh_type = scene.mesh_type;
   physics::TetMesh linear = generate_mesh(scene, m);
   m.n_elements = static_cast<int>(linear.tets.rows());
-  m.mesh_build_ms = ms_since(t0);
+  m.mesh_build_ms = ms_since(t0) + scene.volume.build_ms;
   require_valid_tets(linear, scene.path);
   if (scene.element != ElementType::kTet10) return linear;
   const auto t1 = Clock::now();

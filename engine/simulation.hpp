@@ -77,6 +77,7 @@ struct Model {
   MeshType mesh_type = MeshType::kHollowCylinder;
   double mesh_build_ms = 0.0;
   int clamped_rings = 0;
+  std::string mesh_file;  // a volume mesh's file (mesh.type "volume"), "" otherwise
   std::array<physics::TubeRing, 2> end_rings;
   // The organ's walls as indices into mesh.surfaces, resolved from their names when the scene compiles.
   int inner_surface = -1;                          // the lumen wall: self-collision, framing, surface export

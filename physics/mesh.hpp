@@ -56,6 +56,7 @@ struct TetMesh {
   std::vector<NodeSet> node_sets;      // named node sets
   int n_nodes() const { return static_cast<int>(rest.rows()); }
   bool has_surface(std::string_view name) const { return find_named(surfaces, name) != nullptr; }
+  bool has_node_set(std::string_view name) const { return find_named(node_sets, name) != nullptr; }
   // The surface / node set of that name; throws std::invalid_argument naming it when the mesh has none.
   const Tris& surface(std::string_view name) const { return require_named(surfaces, name, "TetMesh", "surface").tris; }
   const std::vector<int>& node_set(std::string_view name) const {

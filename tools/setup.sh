@@ -2,7 +2,7 @@
 # Install the Debian packages Lumen builds and runs with (idempotent).
 set -euo pipefail
 pkgs=(build-essential cmake pkg-config libeigen3-dev libsuitesparse-dev libosmesa6-dev
-      libassimp-dev libpng-dev libavcodec-dev libavformat-dev libavutil-dev libswscale-dev
+      libassimp-dev libexpat1-dev libpng-dev libavcodec-dev libavformat-dev libavutil-dev libswscale-dev
       nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev python3 python3-meshio python3-matplotlib
       calculix-ccx)
 missing=()

@@ -60,6 +60,8 @@ TEST(Scenes, PaperSceneLoadsWithThePaperMeshCounts) {
 
 // 20 cm of the real colon's sigmoid (swept along its CT centreline, with haustra) pinched shut by two probes.
 TEST(Scenes, ColonSigmoidPinchNeverIntersects) { expect_never_intersects("colon-sigmoid-pinch.json"); }
+// A tube read from a gmsh file (data/volume-tube.msh, mesh.type "volume") pinched by two probes.
+TEST(Scenes, VolumeTubePinchNeverIntersects) { expect_never_intersects("volume-tube-pinch.json"); }
 
 // Quadratic elements at the paper's wall resolution (10 x 13 x 1 tet10: 1040 split inner triangles).
 TEST(Scenes, FullClosureTet10NeverIntersects) { expect_never_intersects("full-closure-tet10.json"); }
