@@ -768,6 +768,9 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   int held = -1;
   for (size_t i = 0; i < s.probes.size() && held < 0; ++i)
     if (s.probes[i].drive == ProbeDrive::Displacement) held = static_cast<int>(i);
+  // Supports are springs added to the linear quasi-static model's stiffness.
+  if (s.support.enabled() && (s.material.model != MaterialModel::kLinear || s.solver.type != SolverType::kQuasiStatic))
+    r.fail("support", "needs material.model \"linear\" and solver.type \"quasi_static\"", &root.at("support"));
   // Grasped nodes are held the same way, on the rest stiffness, as the only held points of the session.
   for (size_t i = 0; i < s.instruments.size(); ++i) {
     if (!s.instruments[i].grasp.enabled) continue;
@@ -815,7 +818,7 @@ Scene parse_scene(const std::string& text, const std::string& path) {
     throw InputError(path + ": malformed JSON: " + e.what());
   }
   r.only_keys(root, "", {"name", "mesh", "material", "fixed", "probes", "frames", "fps", "render", "collision",
-                          "solver", "twist", "instruments"});
+                          "solver", "twist", "support", "instruments"});
 
   Scene s;
   s.path = path;
@@ -842,6 +845,12 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   if (root.contains("collision")) read_collision(r, root.at("collision"), s.collision);
   if (root.contains("solver")) read_solver(r, root.at("solver"), s.solver);
   if (root.contains("twist")) read_twist(r, root.at("twist"), s.twist);
+  if (root.contains("support")) {
+    const json& sp = root.at("support");
+    if (!sp.is_object()) r.fail("support", "must be an object {\"stiffness_n_per_m3\"}", &sp);
+    r.only_keys(sp, "support", {"stiffness_n_per_m3"});
+    s.support.stiffness = r.positive(r.require(sp, "support", "stiffness_n_per_m3"), "support.stiffness_n_per_m3");
+  }
   if (root.contains("instruments")) read_instruments(r, root.at("instruments"), dir, s);
   check_combinations(r, root, s);
   return s;

@@ -140,6 +140,13 @@ struct TwistKey {
                          // direction from the start end to the stop end)
 };
 
+// Elastic supports (key "support"): the organ held by the tissue around it, springs to rest on its outer wall
+// (physics/support.hpp), stiffness per unit area and unit displacement; 0 = none.
+struct SupportSpec {
+  double stiffness = 0.0;  // N/m^3 (key stiffness_n_per_m3)
+  bool enabled() const { return stiffness > 0.0; }
+};
+
 // One end ring turned about the tube axis (z for a straight tube; the ring-plane normal for a bent one) through
 // the ring's centre: its nodes are prescribed u = R(theta) (X - c) + c - X (held, like a fixed end).
 struct TwistSpec {
@@ -221,6 +228,7 @@ struct Scene {
   CollisionSpec collision;
   SolverSpec solver;
   TwistSpec twist;
+  SupportSpec support;
   std::vector<InstrumentSpec> instruments;
 };
 

@@ -4,6 +4,7 @@
 #include "engine/mesh_check.hpp"
 #include "engine/response.hpp"
 #include "physics/quadratic.hpp"
+#include "physics/support.hpp"
 
 #include <algorithm>
 #include <cassert>
@@ -273,8 +274,10 @@ std::unique_ptr<physics::Integrator> make_integrator(const Scene& scene, const M
   if (scene.material.model == MaterialModel::kCorotational)
     return std::make_unique<physics::CorotationalQuasiStatic>(m.mesh, material, m.fixed_nodes,
                                                               corotational_options(scene), m.prescribed);
-  const Eigen::SparseMatrix<double> K = quadratic ? physics::assemble_stiffness(*quadratic, material)
-                                                  : physics::assemble_stiffness(m.mesh, material);
+  Eigen::SparseMatrix<double> K = quadratic ? physics::assemble_stiffness(*quadratic, material)
+                                            : physics::assemble_stiffness(m.mesh, material);
+  // The surrounding tissue's springs to rest on the outer wall.
+  if (scene.support.enabled()) K += physics::support_stiffness(m.mesh.rest, m.outer_wall(), scene.support.stiffness);
   return std::make_unique<physics::LinearQuasiStatic>(K, m.fixed_nodes, m.probe_points, m.probe_held, m.prescribed);
 }
 

@@ -1,0 +1,86 @@
+// Elastic supports (scene key "support"): springs to rest on the outer wall, k times each node's lumped area.
+// Checked against the polygon prism's area, and against the stiff-support limit where a node's own spring carries
+// the load (u = F / (k A)); the keys' errors name the key and the value.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/scene.hpp"
+#include "engine/session.hpp"
+#include "engine/simulation.hpp"
+#include "physics/support.hpp"
+#include "support/files.hpp"
+#include "support/instruments.hpp"
+
+using namespace lumen;
+using nlohmann::json;
+
+namespace {
+
+// The small tube's outer wall: 12 sides of radius 13 mm, 0.1 m long, 10 cells along.
+constexpr int kAround = 12, kAlong = 10;
+constexpr double kOuterRadius = 0.013, kLength = 0.1;
+double chord() { return 2.0 * kOuterRadius * std::sin(EIGEN_PI / kAround); }
+
+}  // namespace
+
+TEST(Support, LumpedAreasSumToThePolygonPrismAndStiffnessIsKTimesThem) {
+  json scene = test::small_tube_scene("areas");
+  scene["frames"] = 1;
+  const auto model = engine::compile_model(engine::parse_scene(scene.dump(), "areas.json"));
+  const Eigen::VectorXd area = physics::lumped_areas(model->mesh.rest, model->outer_wall());
+  EXPECT_NEAR(area.sum(), kAround * chord() * kLength, 1e-15);
+  constexpr double k = 2500.0;
+  const Eigen::SparseMatrix<double> S = physics::support_stiffness(model->mesh.rest, model->outer_wall(), k);
+  EXPECT_EQ(S.nonZeros(), 3 * (area.array() > 0).count());
+  for (Eigen::Index v = 0; v < area.size(); ++v)
+    for (int d = 0; d < 3; ++d) EXPECT_DOUBLE_EQ(S.coeff(3 * v + d, 3 * v + d), k * area[v]);
+}
+
+// Springs much stiffer than the wall: the loaded node moves F / (k A) with A its lumped area, the area of one
+// quad of the outer wall (chord x cell length) for a node inside the wall; unsupported it moves far more.
+TEST(Support, StiffSupportsCarryTheLoadOnTheNodesOwnSpring) {
+  auto displacement = [](double k) {
+    json s = test::small_tube_scene("supported");
+    s["frames"] = 1;
+    // At an outer-wall node: angle 0, mid-length (ring 5 of 10).
+    s["probes"] = json::parse(R"([{"name": "p", "point": [0.013, 0.0, 0.05],
+                                   "track": [{"t": 0.0, "force": [-0.01, 0, 0]}]}])");
+    if (k > 0) s["support"] = {{"stiffness_n_per_m3", k}};
+    const auto model = engine::compile_model(engine::parse_scene(s.dump(), "supported.json"));
+    engine::SessionOptions opt;
+    opt.render = false;
+    const engine::SessionResult r = engine::run_session(*model, engine::make_inputs(engine::parse_scene(s.dump(), "supported.json")), opt);
+    return r.frames.back().probe_displacement[0];
+  };
+  constexpr double kStiff = 1e10, kForce = 0.01;
+  const double node_area = chord() * kLength / kAlong;
+  const Eigen::Vector3d stiff = displacement(kStiff);
+  EXPECT_NEAR(stiff.x(), -kForce / (kStiff * node_area), 1e-3 * kForce / (kStiff * node_area));
+  EXPECT_NEAR(stiff.y(), 0.0, 1e-12);
+  // Softer supports: the wall shares the load, so the node moves less than its spring alone would allow ...
+  constexpr double kSoft = 1e5;
+  const Eigen::Vector3d soft = displacement(kSoft);
+  EXPECT_GT(soft.x(), -kForce / (kSoft * node_area));
+  // ... and more than with stiffer springs; without supports most of all.
+  EXPECT_LT(soft.x(), stiff.x());
+  EXPECT_LT(displacement(0.0).x(), soft.x());
+}
+
+TEST(Support, KeysAreValidatedAndNeedTheLinearQuasiStaticModel) {
+  auto error_of = [](const json& s) { return test::message_of<engine::InputError>([&] { engine::parse_scene(s.dump(), "s.json"); }); };
+  json s = test::small_tube_scene("keys");
+  s["frames"] = 1;
+  s["support"] = {{"stiffness_n_per_m3", -1.0}};
+  EXPECT_NE(error_of(s).find("support.stiffness_n_per_m3"), std::string::npos) << error_of(s);
+  s["support"] = {{"stiffness", 1.0}};
+  EXPECT_NE(error_of(s).find("stiffness"), std::string::npos) << error_of(s);
+  s["support"] = json::object();
+  EXPECT_NE(error_of(s).find("stiffness_n_per_m3"), std::string::npos) << error_of(s);
+  s["support"] = {{"stiffness_n_per_m3", 1000.0}};
+  s["material"]["model"] = "corotational";
+  EXPECT_EQ(error_of(s), "s.json: support: needs material.model \"linear\" and solver.type \"quasi_static\" "
+                         "(value {\"stiffness_n_per_m3\":1000.0})");
+}
