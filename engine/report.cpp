@@ -129,7 +129,8 @@ nlohmann::json frame_json(const FrameRecord& r) {
                      {"rotation", {q.w(), q.x(), q.y(), q.z()}},
                      {"force_n", {in.force.x(), in.force.y(), in.force.z()}},
                      {"torque_nm", {in.torque.x(), in.torque.y(), in.torque.z()}},
-                     {"contacts", in.contacts}});
+                     {"contacts", in.contacts},
+                     {"stiffness_n_per_m", std::vector<double>(in.stiffness.data(), in.stiffness.data() + 9)}});
   }
   j["instruments"] = tools;
   return j;

@@ -24,6 +24,9 @@ struct InstrumentRecord {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();   // newtons: the contact force on the instrument
   Eigen::Vector3d torque = Eigen::Vector3d::Zero();  // newton metres: the contacts' torque about its origin
   int contacts = 0;                                  // its contact rows in the frame's last solve
+  // Local stiffness of its tip against translation, N/m: d(-force)/d(position) with the frame's pushing contacts
+  // held (symmetric positive semi-definite; zero without contact). What the haptic loop renders between frames.
+  Eigen::Matrix3d stiffness = Eigen::Matrix3d::Zero();
 };
 
 // What one frame did and cost.

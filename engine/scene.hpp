@@ -145,7 +145,7 @@ struct TwistSpec {
 };
 
 // Where an instrument's pose comes from: key frames ("track"), a recorded pose CSV ("replay"), or only a device
-// of the (future) OpenIGTLink bridge ("device_name" without a track or replay: `lumen run` and `bench` refuse it).
+// ("device_name" without a track or replay: only `lumen serve` runs it; `lumen run` and `bench` refuse it).
 enum class InstrumentDrive { kTrack, kReplay, kDevice };
 
 // A rigid instrument (key "instruments"): its shape, validated (make_instrument accepts it), and its poses.
@@ -160,6 +160,18 @@ struct InstrumentSpec {
   // device's poses; track and replay poses are in the organ frame already.
   Eigen::Isometry3d to_organ = Eigen::Isometry3d::Identity();
 };
+
+// The haptic loop (key "haptics", engine/haptics.hpp): its rate and the device's limits.
+struct HapticsSpec {
+  double rate_hz = 1000.0;                // loop rate, Hz, in (0, kMaxHapticRateHz]
+  double max_force_n = 8.0;               // force saturation, newtons (> 0)
+  double max_stiffness_n_per_m = 3000.0;  // the local model's stiffness is clamped to this, N/m (> 0)
+  double damping_n_s_per_m = 1.0;         // c, N s/m (>= 0), only while in contact
+  double stale_after_s = 0.1;             // the force fades when no fresh model came for this long, seconds (> 0)
+  double fade_s = 0.05;                   // ... to zero over this long, seconds (> 0)
+};
+// The fastest haptic loop a scene may ask for, Hz.
+inline constexpr double kMaxHapticRateHz = 10000.0;
 
 struct Scene {
   std::string path;  // the file it was read from
@@ -182,6 +194,7 @@ struct Scene {
   SolverSpec solver;
   TwistSpec twist;
   std::vector<InstrumentSpec> instruments;
+  HapticsSpec haptics;
 };
 
 // Refuse a path that is a folder or does not exist, as an InputError "PATH: is a folder, not a WHAT" / "PATH: no

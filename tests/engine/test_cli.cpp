@@ -204,7 +204,7 @@ TEST(Cli, InstrumentErrorsExitTwoBeforeWriting) {
     CliRun r = run_lumen(command);
     EXPECT_EQ(r.code, 2) << command;
     EXPECT_NE(r.output.find((d / "device.json").string() + ": instruments[0].device_name: poses from a device need "
-                            "the OpenIGTLink bridge (lumen serve)"),
+                            "the OpenIGTLink bridge: run it with `lumen serve`"),
               std::string::npos)
         << command << ": " << r.output;
   }

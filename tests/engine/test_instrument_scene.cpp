@@ -223,8 +223,8 @@ TEST(InstrumentScene, RunRefusesAnInstrumentDrivenOnlyByADevice) {
   ASSERT_EQ(only_device.instruments[0].drive, InstrumentDrive::kDevice);
   EXPECT_EQ(only_device.instruments[0].device_name, "Tracker");
   EXPECT_EQ(message_of<InputError>([&] { make_inputs(only_device); }),
-            "dir/s.json: instruments[0].device_name: poses from a device need the OpenIGTLink bridge (lumen serve), "
-            "which is not built yet; give the instrument a \"track\" or a \"replay\" to run it (value \"Tracker\")");
+            "dir/s.json: instruments[0].device_name: poses from a device need the OpenIGTLink bridge: run it with "
+            "`lumen serve`, or give the instrument a \"track\" or a \"replay\" (value \"Tracker\")");
 }
 
 TEST(InstrumentScene, AStartThroughTheOrgansWallsIsRefusedWhenTheModelCompiles) {
