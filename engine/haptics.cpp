@@ -139,6 +139,8 @@ void HapticLoop::run() {
       }
       const Eigen::Vector3d x = pose[i].seq > 0 ? pose[i].pose.position : model[i].x_frame;
       forces[i] = render_force(spec_, model[i], x, velocity[i], t);
+      forces[i].seq = pose[i].seq;
+      forces[i].reading_time_s = pose[i].time_s;
       stats_.force_clamps += forces[i].clamped;
       stats_.faded_ticks += model[i].valid && forces[i].weight < 1.0;
     }

@@ -14,6 +14,7 @@
 // The simulation and the loop share no lock: the simulation publishes each frame's model into a TripleBuffer,
 // the device's poses reach the loop through another, and the loop hands each force to a sink on its own thread.
 #include <atomic>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -43,6 +44,8 @@ struct HapticForce {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  // on the device (the instrument), newtons, organ frame
   double weight = 0.0;                              // w(age) in [0, 1]
   bool clamped = false;                             // the force limit was hit
+  std::uint64_t seq = 0;                            // the device reading it was rendered at (0: none yet)
+  double reading_time_s = 0.0;                      // when that reading arrived (session clock)
 };
 
 // w(age): 1 up to stale_after_s, then linear down to 0 over fade_s.
