@@ -18,6 +18,8 @@ double quantile(std::vector<double> v, double q) {
 }
 constexpr double kMedian = 0.5;
 constexpr double kP99 = 0.99;
+// Time constant of the device velocity's low-pass filter, seconds.
+constexpr double kVelocityFilterS = 0.01;
 // Periods kept for the statistics: an hour at 1 kHz at most (the rest are counted, not kept).
 constexpr size_t kMaxKeptPeriods = 3600000;
 
@@ -110,7 +112,9 @@ void HapticLoop::run() {
   const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / spec_.rate_hz));
   const size_t n = device_poses_.size();
   std::vector<HapticModel> model(n);
-  std::vector<DeviceSample> pose(n), previous(n);
+  std::vector<DeviceSample> pose(n);
+  std::vector<Eigen::Vector3d> previous_x(n, Eigen::Vector3d::Zero());
+  std::vector<bool> had_pose(n, false);
   std::vector<Eigen::Vector3d> velocity(n, Eigen::Vector3d::Zero());
   std::vector<HapticForce> forces(n);
   periods_ms_.clear();
@@ -119,6 +123,7 @@ void HapticLoop::run() {
   // Each tick: the newest model and pose of every slot, the velocity between the last two readings, the force.
   while (running_.load(std::memory_order_relaxed)) {
     const auto now = Clock::now();
+    const double tick_s = stats_.ticks > 0 ? std::chrono::duration<double>(now - last).count() : 0.0;
     if (stats_.ticks > 0) {
       const double dt_ms = std::chrono::duration<double, std::milli>(now - last).count();
       if (periods_ms_.size() < kMaxKeptPeriods) periods_ms_.push_back(dt_ms);
@@ -132,12 +137,14 @@ void HapticLoop::run() {
     for (size_t i = 0; i < n; ++i) {
       models_[i]->read(model[i]);
       DeviceSample s;
-      if (device_poses_[i]->read(s) && s.connected) {
-        const double dt = s.time_s - pose[i].time_s;
-        if (pose[i].seq > 0 && dt > 0.0) velocity[i] = (s.pose.position - pose[i].pose.position) / dt;
-        pose[i] = s;
-      }
+      if (device_poses_[i]->read(s) && s.connected) pose[i] = s;
       const Eigen::Vector3d x = pose[i].seq > 0 ? pose[i].pose.position : model[i].x_frame;
+      // Velocity: the device's motion over the tick, low-pass filtered (readings arrive in bursts on a busy
+      // network; their arrival times would make spikes).
+      if (pose[i].seq > 0 && had_pose[i] && tick_s > 0.0)
+        velocity[i] += (tick_s / (kVelocityFilterS + tick_s)) * ((x - previous_x[i]) / tick_s - velocity[i]);
+      previous_x[i] = x;
+      had_pose[i] = pose[i].seq > 0;
       forces[i] = render_force(spec_, model[i], x, velocity[i], t);
       forces[i].seq = pose[i].seq;
       forces[i].reading_time_s = pose[i].time_s;

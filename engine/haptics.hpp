@@ -6,7 +6,8 @@
 //
 // f_frame: the contact force on the instrument at the end of the frame; x_frame: where its tip was then;
 // K: the tip's stiffness against translation with the frame's pushing contacts held (InstrumentRecord::stiffness,
-// K = d(-f)/dx, clamped to haptics.max_stiffness_n_per_m); c v: damping on the device's velocity, in contact only;
+// K = d(-f)/dx, clamped to haptics.max_stiffness_n_per_m); c v: damping on the device's velocity (its motion
+// over each tick, low-pass filtered), in contact only;
 // sat: the force clamped to haptics.max_force_n; w: 1 while the model is fresh, fading linearly to 0 over fade_s
 // once it is older than stale_after_s, and 0 for a non-finite model. Without contact (f_frame = 0, K = 0) f = 0;
 // the spring part never pulls towards the tissue (its component against f_frame is dropped).

@@ -272,3 +272,40 @@ TEST(Serve, APortInUseIsAClearError) {
             std::string::npos)
       << msg;
 }
+
+TEST(Serve, ADeviceThatDisconnectsLeavesTheInstrumentAtItsLastPoseAndMayReconnect) {
+  constexpr int kFrames = 40;
+  const Scene scene = parse_scene(device_scene(kFrames).dump(), "serve.json");
+  const auto model = compile_model(scene);
+  SessionOptions session;
+  session.render = false;
+  std::atomic<int> frames_done{0};
+  session.on_frame = [&](const Model&, const State&, const FrameRecord&) { ++frames_done; };
+  auto wait_frames = [&](int n) {
+    while (frames_done.load() < n) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  };
+  const Eigen::Vector3f a_mm(2.0f, 1.0f, 0.0f), b_mm(-1.0f, 3.0f, 0.0f);
+  std::vector<Eigen::Vector3d> positions;
+  const ServeResult served = serve_with(scene, *model, session, [&](int port) {
+    // First client: one pose, then it goes away after a few frames; a second client comes later with another.
+    Client first;
+    ASSERT_TRUE(first.connect(port));
+    first.send_transform("Hand", Eigen::Matrix3f::Identity(), a_mm);
+    wait_frames(5);
+    first.socket->CloseSocket();
+    wait_frames(20);
+    Client second;
+    ASSERT_TRUE(second.connect(port));
+    second.start_reading();
+    second.send_transform("Hand", Eigen::Matrix3f::Identity(), b_mm);
+    second.finish();
+  });
+  const json& s = served.session.report["serve"];
+  EXPECT_EQ(s["connections"].get<long>(), 2);
+  EXPECT_GT(s["devices"][0]["disconnected_frames"].get<long>(), 0);
+  // While disconnected the probe stayed at the first pose; at the end it is at the second.
+  const Eigen::Vector3d origin(0.0, kOuterRadius + 0.0005, 0.05);
+  const Eigen::Vector3d a = origin + 1e-3 * a_mm.cast<double>(), b = origin + 1e-3 * b_mm.cast<double>();
+  EXPECT_LE((served.session.frames[19].instruments[0].position - a).norm(), 1e-9);
+  EXPECT_LE((served.session.frames.back().instruments[0].position - b).norm(), 1e-9);
+}
