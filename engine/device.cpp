@@ -11,10 +11,11 @@ DevicePoseSource::DevicePoseSource(std::string device_name, std::shared_ptr<Pose
 }
 
 Pose DevicePoseSource::pose(double t) {
-  // The newest reading, if any came since the last frame; else the last one stands (a disconnected device
+  // The session starts at home (checked clear of the organ when the model compiled); from the first frame on,
+  // the newest reading, if any came since the last frame; else the last one stands (a disconnected device
   // leaves the instrument where it was).
   DeviceSample s;
-  if (channel_->read(s)) {
+  if (!recorded_.empty() && channel_->read(s)) {
     ++readings_;
     if (s.connected) last_.pose = s.pose;
     last_.time_s = s.time_s;
@@ -47,12 +48,8 @@ DeviceInputs make_device_inputs(const Scene& scene) {
       d.inputs.instruments.push_back(make_pose_source(scene, i));
       continue;
     }
-    // Home: the scripted start, or the device's origin in the organ frame.
-    const Pose home = spec.poses.empty() ? device_to_organ(spec.to_organ, Eigen::Vector3d::Zero(),
-                                                           Eigen::Quaterniond::Identity())
-                                         : spec.poses.front().pose;
     auto channel = std::make_shared<PoseChannel>();
-    auto source = std::make_unique<DevicePoseSource>(spec.device_name, channel, home);
+    auto source = std::make_unique<DevicePoseSource>(spec.device_name, channel, home_pose(spec));
     d.instrument.push_back(static_cast<int>(i));
     d.channels.push_back(channel);
     d.sources.push_back(source.get());

@@ -74,8 +74,9 @@ struct RecordedPose {
   Pose pose;
 };
 
-// The instrument's pose source on the simulation side of a device: at each frame the newest pose on its
-// channel (the last one when nothing new came, or `home` before the first reading), never waiting. Records
+// The instrument's pose source on the simulation side of a device: `home` at the session's start (the first
+// call), then at each frame the newest pose on its channel (the last one when nothing new came, or home before
+// the first reading), never waiting; the tool sweeps from home to the device's pose in the first frame. Records
 // every pose it hands out; counts the frames the device was disconnected. The simulation's reaction comes back
 // through feedback() and is passed on to `on_feedback` (the haptic loop's model channel), when set.
 class DevicePoseSource final : public PoseSource {
@@ -105,8 +106,7 @@ class DevicePoseSource final : public PoseSource {
 };
 
 // The session's inputs with every instrument that has a device_name driven by its device (a DevicePoseSource
-// on a fresh channel; its home, where it waits for the first reading, is its track's or replay's pose at t, or
-// the device origin mapped by to_organ for a device-only instrument); every other source as make_inputs makes it.
+// on a fresh channel, at home_pose(spec)); every other source as make_inputs makes it.
 struct DeviceInputs {
   Inputs inputs;
   std::vector<int> instrument;                        // per device slot: the instrument's index

@@ -75,20 +75,20 @@ long part_intersections(const Model& model, const std::vector<Box>& boxes, const
   return count;
 }
 
-// Refuse an instrument whose track or replay starts it through the organ's walls at rest (the sweeps assume an
+// Refuse an instrument whose track, replay or device home (home_pose) starts it through the organ's walls at rest (the sweeps assume an
 // intersection-free start), naming the scene file, the key and the start position.
 void require_clear_start(const Scene& scene, const Model& m) {
   const std::vector<Box> boxes = organ_boxes(m, m.mesh.rest);
   for (size_t i = 0; i < m.instruments.size(); ++i) {
     const InstrumentSpec& spec = scene.instruments[i];
-    if (spec.drive == InstrumentDrive::kDevice) continue;
-    const Pose start = PoseTrack(spec.poses, scene.path).at(0.0);
+    const Pose start = home_pose(spec);
     const std::vector<Points> posed = posed_parts(m.instruments[i].instrument, start);
     long count = 0;
     for (size_t j = 0; j < posed.size(); ++j)
       count += part_intersections(m, boxes, m.mesh.rest, static_cast<size_t>(m.instruments[i].first_part) + j, posed[j]);
     if (count == 0) continue;
-    const char* key = spec.drive == InstrumentDrive::kReplay ? "replay" : "track";
+    const char* key = spec.drive == InstrumentDrive::kReplay ? "replay"
+                      : spec.drive == InstrumentDrive::kDevice ? "to_organ" : "track";
     throw InputError(scene.path + ": instruments[" + std::to_string(i) + "]." + key + ": starts through the organ's " +
                      "walls at t = 0 (" + std::to_string(count) + " intersecting triangle pairs; value position " +
                      values_text(start.position.data(), 3) + ")");

@@ -764,6 +764,11 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   return s;
 }
 
+Pose home_pose(const InstrumentSpec& spec) {
+  if (!spec.poses.empty()) return spec.poses.front().pose;
+  return device_to_organ(spec.to_organ, Eigen::Vector3d::Zero(), Eigen::Quaterniond::Identity());
+}
+
 void require_file(const std::string& path, const std::string& what) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) throw InputError(path + ": is a folder, not a " + what);

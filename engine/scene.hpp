@@ -160,6 +160,9 @@ struct InstrumentSpec {
   // device's poses; track and replay poses are in the organ frame already.
   Eigen::Isometry3d to_organ = Eigen::Isometry3d::Identity();
 };
+// Where an instrument starts a session (and, driven by a device, waits for its first reading): its track's or
+// replay's first pose, or for a device-only instrument the device origin mapped by to_organ.
+Pose home_pose(const InstrumentSpec& spec);
 
 // The haptic loop (key "haptics", engine/haptics.hpp): its rate and the device's limits.
 struct HapticsSpec {

@@ -366,10 +366,13 @@ ServeResult serve_session(const Scene& scene, const Model& model, Listener liste
   // Frames in real time until the count or an interrupt.
   SessionOptions opt = options.session;
   const double dt = 1.0 / model.fps;
+  Clock::time_point first_frame;  // frame i is due at first_frame + i / fps (set when frame 0 starts)
   opt.before_frame = [&](int i) {
     if (options.interrupted && options.interrupted->load()) return false;
+    if (i == 0) first_frame = Clock::now();
     if (options.real_time)
-      std::this_thread::sleep_until(epoch + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(i * dt)));
+      std::this_thread::sleep_until(first_frame +
+                                    std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(i * dt)));
     return !(options.interrupted && options.interrupted->load());
   };
   bridge.start();

@@ -82,21 +82,22 @@ TEST(DevicePoseSource, HomeFirstThenTheNewestReadingAndTheLastPoseWhenDisconnect
   const Pose home = pose_at(0.0, 0.03, 0.05);
   DevicePoseSource src("Tracker", channel, home);
   EXPECT_EQ(src.kind(), "device");
-  // Before any reading: home.
+  // The session's start is home, even when a reading came before it; the reading counts from the first frame.
+  channel->write(reading(pose_at(0.005, 0.02, 0.05), 1));
   EXPECT_EQ(src.pose(0.0).position, home.position);
   // Two readings between frames: the newer is taken.
-  channel->write(reading(pose_at(0.001, 0.02, 0.05), 1));
-  channel->write(reading(pose_at(0.002, 0.02, 0.05), 2));
+  channel->write(reading(pose_at(0.001, 0.02, 0.05), 2));
+  channel->write(reading(pose_at(0.002, 0.02, 0.05), 3));
   EXPECT_EQ(src.pose(0.025).position, Eigen::Vector3d(0.002, 0.02, 0.05));
   // Nothing new: the same pose.
   EXPECT_EQ(src.pose(0.05).position, Eigen::Vector3d(0.002, 0.02, 0.05));
   EXPECT_EQ(src.disconnected_frames(), 0);
   // Disconnected: the last pose stays (the reading's pose is not believed), counted per frame until it returns.
-  channel->write(reading(pose_at(9.0, 9.0, 9.0), 3, false));
+  channel->write(reading(pose_at(9.0, 9.0, 9.0), 4, false));
   EXPECT_EQ(src.pose(0.075).position, Eigen::Vector3d(0.002, 0.02, 0.05));
   EXPECT_EQ(src.pose(0.1).position, Eigen::Vector3d(0.002, 0.02, 0.05));
   EXPECT_EQ(src.disconnected_frames(), 2);
-  channel->write(reading(pose_at(0.003, 0.02, 0.05), 4));
+  channel->write(reading(pose_at(0.003, 0.02, 0.05), 5));
   EXPECT_EQ(src.pose(0.125).position, Eigen::Vector3d(0.003, 0.02, 0.05));
   EXPECT_EQ(src.disconnected_frames(), 2);
   // Every pose handed out is recorded with its time and frame.
@@ -149,7 +150,7 @@ TEST(DeviceInputs, InstrumentsWithADeviceNameGetADeviceSourceAtHome) {
   // Homes: the track's start; the device origin mapped by to_organ.
   EXPECT_EQ(d.inputs.instruments[1]->pose(0.0).position, Eigen::Vector3d(0.0, 0.03, 0.05));
   EXPECT_EQ(d.inputs.instruments[2]->pose(0.0).position, Eigen::Vector3d(0.01, 0.04, 0.08));
-  // The channel the slot's source reads.
+  // The channel the slot's source reads (from the first frame on).
   d.channels[0]->write(reading(pose_at(0.0, 0.02, 0.05), 1));
   EXPECT_EQ(d.inputs.instruments[1]->pose(0.025).position, Eigen::Vector3d(0.0, 0.02, 0.05));
 }

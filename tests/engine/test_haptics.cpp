@@ -154,8 +154,13 @@ TEST(HapticLoop, RendersThePublishedModelAtTheDevicesPoseAndFadesWhenNoneComes) 
   rec.force = m.f_frame;
   rec.stiffness = m.stiffness;
   loop.start();
-  loop.publish(0, rec);
-  constexpr int kMaxWaits = 100000;  // 10 s of 100 us waits: a bound, not a timing requirement
+  // Publish (as the simulation does each frame) until the loop has rendered a fresh model, then stop and wait for
+  // the fade; bounded (60 s of 100 us waits), not a timing requirement.
+  constexpr int kMaxWaits = 600000;
+  for (int i = 0; i < kMaxWaits && !saw_force; ++i) {
+    loop.publish(0, rec);
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  }
   for (int i = 0; i < kMaxWaits && !faded; ++i) std::this_thread::sleep_for(std::chrono::microseconds(100));
   loop.stop();
   EXPECT_TRUE(saw_force);
