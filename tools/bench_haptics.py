@@ -11,6 +11,7 @@ usage: tools/bench_haptics.py [--runs 3] [--out docs/bench_haptics.csv] [--lumen
 import argparse
 import json
 import os
+import resource
 import platform
 import subprocess
 import sys
@@ -19,15 +20,23 @@ import time
 
 from csv_out import write_csv
 
-# How long to wait for the server to listen (it compiles the model first), seconds.
+# How long to wait for the server to listen (it compiles the model first), and to end, seconds.
 LISTEN_TIMEOUT_S = 120.0
+END_TIMEOUT_S = 300.0
+# The server's address-space limit (a runaway session must not take the machine), bytes.
+MEMORY_LIMIT_BYTES = 4 << 30
+
+
+def limit_memory():
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_LIMIT_BYTES, MEMORY_LIMIT_BYTES))
 
 
 def one_run(a, scene, out_dir):
     log_path = os.path.join(out_dir, "serve.log")
     with open(log_path, "w") as log:
         serve = subprocess.Popen([a.lumen, "serve", scene, "--host", "127.0.0.1", "--port", str(a.port),
-                                  "--out", out_dir], stdout=log, stderr=subprocess.STDOUT)
+                                  "--out", out_dir], stdout=log, stderr=subprocess.STDOUT,
+                                 preexec_fn=limit_memory)
     t0 = time.time()
     while "serving " not in open(log_path).read():
         if serve.poll() is not None or time.time() - t0 > LISTEN_TIMEOUT_S:
@@ -37,7 +46,12 @@ def one_run(a, scene, out_dir):
     seconds = scene_json["frames"] / scene_json["fps"]
     dev = subprocess.run([a.device_sim, "--port", str(a.port), "--seconds", str(seconds), "--depth-mm", "4"],
                          check=True, capture_output=True, text=True)
-    if serve.wait() != 0:
+    try:
+        code = serve.wait(timeout=END_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        serve.kill()
+        code = serve.wait()
+    if code != 0:
         sys.exit(f"lumen serve failed: {open(log_path).read()}")
     r = json.load(open(os.path.join(out_dir, "report.json")))
     h, s = r["haptics"], r["serve"]
@@ -72,8 +86,8 @@ def main():
               f"latency median {row['latency_median_ms']} ms, frame median {row['frame_total_median_ms']} ms",
               file=sys.stderr)
     write_csv(a.out, [f"made by: tools/bench_haptics.py --runs {a.runs} {a.scene}",
-                      f"machine: {platform.machine()}, {os.cpu_count()} cores (shared with other builds while "
-                      f"measured); lumen serve writes PNG frames while the haptic loop runs"],
+                      f"machine: {platform.machine()}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} "
+                      f"at the end (shared with other builds); lumen serve writes PNG frames while the haptic loop runs"],
               rows)
 
 

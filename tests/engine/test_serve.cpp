@@ -4,11 +4,6 @@
 // ignored while the session goes on.
 #include <gtest/gtest.h>
 
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
-
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -24,6 +19,7 @@
 #include <igtlTransformMessage.h>
 #include <nlohmann/json.hpp>
 
+#include "engine/device_client.hpp"
 #include "engine/serve.hpp"
 #include "support/files.hpp"
 #include "support/instruments.hpp"
@@ -35,67 +31,28 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr double kOuterRadius = 0.013;
-constexpr double kMmPerM = 1e3;
 
 // The small tube with a device-driven 3 mm probe: device origin 0.5 mm above the outer wall's top.
 json device_scene(int frames) {
-  json s = lumen::test::small_tube_scene("serve");
-  s["frames"] = frames;
-  s["collision"] = {{"self", true}, {"gap", 1e-4}};
-  s["instruments"] = {{{"name", "probe"},
-                       {"shape", {{"type", "sphere_probe"}, {"tip_radius", 0.003}, {"shaft_radius", 0.002},
-                                  {"shaft_length", 0.04}}},
-                       {"device_name", "Hand"},
-                       {"to_organ", {1, 0, 0, 0, 0, 1, 0, kOuterRadius + 0.0005, 0, 0, 1, 0.05, 0, 0, 0, 1}}}};
-  return s;
+  const json probe = {{"type", "sphere_probe"}, {"tip_radius", 0.003}, {"shaft_radius", 0.002}, {"shaft_length", 0.04}};
+  return lumen::test::device_tube_scene("probe", frames, probe, "Hand", Eigen::Vector3d(0.0, kOuterRadius + 0.0005, 0.05));
 }
 
-// An OpenIGTLink client on loopback: igtl::ClientSocket sends; a reader thread takes every SENSOR back until the
-// server closes the connection.
-struct Client {
-  igtl::ClientSocket::Pointer socket = igtl::ClientSocket::New();
-  std::thread reader;
-  std::atomic<long> sensors{0};
-  std::atomic<double> fy{0.0}, max_fy{0.0};
+// An OpenIGTLink client on loopback (the real client library, engine/device_client.hpp).
+struct Client : DeviceClient {
+  bool connect(int port) { return DeviceClient::connect("127.0.0.1", port); }
+  void send(igtl::MessageBase* m) { send_bytes(m->GetPackPointer(), m->GetPackSize()); }
+};
 
-  bool connect(int port) { return socket->ConnectToServer("127.0.0.1", port) == 0; }
-  void start_reading() {
-    reader = std::thread([this] {
-      for (;;) {
-        igtl::MessageHeader::Pointer h = igtl::MessageHeader::New();
-        h->InitPack();
-        if (socket->Receive(h->GetPackPointer(), h->GetPackSize()) != h->GetPackSize()) return;
-        h->Unpack();
-        igtl::SensorMessage::Pointer m = igtl::SensorMessage::New();
-        m->SetMessageHeader(h);
-        m->AllocatePack();
-        if (socket->Receive(m->GetPackBodyPointer(), m->GetPackBodySize()) != m->GetPackBodySize()) return;
-        if (std::strcmp(h->GetDeviceType(), "SENSOR") != 0) continue;
-        m->Unpack(1);
-        ++sensors;
-        fy = m->GetValue(1);
-        if (fy > max_fy) max_fy = fy.load();
-      }
-    });
+// The device scene compiled, and session options without rendering.
+struct Served {
+  explicit Served(int frames)
+      : scene(parse_scene(device_scene(frames).dump(), "serve.json")), model(compile_model(scene)) {
+    session.render = false;
   }
-  void send(igtl::MessageBase* m) { socket->Send(m->GetPackPointer(), m->GetPackSize()); }
-  void send_transform(const std::string& device, const Eigen::Matrix3f& r, const Eigen::Vector3f& p_mm) {
-    igtl::TransformMessage::Pointer m = igtl::TransformMessage::New();
-    m->SetDeviceName(device.c_str());
-    igtl::Matrix4x4 t;
-    igtl::IdentityMatrix(t);
-    for (int i = 0; i < 3; ++i) {
-      for (int j = 0; j < 3; ++j) t[i][j] = r(i, j);
-      t[i][3] = p_mm[i];
-    }
-    m->SetMatrix(t);
-    m->Pack();
-    send(m);
-  }
-  void finish() {
-    if (reader.joinable()) reader.join();
-    socket->CloseSocket();
-  }
+  Scene scene;
+  std::unique_ptr<Model> model;
+  SessionOptions session;
 };
 
 // A served session on a free port with `device` run on its own thread once the bridge listens.
@@ -134,32 +91,26 @@ void expect_same_frames(const std::vector<FrameRecord>& a, const std::vector<Fra
 
 TEST(Serve, ASimulatedHandDrivesTheProbeFeelsTheTissueAndTheReplayIsBitIdentical) {
   constexpr int kFrames = 48;
-  const Scene scene = parse_scene(device_scene(kFrames).dump(), "serve.json");
-  const auto model = compile_model(scene);
-  SessionOptions session;
-  session.render = false;
+  Served f(kFrames);
+  const Scene& scene = f.scene;
+  SessionOptions& session = f.session;
   session.check = true;
   lumen::Points served_x, replayed_x;
   session.on_frame = [&](const Model&, const State& s, const FrameRecord&) { served_x = s.x; };
-  // The hand: 0.1 kg on a 200 N/m spring to a target that goes from 0 to 3 mm into the tissue in 0.6 s, damped,
-  // pushed by the reaction it feels; integrated at 1 kHz, its position sent as a TRANSFORM each step.
+  // The hand (0.1 kg on a 200 N/m spring, damped, pushed by the reaction it feels, at 1 kHz) chases a target that
+  // goes from 0 to 3.5 mm into the tissue in 0.6 s, past the session's 1.2 s end (the server closes the connection).
   Client hand;
-  const ServeResult served = serve_with(scene, *model, session, [&](int port) {
+  double max_up = 0.0;
+  const ServeResult served = serve_with(scene, *f.model, session, [&](int port) {
     ASSERT_TRUE(hand.connect(port));
     hand.start_reading();
-    constexpr double kMass = 0.1, kSpring = 200.0, kDamping = 9.0, kDt = 1e-3, kDepth = 0.0035, kRamp = 0.6;
-    constexpr int kSteps = 1100;  // past the session's 1.2 s end: the server closes the connection
-    double y = 0.0, v = 0.0;
-    auto next = std::chrono::steady_clock::now();
-    for (int i = 0; i < kSteps; ++i) {
-      const double target = -kDepth * std::min(1.0, i * kDt / kRamp);
-      const double a = (kSpring * (target - y) - kDamping * v + hand.fy.load()) / kMass;
-      v += kDt * a;
-      y += kDt * v;
-      hand.send_transform("Hand", Eigen::Matrix3f::Identity(), Eigen::Vector3f(0.0f, static_cast<float>(kMmPerM * y), 0.0f));
-      next += std::chrono::microseconds(1000);
-      std::this_thread::sleep_until(next);
-    }
+    HandSpec spec;
+    spec.device = "Hand";
+    spec.seconds = 1.1;
+    constexpr double kDepth = 0.0035, kRamp = 0.6;
+    spec.target_y_m = [](double t) { return -kDepth * std::min(1.0, t / kRamp); };
+    run_hand(hand, spec);
+    max_up = hand.max_force();
     hand.finish();
   });
   const json& r = served.session.report;
@@ -170,12 +121,12 @@ TEST(Serve, ASimulatedHandDrivesTheProbeFeelsTheTissueAndTheReplayIsBitIdentical
   EXPECT_GT(r["serve"]["latency_ms"]["answered"].get<long>(), 0);
   EXPECT_GT(r["haptics"]["ticks"].get<long>(), 0);
   EXPECT_EQ(r["frames_with_instrument_intersections"].get<long>(), 0);
-  // The hand got the probe into the tissue and felt it push back (up, +y) over SENSOR.
+  // The hand got the probe into the tissue and felt it push back over SENSOR.
   int touching = 0;
   for (const FrameRecord& f : served.session.frames) touching += f.instruments[0].contacts > 0;
   EXPECT_GT(touching, 0);
-  EXPECT_GT(hand.sensors.load(), 0);
-  EXPECT_GT(hand.max_fy.load(), 0.0);
+  EXPECT_GT(hand.sensors(), 0);
+  EXPECT_GT(max_up, 0.0);
   // The probe was where the hand sent it: the last frame's tip below the device's start.
   EXPECT_LT(served.session.frames.back().instruments[0].position.y(), kOuterRadius + 0.0005);
 
@@ -190,20 +141,19 @@ TEST(Serve, ASimulatedHandDrivesTheProbeFeelsTheTissueAndTheReplayIsBitIdentical
   again.render = false;
   again.frames = frames;
   again.on_frame = [&](const Model&, const State& s, const FrameRecord&) { replayed_x = s.x; };
-  const SessionResult replayed = run_session(*model, std::move(replay), again);
+  const SessionResult replayed = run_session(*f.model, std::move(replay), again);
   expect_same_frames(served.session.frames, replayed.frames);
   EXPECT_EQ(served_x, replayed_x);
 }
 
 TEST(Serve, MalformedMessagesAreCountedByReasonAndIgnored) {
   constexpr int kFrames = 16;
-  const Scene scene = parse_scene(device_scene(kFrames).dump(), "serve.json");
-  const auto model = compile_model(scene);
-  SessionOptions session;
-  session.render = false;
+  Served f(kFrames);
+  const Scene& scene = f.scene;
+  SessionOptions& session = f.session;
   Client c;
   const Eigen::Vector3f good_mm(1.0f, 2.0f, 0.0f);
-  const ServeResult served = serve_with(scene, *model, session, [&](int port) {
+  const ServeResult served = serve_with(scene, *f.model, session, [&](int port) {
     ASSERT_TRUE(c.connect(port));
     c.start_reading();
     const Eigen::Matrix3f id = Eigen::Matrix3f::Identity();
@@ -227,7 +177,7 @@ TEST(Serve, MalformedMessagesAreCountedByReasonAndIgnored) {
       std::vector<unsigned char> bytes(static_cast<unsigned char*>(m->GetPackPointer()),
                                        static_cast<unsigned char*>(m->GetPackPointer()) + kHeader + kShort);
       for (int k = 0; k < 8; ++k) bytes[kBodySizeOffset + k] = k == 7 ? kShort : 0;
-      c.socket->Send(bytes.data(), static_cast<int>(bytes.size()));
+      c.send_bytes(bytes.data(), static_cast<int>(bytes.size()));
     }
     // Unknown type, unknown device, non-finite pose, non-orthonormal rotation.
     {
@@ -275,10 +225,9 @@ TEST(Serve, APortInUseIsAClearError) {
 
 TEST(Serve, ADeviceThatDisconnectsLeavesTheInstrumentAtItsLastPoseAndMayReconnect) {
   constexpr int kFrames = 40;
-  const Scene scene = parse_scene(device_scene(kFrames).dump(), "serve.json");
-  const auto model = compile_model(scene);
-  SessionOptions session;
-  session.render = false;
+  Served f(kFrames);
+  const Scene& scene = f.scene;
+  SessionOptions& session = f.session;
   std::atomic<int> frames_done{0};
   session.on_frame = [&](const Model&, const State&, const FrameRecord&) { ++frames_done; };
   auto wait_frames = [&](int n) {
@@ -286,13 +235,13 @@ TEST(Serve, ADeviceThatDisconnectsLeavesTheInstrumentAtItsLastPoseAndMayReconnec
   };
   const Eigen::Vector3f a_mm(2.0f, 1.0f, 0.0f), b_mm(-1.0f, 3.0f, 0.0f);
   std::vector<Eigen::Vector3d> positions;
-  const ServeResult served = serve_with(scene, *model, session, [&](int port) {
+  const ServeResult served = serve_with(scene, *f.model, session, [&](int port) {
     // First client: one pose, then it goes away after a few frames; a second client comes later with another.
     Client first;
     ASSERT_TRUE(first.connect(port));
     first.send_transform("Hand", Eigen::Matrix3f::Identity(), a_mm);
     wait_frames(5);
-    first.socket->CloseSocket();
+    first.close();
     wait_frames(20);
     Client second;
     ASSERT_TRUE(second.connect(port));

@@ -44,13 +44,8 @@ fs::path fresh_dir(const std::string& name) {
 
 // The small tube with a rod driven by device "Tracker" (TrackerClient's name).
 fs::path write_scene(const fs::path& dir) {
-  json s = lumen::test::small_tube_scene("tracker");
-  s["frames"] = 40;
-  s["collision"] = {{"self", true}};
-  s["instruments"] = {{{"name", "rod"},
-                       {"shape", {{"type", "rod"}, {"radius", 0.002}, {"length", 0.02}}},
-                       {"device_name", "Tracker"},
-                       {"to_organ", {1, 0, 0, 0, 0, 1, 0, kOriginY, 0, 0, 1, kOriginZ, 0, 0, 0, 1}}}};
+  const json rod = {{"type", "rod"}, {"radius", 0.002}, {"length", 0.02}};
+  const json s = lumen::test::device_tube_scene("rod", 40, rod, "Tracker", Eigen::Vector3d(0.0, kOriginY, kOriginZ));
   const fs::path p = dir / "tracker.json";
   std::ofstream(p) << s.dump(1);
   return p;
