@@ -177,3 +177,26 @@ TEST(ServeCli, AnInterruptEndsTheSessionCleanlyWithItsReport) {
   EXPECT_LT(r["frames"].get<long>(), 100000);
   EXPECT_TRUE(fs::exists(d / "out" / "replay" / "instrument_0.csv"));
 }
+
+TEST(ServeCli, ABadPortOrASceneWithoutADeviceExitsTwoWithNothingWritten) {
+  const fs::path d = fresh_dir("lumen_serve_bad");
+  const fs::path scene = write_scene(d);
+  const pid_t bad_port = spawn({LUMEN_BINARY, "serve", scene.string(), "--port", "70000", "--out", (d / "out").string()},
+                               d / "port.log");
+  EXPECT_EQ(exit_code(bad_port), 2);
+  EXPECT_NE(text_of(d / "port.log").find("lumen: error: --port: out of range [0, 65535] (value 70000)"), std::string::npos)
+      << text_of(d / "port.log");
+  // The same scene with its instrument on a track instead of a device: nothing to serve.
+  json s = json::parse(text_of(scene));
+  s["instruments"][0].erase("device_name");
+  s["instruments"][0]["track"] = {{{"t", 0.0}, {"position", {0.0, kOriginY, kOriginZ}}}};
+  const fs::path no_device = d / "no_device.json";
+  std::ofstream(no_device) << s.dump();
+  const pid_t none = spawn({LUMEN_BINARY, "serve", no_device.string(), "--out", (d / "out").string()}, d / "none.log");
+  EXPECT_EQ(exit_code(none), 2);
+  EXPECT_NE(text_of(d / "none.log").find(no_device.string() + ": instruments: no instrument has a \"device_name\": "
+                                         "nothing to serve"),
+            std::string::npos)
+      << text_of(d / "none.log");
+  EXPECT_FALSE(fs::exists(d / "out"));
+}
