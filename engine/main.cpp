@@ -149,6 +149,7 @@ int cmd_serve(const std::string& scene_path, std::string out_dir, int frames, bo
   opt.session.out_dir = out_dir;
   opt.session.render = !no_render;
   opt.session.write_frames = !no_render;
+  if (scene.render.video && !no_render) opt.session.video_path = (fs::path(out_dir) / "video.mp4").string();
   opt.interrupted = &g_interrupted;
   std::signal(SIGINT, on_interrupt);
   std::printf("serving %s on port %d (OpenIGTLink)\n", scene.name.c_str(), listener.port());
