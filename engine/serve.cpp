@@ -285,7 +285,7 @@ void Bridge::close_client(Client& c) {
 }
 
 void Bridge::send_reactions(const std::vector<HapticForce>& forces, double now_s) {
-  // One SENSOR per slot with a client: the force in newtons, organ frame.
+  // One SENSOR per slot with a client: the force in newtons.
   for (size_t i = 0; i < forces.size() && i < slots_.size(); ++i) {
     const int fd = slot_fd_[i]->load();
     if (fd < 0) continue;
@@ -295,7 +295,9 @@ void Bridge::send_reactions(const std::vector<HapticForce>& forces, double now_s
     igtl::Unit::Pointer unit = igtl::Unit::New();
     unit->Append(igtl::Unit::SI_DERIVED_NEWTON, 1);
     msg->SetUnit(unit);
-    for (unsigned k = 0; k < kSensorValues; ++k) msg->SetValue(k, forces[i].force[static_cast<int>(k)]);
+    // In the device's frame (to_organ's rotation undone), as its poses came.
+    const Eigen::Vector3d f = slots_[i].to_organ.linear().transpose() * forces[i].force;
+    for (unsigned k = 0; k < kSensorValues; ++k) msg->SetValue(k, f[static_cast<int>(k)]);
     msg->Pack();
     const ssize_t sent = send(fd, msg->GetPackPointer(), static_cast<size_t>(msg->GetPackSize()), MSG_DONTWAIT | MSG_NOSIGNAL);
     if (sent != msg->GetPackSize()) {

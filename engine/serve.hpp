@@ -3,7 +3,8 @@
 //
 // TRANSFORM and POSITION messages whose device name matches an instrument's device_name set its pose (millimetres
 // on the wire, mapped into the organ frame by the instrument's to_organ); every haptic tick the instrument's
-// reaction goes back to the client that drives it as a SENSOR message (3 float64, newtons, organ frame). The
+// reaction goes back to the client that drives it as a SENSOR message (3 float64, newtons, in the device's frame:
+// to_organ's rotation undone). The
 // session runs in real time; the network thread, the haptic loop and the simulation share no lock (device.hpp's
 // channels). A bad message (bad CRC, short body, unknown type, unknown device name, non-finite pose, rotation
 // not orthonormal) is counted by reason and ignored; a client that goes away leaves its instruments at their last
