@@ -237,3 +237,16 @@ TEST(InstrumentScene, AStartThroughTheOrgansWallsIsRefusedWhenTheModelCompiles) 
   // The example's start, 17 mm above the wall, compiles.
   EXPECT_NO_THROW(compile_model(parse_scene(instrument_scene().dump(), kScenePath)));
 }
+
+TEST(InstrumentScene, ADeviceHomeThroughTheOrgansWallsIsRefusedWhenTheModelCompiles) {
+  // Device only: home is the device origin mapped by to_organ, here with the tip across the outer wall.
+  json s = with_instrument_key("track", nullptr);
+  s["instruments"][0]["to_organ"] = {1, 0, 0, 0, 0, 1, 0, 0.012, 0, 0, 1, 0.05, 0, 0, 0, 1};
+  const Scene scene = parse_scene(s.dump(), kScenePath);
+  EXPECT_EQ(home_pose(scene.instruments[0]).position, Eigen::Vector3d(0.0, 0.012, 0.05));
+  const std::string msg = message_of<InputError>([&] { compile_model(scene); });
+  EXPECT_EQ(msg.rfind("dir/s.json: instruments[0].to_organ: starts through the organ's walls at t = 0 (", 0), 0u) << msg;
+  // 17 mm above the wall it compiles.
+  s["instruments"][0]["to_organ"][7] = 0.03;
+  EXPECT_NO_THROW(compile_model(parse_scene(s.dump(), kScenePath)));
+}
