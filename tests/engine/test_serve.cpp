@@ -258,3 +258,36 @@ TEST(Serve, ADeviceThatDisconnectsLeavesTheInstrumentAtItsLastPoseAndMayReconnec
   EXPECT_LE((served.session.frames[19].instruments[0].position - a).norm(), 1e-9);
   EXPECT_LE((served.session.frames.back().instruments[0].position - b).norm(), 1e-9);
 }
+
+TEST(Serve, TheSensorReactionIsInTheDevicesFrame) {
+  // to_organ turns the device frame 90 degrees about z (device x -> organ y) and shifts it.
+  auto to_sim = std::make_shared<PoseChannel>(), to_haptics = std::make_shared<PoseChannel>();
+  BridgeSlot slot;
+  slot.device_name = "Hand";
+  slot.to_organ = Eigen::Translation3d(0.0, 0.1, 0.0) * Eigen::AngleAxisd(0.5 * EIGEN_PI, Eigen::Vector3d::UnitZ());
+  slot.to_simulation = to_sim;
+  slot.to_haptics = to_haptics;
+  Listener listener("127.0.0.1", 0);
+  const int port = listener.port();
+  Bridge bridge(std::move(listener), {slot}, [] { return 0.0; });
+  bridge.start();
+  Client c;
+  ASSERT_TRUE(c.connect(port));
+  c.start_reading();
+  // A pose 10 mm along device x arrives 10 mm along organ y (plus the shift).
+  ASSERT_TRUE(c.send_transform("Hand", Eigen::Matrix3f::Identity(), Eigen::Vector3f(10.0f, 0.0f, 0.0f)));
+  DeviceSample s;
+  while (!to_sim->read(s)) std::this_thread::yield();
+  EXPECT_LE((s.pose.position - Eigen::Vector3d(0.0, 0.11, 0.0)).norm(), 1e-9);
+  // A force along organ y goes back along device x; sent until the client has one (the bridge records its socket
+  // after the pose).
+  HapticForce f;
+  f.force = Eigen::Vector3d(0.0, 0.25, 0.0);
+  while (c.sensors() == 0) {
+    bridge.send_reactions({f}, 0.0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  bridge.stop();
+  c.finish();
+  EXPECT_LE((c.force() - Eigen::Vector3d(0.25, 0.0, 0.0)).norm(), 1e-12);
+}
