@@ -125,9 +125,9 @@ std::unique_ptr<InputSource> make_source(const ProbeSpec& probe) {
   return std::make_unique<TrackSource>(probe.point, probe.track, probe.drive);
 }
 
-void PoseTrackSource::feedback(double, const Eigen::Vector3d& force, const Eigen::Vector3d& torque) {
-  forces_.push_back(force);
-  torques_.push_back(torque);
+void PoseTrackSource::feedback(double, const InstrumentRecord& record) {
+  forces_.push_back(record.force);
+  torques_.push_back(record.torque);
 }
 
 }  // namespace lumen::engine

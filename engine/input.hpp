@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 
 #include "engine/pose_track.hpp"
+#include "engine/report.hpp"
 #include "engine/scene.hpp"
 
 namespace lumen::engine {
@@ -123,14 +124,15 @@ class ReplaySource final : public InputSource {
 std::unique_ptr<InputSource> make_source(const ProbeSpec& probe);
 
 // An instrument's pose source: where the instrument is at time t (organ frame), and after each frame the contact
-// force and torque on it (what a haptic device displays). A device's source returns its latest pose without
-// waiting; the engine never blocks on it.
+// record (its end pose, the contacts' force and torque on it, and its local stiffness: what a haptic device
+// displays). A device's source (engine/device.hpp) returns its latest pose without waiting; the engine never
+// blocks on it.
 class PoseSource {
  public:
   virtual ~PoseSource() = default;
   virtual std::string kind() const = 0;
   virtual Pose pose(double t) = 0;
-  virtual void feedback(double t, const Eigen::Vector3d& force, const Eigen::Vector3d& torque) = 0;
+  virtual void feedback(double t, const InstrumentRecord& record) = 0;
 };
 
 // Poses played back from key frames or a recorded pose file ("track" | "replay"); keeps what it is handed back.
@@ -139,7 +141,7 @@ class PoseTrackSource final : public PoseSource {
   PoseTrackSource(PoseTrack track, std::string kind) : track_(std::move(track)), kind_(std::move(kind)) {}
   std::string kind() const override { return kind_; }
   Pose pose(double t) override { return track_.at(t); }
-  void feedback(double t, const Eigen::Vector3d& force, const Eigen::Vector3d& torque) override;
+  void feedback(double t, const InstrumentRecord& record) override;
   // Force and torque handed back, one per frame (for reports and tests).
   const std::vector<Eigen::Vector3d>& forces() const { return forces_; }
   const std::vector<Eigen::Vector3d>& torques() const { return torques_; }

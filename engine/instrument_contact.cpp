@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <limits>
 
+#include <Eigen/Dense>
+
 #include "collision/distance.hpp"
 #include "collision/intersect.hpp"
 #include "engine/grasp.hpp"
@@ -74,14 +76,13 @@ long part_intersections(const Model& model, const std::vector<Box>& boxes, const
   return count;
 }
 
-// Refuse an instrument whose track or replay starts it through the organ's walls at rest (the sweeps assume an
+// Refuse an instrument whose track, replay or device home (home_pose) starts it through the organ's walls at rest (the sweeps assume an
 // intersection-free start), naming the scene file, the key and the start position.
 void require_clear_start(const Scene& scene, const Model& m) {
   const std::vector<Box> boxes = organ_boxes(m, m.mesh.rest);
   for (size_t i = 0; i < m.instruments.size(); ++i) {
     const InstrumentSpec& spec = scene.instruments[i];
-    if (spec.drive == InstrumentDrive::kDevice) continue;
-    const Pose start = PoseTrack(spec.poses, scene.path).at(0.0);
+    const Pose start = home_pose(spec);
     const Instrument& instrument = m.instruments[i].instrument;
     const double opening = commanded_opening(spec.openings, instrument.rest_opening, 0.0);
     const std::vector<Points> posed = posed_parts(instrument, start, opening);
@@ -89,7 +90,8 @@ void require_clear_start(const Scene& scene, const Model& m) {
     for (size_t j = 0; j < posed.size(); ++j)
       count += part_intersections(m, boxes, m.mesh.rest, static_cast<size_t>(m.instruments[i].first_part) + j, posed[j]);
     if (count == 0) continue;
-    const char* key = spec.drive == InstrumentDrive::kReplay ? "replay" : "track";
+    const char* key = spec.drive == InstrumentDrive::kReplay ? "replay"
+                      : spec.drive == InstrumentDrive::kDevice ? "to_organ" : "track";
     throw InputError(scene.path + ": instruments[" + std::to_string(i) + "]." + key + ": starts through the organ's " +
                      "walls at t = 0 (" + std::to_string(count) + " intersecting triangle pairs; value position " +
                      values_text(start.position.data(), 3) + ")");
@@ -226,6 +228,41 @@ std::vector<InstrumentRecord> instrument_records(const Model& model, const State
     }
   }
   return recs;
+}
+
+void add_tool_stiffness(const Model& model, State& state, const std::vector<HeldContact>& contacts,
+                        const std::vector<physics::ContactRow>& rows, const Eigen::VectorXd& lambda,
+                        std::vector<InstrumentRecord>& records) {
+  if (!state.compliance || rows.size() != contacts.size() || static_cast<size_t>(lambda.size()) != rows.size()) return;
+  // The pushing rows, and whether any is a tool's.
+  std::vector<physics::ContactRow> pushing;
+  std::vector<size_t> index;
+  bool tool = false;
+  for (size_t r = 0; r < rows.size(); ++r)
+    if (lambda[static_cast<Eigen::Index>(r)] > 0.0) {
+      pushing.push_back(rows[r]);
+      index.push_back(r);
+      tool = tool || contacts[r].is_tool();
+    }
+  if (!tool) return;
+  const Eigen::MatrixXd a = physics::coupling_matrix(*state.compliance, pushing);
+  const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> solver(a);
+  // Per instrument: G over the pushing rows, K = G^T A^-1 G.
+  const Eigen::Index m = static_cast<Eigen::Index>(pushing.size());
+  for (size_t i = 0; i < records.size(); ++i) {
+    Eigen::MatrixXd g = Eigen::MatrixXd::Zero(m, 3);
+    for (Eigen::Index a_row = 0; a_row < m; ++a_row) {
+      const HeldContact& h = contacts[index[static_cast<size_t>(a_row)]];
+      if (!h.is_tool() || static_cast<size_t>(model.tool_parts[h.part].instrument) != i) continue;
+      double w[4];
+      weights_of(h.c, w);
+      for (int k = 0; k < 4; ++k)
+        if (h.on_tool(k)) g.row(a_row) += w[k] * pushing[static_cast<size_t>(a_row)].n.transpose();
+    }
+    if (g.isZero(0.0)) continue;
+    const Eigen::Matrix3d k = g.transpose() * solver.solve(g);
+    records[i].stiffness = 0.5 * (k + k.transpose());
+  }
 }
 
 }  // namespace lumen::engine

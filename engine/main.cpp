@@ -1,6 +1,9 @@
 // lumen: the command line. run a scene to frames/video/report, bench it, or run CCD query files.
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +16,7 @@
 #include "collision/self_collision.hpp"
 #include "engine/mesh_check.hpp"
 #include "engine/scene.hpp"
+#include "engine/serve.hpp"
 #include "engine/session.hpp"
 #include "engine/simulation.hpp"
 
@@ -26,8 +30,9 @@ namespace {
 constexpr int kExitFailure = 1;
 constexpr int kExitBadInput = 2;
 constexpr int kExitInternalError = 3;
-constexpr const char* kCommands[] = {"run", "bench", "ccd"};
+constexpr const char* kCommands[] = {"run", "serve", "bench", "ccd"};
 constexpr int kMaxFrames = 10000000;
+constexpr int kMaxPort = 65535;  // --port 0: any free port (printed)
 
 // --frames N: a whole number of frames, 1 to kMaxFrames; the message reads like the scene loader's.
 std::string check_frames(const std::string& text) {
@@ -71,14 +76,19 @@ void prepare_output_dir(const std::string& dir) {
 }
 
 int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool no_render, std::string video,
-            bool export_surface, bool export_volume, bool check, const std::string& positions_path) {
+            bool export_surface, bool export_volume, bool check, const std::string& positions_path,
+            const std::string& replay_dir) {
   // Load and validate everything before touching the output folder.
   engine::Scene scene = engine::load_scene(scene_path);
   if (out_dir.empty()) out_dir = (fs::path("out") / scene.name).string();
   if (!video.empty() && fs::path(video).extension() != ".mp4")
     throw engine::InputError("--video: must name an .mp4 file (value \"" + video + "\")");
   if (video.empty() && scene.render.video && !no_render) video = (fs::path(out_dir) / "video.mp4").string();
-  engine::Inputs inputs = engine::make_inputs(scene);  // reads (and refuses a bad) replay file now
+  // Reads (and refuses a bad) replay file now; a served session's replay sets the frame count it recorded.
+  int replay_frames = -1;
+  engine::Inputs inputs =
+      replay_dir.empty() ? engine::make_inputs(scene) : engine::make_replay_inputs(scene, replay_dir, replay_frames);
+  if (frames < 0) frames = replay_frames;
   auto model = engine::compile_model(scene);
   std::printf("%s\n", engine::mesh_quality_line(*model, physics::mesh_quality(model->mesh.rest, model->mesh.tets)).c_str());
   engine::SessionOptions opt;
@@ -112,6 +122,47 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
   if (check && !model->instruments.empty())
     std::printf("frames with intersecting instrument-organ pairs: %ld\n",
                 result.report["frames_with_instrument_intersections"].get<long>());
+  std::printf("outputs in %s\n", out_dir.c_str());
+  return 0;
+}
+
+// SIGINT ends a served session cleanly (after the frame in progress; the report is written).
+std::atomic<bool> g_interrupted{false};
+extern "C" void on_interrupt(int) { g_interrupted.store(true); }
+
+int cmd_serve(const std::string& scene_path, std::string out_dir, int frames, bool no_render, const std::string& host,
+              int port) {
+  // Scene, port and model before anything is written.
+  const engine::Scene scene = engine::load_scene(scene_path);
+  const bool any_device = std::any_of(scene.instruments.begin(), scene.instruments.end(),
+                                      [](const engine::InstrumentSpec& i) { return !i.device_name.empty(); });
+  if (!any_device)
+    throw engine::InputError(scene_path + ": instruments: no instrument has a \"device_name\": nothing to serve");
+  if (port < 0 || port > kMaxPort)
+    throw engine::InputError("--port: out of range [0, " + std::to_string(kMaxPort) + "] (value " + std::to_string(port) + ")");
+  if (out_dir.empty()) out_dir = (fs::path("out") / scene.name).string();
+  engine::Listener listener(host, port);
+  auto model = engine::compile_model(scene);
+  prepare_output_dir(out_dir);
+  engine::ServeOptions opt;
+  opt.session.frames = frames;
+  opt.session.out_dir = out_dir;
+  opt.session.render = !no_render;
+  opt.session.write_frames = !no_render;
+  if (scene.render.video && !no_render) opt.session.video_path = (fs::path(out_dir) / "video.mp4").string();
+  opt.interrupted = &g_interrupted;
+  std::signal(SIGINT, on_interrupt);
+  std::printf("serving %s on port %d (OpenIGTLink)\n", scene.name.c_str(), listener.port());
+  std::fflush(stdout);
+  engine::ServeResult result = engine::serve_session(scene, *model, std::move(listener), opt);
+  std::signal(SIGINT, SIG_DFL);
+  engine::write_replay(out_dir, result);
+  engine::write_json_file((fs::path(out_dir) / "report.json").string(), result.session.report);
+  std::cout << engine::format_stage_table(result.session.frames, model->budget_ms);
+  const nlohmann::json& h = result.session.report["haptics"];
+  std::printf("haptics: %.1f Hz, period p99 %.3f ms, overruns %ld, force clamps %ld\n", h["rate_hz"].get<double>(),
+              h["period_p99_ms"].get<double>(), h["overruns"].get<long>(), h["force_clamps"].get<long>());
+  std::printf("replay: lumen run %s --replay %s\n", scene_path.c_str(), out_dir.c_str());
   std::printf("outputs in %s\n", out_dir.c_str());
   return 0;
 }
@@ -161,8 +212,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   const CLI::Validator frames_check(check_frames, "FRAMES");
 
-  std::string scene_path, out_dir, video, ccd_file, positions_path;
-  int frames = -1, kdop = 0;
+  std::string scene_path, out_dir, video, ccd_file, positions_path, replay_dir, host;
+  int frames = -1, kdop = 0, port = engine::kDefaultIgtlPort;
   bool classify = false;
   bool no_render = false, export_surface = false, export_volume = false, json = false, check = false;
 
@@ -177,6 +228,17 @@ int main(int argc, char** argv) {
                 "write the volume mesh per frame as VTK XML (DIR/volume/volume_000001.vtu ..., DIR/volume.pvd)");
   run->add_option("--positions", positions_path, "write the final node positions as CSV (x, y, z per node, metres)");
   run->add_flag("--check", check, "count intersecting inner-wall triangle pairs, and instrument-organ pairs, on every frame (exact predicates)");
+
+  run->add_option("--replay", replay_dir, "play back a served session (its --out folder): its poses and frame count");
+
+  CLI::App* serve = app.add_subcommand("serve", "serve a scene over OpenIGTLink: devices drive its instruments, "
+                                                "reactions go back as SENSOR messages; frames, report.json, replay");
+  serve->add_option("scene", scene_path, "scene file (JSON)")->required();
+  serve->add_option("--port", port, "TCP port to listen on (default 18944)");
+  serve->add_option("--host", host, "address to listen on (default: every interface)");
+  serve->add_option("--out", out_dir, "output folder (default out/<scene name>)");
+  serve->add_option("--frames", frames, "number of frames (overrides the scene)")->check(frames_check);
+  serve->add_flag("--no-render", no_render, "simulate only (no images)");
 
   CLI::App* bench = app.add_subcommand("bench", "run a scene without writing images; print per-stage frame times");
   bench->add_option("scene", scene_path, "scene file (JSON)")->required();
@@ -206,7 +268,8 @@ int main(int argc, char** argv) {
 
   try {
     if (*run) return cmd_run(scene_path, out_dir, frames, no_render, video, export_surface, export_volume, check,
-                               positions_path);
+                               positions_path, replay_dir);
+    if (*serve) return cmd_serve(scene_path, out_dir, frames, no_render, host, port);
     if (*bench) return cmd_bench(scene_path, frames, json, no_render, kdop, classify);
     if (*ccd) return cmd_ccd(ccd_file, json);
   } catch (const engine::InputError& e) {

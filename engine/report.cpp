@@ -131,7 +131,8 @@ nlohmann::json frame_json(const FrameRecord& r) {
                      {"torque_nm", {in.torque.x(), in.torque.y(), in.torque.z()}},
                      {"contacts", in.contacts},
                      {"opening", in.opening},
-                     {"held_nodes", in.held_nodes}});
+                     {"held_nodes", in.held_nodes},
+                     {"stiffness_n_per_m", std::vector<double>(in.stiffness.data(), in.stiffness.data() + 9)}});
   }
   j["instruments"] = tools;
   return j;

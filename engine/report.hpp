@@ -26,6 +26,9 @@ struct InstrumentRecord {
   int contacts = 0;                                  // its contact rows in the frame's last solve
   double opening = 0.0;                              // radians: a grasper's jaw opening at the frame's end (else 0)
   std::vector<int> held_nodes;                       // organ node ids its jaws hold (a grasping grasper), sorted
+  // Local stiffness of its tip against translation, N/m: d(-force)/d(position) with the frame's pushing contacts
+  // held (symmetric positive semi-definite; zero without contact). What the haptic loop renders between frames.
+  Eigen::Matrix3d stiffness = Eigen::Matrix3d::Zero();
 };
 
 // What one frame did and cost.

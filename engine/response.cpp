@@ -286,6 +286,8 @@ void end_tool_sweeps(const Model& model, State& state, const ResponseRounds& rr)
   std::vector<HeldContact> contacts;
   for (const auto& entry : rr.active) contacts.push_back(entry.second);
   state.tool_records = instrument_records(model, state, contacts, rr.rows, rr.solved.lambda);
+  if (model.collision.response == ResponseKind::kConstraint)
+    add_tool_stiffness(model, state, contacts, rr.rows, rr.solved.lambda, state.tool_records);
 }
 
 // The constraint response's warm start: last frame's held self-contacts and tool contacts (these re-measured at

@@ -699,6 +699,23 @@ InstrumentSpec read_instrument(const Reader& r, const json& p, const std::string
   return spec;
 }
 
+// The haptic loop's rate and limits: every value finite and positive (the damping may be 0).
+void read_haptics(const Reader& r, const json& h, HapticsSpec& spec) {
+  r.only_keys(h, "haptics", {"rate_hz", "max_force_n", "max_stiffness_n_per_m", "damping_n_s_per_m", "stale_after_s",
+                             "fade_s"});
+  if (h.contains("rate_hz"))
+    spec.rate_hz = r.number_in(h.at("rate_hz"), "haptics.rate_hz", 0.0, kMaxHapticRateHz, true, false);
+  if (h.contains("max_force_n")) spec.max_force_n = r.positive(h.at("max_force_n"), "haptics.max_force_n");
+  if (h.contains("max_stiffness_n_per_m"))
+    spec.max_stiffness_n_per_m = r.positive(h.at("max_stiffness_n_per_m"), "haptics.max_stiffness_n_per_m");
+  if (h.contains("damping_n_s_per_m")) {
+    spec.damping_n_s_per_m = r.number(h.at("damping_n_s_per_m"), "haptics.damping_n_s_per_m");
+    if (spec.damping_n_s_per_m < 0.0) r.fail("haptics.damping_n_s_per_m", "must be >= 0", &h.at("damping_n_s_per_m"));
+  }
+  if (h.contains("stale_after_s")) spec.stale_after_s = r.positive(h.at("stale_after_s"), "haptics.stale_after_s");
+  if (h.contains("fade_s")) spec.fade_s = r.positive(h.at("fade_s"), "haptics.fade_s");
+}
+
 void read_instruments(const Reader& r, const json& list, const std::filesystem::path& dir, Scene& s) {
   if (!list.is_array()) r.fail("instruments", "must be an array", &list);
   std::set<std::string> names;
@@ -818,7 +835,7 @@ Scene parse_scene(const std::string& text, const std::string& path) {
     throw InputError(path + ": malformed JSON: " + e.what());
   }
   r.only_keys(root, "", {"name", "mesh", "material", "fixed", "probes", "frames", "fps", "render", "collision",
-                          "solver", "twist", "support", "instruments"});
+                          "solver", "twist", "support", "instruments", "haptics"});
 
   Scene s;
   s.path = path;
@@ -852,8 +869,14 @@ Scene parse_scene(const std::string& text, const std::string& path) {
     s.support.stiffness = r.positive(r.require(sp, "support", "stiffness_n_per_m3"), "support.stiffness_n_per_m3");
   }
   if (root.contains("instruments")) read_instruments(r, root.at("instruments"), dir, s);
+  if (root.contains("haptics")) read_haptics(r, root.at("haptics"), s.haptics);
   check_combinations(r, root, s);
   return s;
+}
+
+Pose home_pose(const InstrumentSpec& spec) {
+  if (!spec.poses.empty()) return spec.poses.front().pose;
+  return device_to_organ(spec.to_organ, Eigen::Vector3d::Zero(), Eigen::Quaterniond::Identity());
 }
 
 void require_file(const std::string& path, const std::string& what) {

@@ -156,7 +156,7 @@ struct TwistSpec {
 };
 
 // Where an instrument's pose comes from: key frames ("track"), a recorded pose CSV ("replay"), or only a device
-// of the (future) OpenIGTLink bridge ("device_name" without a track or replay: `lumen run` and `bench` refuse it).
+// ("device_name" without a track or replay: only `lumen serve` runs it; `lumen run` and `bench` refuse it).
 enum class InstrumentDrive { kTrack, kReplay, kDevice };
 
 // One key of a grasper's jaw opening (track[k].opening): the opening between the jaws reached at time t, radians;
@@ -205,6 +205,21 @@ struct VolumeSourceSpec {
   physics::TetMesh mesh;            // physics::make_volume_mesh of the file
   double build_ms = 0.0;            // reading and building it at load, milliseconds
 };
+// Where an instrument starts a session (and, driven by a device, waits for its first reading): its track's or
+// replay's first pose, or for a device-only instrument the device origin mapped by to_organ.
+Pose home_pose(const InstrumentSpec& spec);
+
+// The haptic loop (key "haptics", engine/haptics.hpp): its rate and the device's limits.
+struct HapticsSpec {
+  double rate_hz = 1000.0;                // loop rate, Hz, in (0, kMaxHapticRateHz]
+  double max_force_n = 8.0;               // force saturation, newtons (> 0)
+  double max_stiffness_n_per_m = 3000.0;  // the local model's stiffness is clamped to this, N/m (> 0)
+  double damping_n_s_per_m = 1.0;         // c, N s/m (>= 0), only while in contact
+  double stale_after_s = 0.1;             // the force fades when no fresh model came for this long, seconds (> 0)
+  double fade_s = 0.05;                   // ... to zero over this long, seconds (> 0)
+};
+// The fastest haptic loop a scene may ask for, Hz.
+inline constexpr double kMaxHapticRateHz = 10000.0;
 
 struct Scene {
   std::string path;  // the file it was read from
@@ -230,6 +245,7 @@ struct Scene {
   TwistSpec twist;
   SupportSpec support;
   std::vector<InstrumentSpec> instruments;
+  HapticsSpec haptics;
 };
 
 // Refuse a path that is a folder or does not exist, as an InputError "PATH: is a folder, not a WHAT" / "PATH: no

@@ -301,6 +301,10 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
 }  // namespace
 
 SessionResult run_session(const Model& model, Inputs inputs, const SessionOptions& opt) {
+  return run_session_on(model, inputs, opt);
+}
+
+SessionResult run_session_on(const Model& model, Inputs& inputs, const SessionOptions& opt) {
   SessionResult result;
   const int frames = opt.frames > 0 ? opt.frames : model.frames;
   SessionOutputs io = open_outputs(model, opt);
@@ -319,6 +323,7 @@ SessionResult run_session(const Model& model, Inputs inputs, const SessionOption
   long over_budget = 0;
   const auto session_start = Clock::now();
   for (int i = 0; i < frames; ++i) {
+    if (opt.before_frame && !opt.before_frame(i)) break;
     result.frames.push_back(run_frame(model, opt, io, inputs, state));
     over_budget += result.frames.back().over_budget;
     if (tty && (i % 10 == 9 || i + 1 == frames)) {

@@ -28,6 +28,9 @@ struct SessionOptions {
   // Called after every frame with the committed state (off the frame's budget: not timed), e.g. by studies
   // that measure the deformed shape. Empty: none.
   std::function<void(const Model&, const State&, const FrameRecord&)> on_frame;
+  // Called before frame i (0-based) starts; false ends the session there (an interrupt). Paces a real-time
+  // session (lumen serve). Empty: every frame runs.
+  std::function<bool(int)> before_frame;
 };
 
 struct SessionResult {
@@ -39,6 +42,8 @@ struct SessionResult {
 // Runs the model's frames with its input sources (make_inputs of the scene it compiled, one per probe; a caller
 // may swap in a device). Outputs are written under temporary names and renamed when complete.
 SessionResult run_session(const Model& model, Inputs inputs, const SessionOptions& options);
+// The same on inputs the caller keeps (to read its sources after the session).
+SessionResult run_session_on(const Model& model, Inputs& inputs, const SessionOptions& options);
 
 // Writes the inner wall at positions x as a Wavefront OBJ through assimp, atomically.
 void export_surface_obj(const std::string& path, const Points& x, const Tris& tris);

@@ -333,19 +333,21 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   return m;
 }
 
+std::unique_ptr<PoseSource> make_pose_source(const Scene& scene, size_t i) {
+  const InstrumentSpec& spec = scene.instruments[i];
+  if (spec.drive == InstrumentDrive::kDevice)
+    throw InputError(scene.path + ": instruments[" + std::to_string(i) + "].device_name: poses from a device need "
+                     "the OpenIGTLink bridge: run it with `lumen serve`, or give the instrument a \"track\" "
+                     "or a \"replay\" (value \"" + spec.device_name + "\")");
+  const bool replay = spec.drive == InstrumentDrive::kReplay;
+  return std::make_unique<PoseTrackSource>(PoseTrack(spec.poses, replay ? spec.replay : scene.path),
+                                           replay ? "replay" : "track");
+}
+
 Inputs make_inputs(const Scene& scene) {
   Inputs in;
   for (const ProbeSpec& p : scene.probes) in.sources.push_back(make_source(p));
-  for (size_t i = 0; i < scene.instruments.size(); ++i) {
-    const InstrumentSpec& spec = scene.instruments[i];
-    if (spec.drive == InstrumentDrive::kDevice)
-      throw InputError(scene.path + ": instruments[" + std::to_string(i) + "].device_name: poses from a device need "
-                       "the OpenIGTLink bridge (lumen serve), which is not built yet; give the instrument a \"track\" "
-                       "or a \"replay\" to run it (value \"" + spec.device_name + "\")");
-    const bool replay = spec.drive == InstrumentDrive::kReplay;
-    in.instruments.push_back(std::make_unique<PoseTrackSource>(
-        PoseTrack(spec.poses, replay ? spec.replay : scene.path), replay ? "replay" : "track"));
-  }
+  for (size_t i = 0; i < scene.instruments.size(); ++i) in.instruments.push_back(make_pose_source(scene, i));
   return in;
 }
 
@@ -529,7 +531,7 @@ void feed_back_instruments(const Model& model, Inputs& inputs, State& state, dou
   if (state.tool_records.empty()) state.tool_records = instrument_records(model, state, {}, {}, Eigen::VectorXd());
   rec.instruments = state.tool_records;
   for (size_t i = 0; i < rec.instruments.size(); ++i)
-    inputs.instruments[i]->feedback(t1, rec.instruments[i].force, rec.instruments[i].torque);
+    inputs.instruments[i]->feedback(t1, rec.instruments[i]);
 }
 
 }  // namespace

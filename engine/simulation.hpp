@@ -129,9 +129,11 @@ struct Inputs {
   std::vector<std::unique_ptr<InputSource>> sources;
   std::vector<std::unique_ptr<PoseSource>> instruments;
 };
-// Refuses (InputError naming the scene file, the key and the device) an instrument driven only by a device: the
-// bridge that would feed it (lumen serve) is not built.
+// Refuses (InputError naming the scene file, the key and the device) an instrument driven only by a device: only
+// `lumen serve` (engine/serve.hpp, with make_device_inputs of engine/device.hpp) has a device to feed it.
 Inputs make_inputs(const Scene& scene);
+// The pose source of instrument i from its track or replay (InputError for a device-only instrument, as above).
+std::unique_ptr<PoseSource> make_pose_source(const Scene& scene, size_t i);
 
 // The session's mutable state.
 struct State {

@@ -87,11 +87,11 @@ TEST(Cli, MissingSceneAndUnwritableOutput) {
 TEST(Cli, CommandLineErrorsNameTheArgumentAndTheValue) {
   CliRun r = run_lumen("frobnicate");
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.output.find("lumen: error: unknown command \"frobnicate\": must be one of run, bench, ccd"),
+  EXPECT_NE(r.output.find("lumen: error: unknown command \"frobnicate\": must be one of run, serve, bench, ccd"),
             std::string::npos) << r.output;
   r = run_lumen("");
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.output.find("lumen: error: a command is required: one of run, bench, ccd"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("lumen: error: a command is required: one of run, serve, bench, ccd"), std::string::npos) << r.output;
 
   const fs::path d = temp_dir("cli_args");
   std::ofstream(d / "s.json") << small_scene("s");
@@ -204,7 +204,7 @@ TEST(Cli, InstrumentErrorsExitTwoBeforeWriting) {
     CliRun r = run_lumen(command);
     EXPECT_EQ(r.code, 2) << command;
     EXPECT_NE(r.output.find((d / "device.json").string() + ": instruments[0].device_name: poses from a device need "
-                            "the OpenIGTLink bridge (lumen serve)"),
+                            "the OpenIGTLink bridge: run it with `lumen serve`"),
               std::string::npos)
         << command << ": " << r.output;
   }

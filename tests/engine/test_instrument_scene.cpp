@@ -223,8 +223,8 @@ TEST(InstrumentScene, RunRefusesAnInstrumentDrivenOnlyByADevice) {
   ASSERT_EQ(only_device.instruments[0].drive, InstrumentDrive::kDevice);
   EXPECT_EQ(only_device.instruments[0].device_name, "Tracker");
   EXPECT_EQ(message_of<InputError>([&] { make_inputs(only_device); }),
-            "dir/s.json: instruments[0].device_name: poses from a device need the OpenIGTLink bridge (lumen serve), "
-            "which is not built yet; give the instrument a \"track\" or a \"replay\" to run it (value \"Tracker\")");
+            "dir/s.json: instruments[0].device_name: poses from a device need the OpenIGTLink bridge: run it with "
+            "`lumen serve`, or give the instrument a \"track\" or a \"replay\" (value \"Tracker\")");
 }
 
 TEST(InstrumentScene, AStartThroughTheOrgansWallsIsRefusedWhenTheModelCompiles) {
@@ -330,4 +330,16 @@ TEST(Grasp, CommandedOpeningInterpolatesTheKeys) {
   EXPECT_DOUBLE_EQ(commanded_opening(keys, 0.7, 1.5), 0.0);
   EXPECT_DOUBLE_EQ(commanded_opening(keys, 0.7, 2.0), 0.2);
   EXPECT_EQ(commanded_opening(keys, 0.7, 9.0), 0.4);
+
+TEST(InstrumentScene, ADeviceHomeThroughTheOrgansWallsIsRefusedWhenTheModelCompiles) {
+  // Device only: home is the device origin mapped by to_organ, here with the tip across the outer wall.
+  json s = with_instrument_key("track", nullptr);
+  s["instruments"][0]["to_organ"] = {1, 0, 0, 0, 0, 1, 0, 0.012, 0, 0, 1, 0.05, 0, 0, 0, 1};
+  const Scene scene = parse_scene(s.dump(), kScenePath);
+  EXPECT_EQ(home_pose(scene.instruments[0]).position, Eigen::Vector3d(0.0, 0.012, 0.05));
+  const std::string msg = message_of<InputError>([&] { compile_model(scene); });
+  EXPECT_EQ(msg.rfind("dir/s.json: instruments[0].to_organ: starts through the organ's walls at t = 0 (", 0), 0u) << msg;
+  // 17 mm above the wall it compiles.
+  s["instruments"][0]["to_organ"][7] = 0.03;
+  EXPECT_NO_THROW(compile_model(parse_scene(s.dump(), kScenePath)));
 }

@@ -121,6 +121,20 @@ inline nlohmann::json small_tube_scene(const std::string& name) {
   return s;
 }
 
+// The small tube with self-collision and one instrument of that shape driven by device `device`, its device origin
+// at `origin` (metres, organ frame; to_organ a translation), for `frames` frames.
+inline nlohmann::json device_tube_scene(const std::string& name, int frames, const nlohmann::json& instrument_shape,
+                                        const std::string& device, const Eigen::Vector3d& origin) {
+  nlohmann::json s = small_tube_scene(name);
+  s["frames"] = frames;
+  s["collision"] = {{"self", true}};
+  s["instruments"] = {{{"name", name},
+                       {"shape", instrument_shape},
+                       {"device_name", device},
+                       {"to_organ", {1, 0, 0, origin.x(), 0, 1, 0, origin.y(), 0, 0, 1, origin.z(), 0, 0, 0, 1}}}};
+  return s;
+}
+
 // A session without rendering, with the exact check, measured after every frame: the instruments' clearance, the
 // organ's elastic load about the first instrument's origin, and the last frame's positions.
 struct CheckedRun {

@@ -1,0 +1,293 @@
+// lumen serve in-process: a simulated device (a mass-spring "hand" chasing a target) on loopback drives an
+// instrument through the real OpenIGTLink client library and feels the SENSOR reaction; the served session's
+// replay plays back to the same frames and reactions bit for bit; malformed messages are counted by reason and
+// ignored while the session goes on.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <thread>
+
+#include <igtlClientSocket.h>
+#include <igtlMessageHeader.h>
+#include <igtlPositionMessage.h>
+#include <igtlSensorMessage.h>
+#include <igtlStatusMessage.h>
+#include <igtlTransformMessage.h>
+#include <nlohmann/json.hpp>
+
+#include "engine/device_client.hpp"
+#include "engine/serve.hpp"
+#include "support/files.hpp"
+#include "support/instruments.hpp"
+
+using namespace lumen::engine;
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kOuterRadius = 0.013;
+
+// The small tube with a device-driven 3 mm probe: device origin 0.5 mm above the outer wall's top.
+json device_scene(int frames) {
+  const json probe = {{"type", "sphere_probe"}, {"tip_radius", 0.003}, {"shaft_radius", 0.002}, {"shaft_length", 0.04}};
+  return lumen::test::device_tube_scene("probe", frames, probe, "Hand", Eigen::Vector3d(0.0, kOuterRadius + 0.0005, 0.05));
+}
+
+// An OpenIGTLink client on loopback (the real client library, engine/device_client.hpp).
+struct Client : DeviceClient {
+  bool connect(int port) { return DeviceClient::connect("127.0.0.1", port); }
+  void send(igtl::MessageBase* m) { send_bytes(m->GetPackPointer(), m->GetPackSize()); }
+};
+
+// The device scene compiled, and session options without rendering.
+struct Served {
+  explicit Served(int frames)
+      : scene(parse_scene(device_scene(frames).dump(), "serve.json")), model(compile_model(scene)) {
+    session.render = false;
+  }
+  Scene scene;
+  std::unique_ptr<Model> model;
+  SessionOptions session;
+};
+
+// A served session on a free port with `device` run on its own thread once the bridge listens.
+template <class Device>
+ServeResult serve_with(const Scene& scene, const Model& model, const SessionOptions& session, Device device) {
+  Listener listener("127.0.0.1", 0);
+  const int port = listener.port();
+  ServeOptions opt;
+  opt.session = session;
+  std::thread client([&] { device(port); });
+  ServeResult r = serve_session(scene, model, std::move(listener), opt);
+  client.join();
+  return r;
+}
+
+// Every field of two frames' records that the simulation decides (timings left out), equal bit for bit.
+void expect_same_frames(const std::vector<FrameRecord>& a, const std::vector<FrameRecord>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].instruments.size(), b[i].instruments.size());
+    EXPECT_EQ(a[i].max_displacement, b[i].max_displacement) << "frame " << a[i].frame;
+    EXPECT_EQ(a[i].contacts, b[i].contacts) << "frame " << a[i].frame;
+    for (size_t k = 0; k < a[i].instruments.size(); ++k) {
+      const InstrumentRecord &p = a[i].instruments[k], &q = b[i].instruments[k];
+      EXPECT_EQ(p.position, q.position) << "frame " << a[i].frame;
+      EXPECT_EQ(p.rotation.coeffs(), q.rotation.coeffs()) << "frame " << a[i].frame;
+      EXPECT_EQ(p.force, q.force) << "frame " << a[i].frame;
+      EXPECT_EQ(p.torque, q.torque) << "frame " << a[i].frame;
+      EXPECT_EQ(p.stiffness, q.stiffness) << "frame " << a[i].frame;
+      EXPECT_EQ(p.contacts, q.contacts) << "frame " << a[i].frame;
+    }
+  }
+}
+
+}  // namespace
+
+TEST(Serve, ASimulatedHandDrivesTheProbeFeelsTheTissueAndTheReplayIsBitIdentical) {
+  constexpr int kFrames = 48;
+  Served f(kFrames);
+  const Scene& scene = f.scene;
+  SessionOptions& session = f.session;
+  session.check = true;
+  lumen::Points served_x, replayed_x;
+  session.on_frame = [&](const Model&, const State& s, const FrameRecord&) { served_x = s.x; };
+  // The hand (0.1 kg on a 200 N/m spring, damped, pushed by the reaction it feels, at 1 kHz) chases a target that
+  // goes from 0 to 3.5 mm into the tissue in 0.6 s, past the session's 1.2 s end (the server closes the connection).
+  Client hand;
+  double max_up = 0.0;
+  const ServeResult served = serve_with(scene, *f.model, session, [&](int port) {
+    ASSERT_TRUE(hand.connect(port));
+    hand.start_reading();
+    HandSpec spec;
+    spec.device = "Hand";
+    spec.seconds = 1.1;
+    constexpr double kDepth = 0.0035, kRamp = 0.6;
+    spec.target_y_m = [](double t) { return -kDepth * std::min(1.0, t / kRamp); };
+    run_hand(hand, spec);
+    max_up = hand.max_force();
+    hand.finish();
+  });
+  const json& r = served.session.report;
+  ASSERT_EQ(served.session.frames.size(), static_cast<size_t>(kFrames));
+  EXPECT_GT(r["serve"]["received"]["TRANSFORM"].get<long>(), kFrames);
+  EXPECT_EQ(r["serve"]["rejected_total"].get<long>(), 0);
+  EXPECT_GT(r["serve"]["sensors_sent"].get<long>(), 0);
+  EXPECT_GT(r["serve"]["latency_ms"]["answered"].get<long>(), 0);
+  EXPECT_GT(r["haptics"]["ticks"].get<long>(), 0);
+  EXPECT_EQ(r["frames_with_instrument_intersections"].get<long>(), 0);
+  // The hand got the probe into the tissue and felt it push back over SENSOR.
+  int touching = 0;
+  for (const FrameRecord& f : served.session.frames) touching += f.instruments[0].contacts > 0;
+  EXPECT_GT(touching, 0);
+  EXPECT_GT(hand.sensors(), 0);
+  EXPECT_GT(max_up, 0.0);
+  // The probe was where the hand sent it: the last frame's tip below the device's start.
+  EXPECT_LT(served.session.frames.back().instruments[0].position.y(), kOuterRadius + 0.0005);
+
+  // Replay: the recorded poses played back give the same frames and reactions, bit for bit.
+  const fs::path dir = fs::temp_directory_path() / "lumen_serve_replay";
+  fs::remove_all(dir);
+  write_replay(dir.string(), served);
+  int frames = 0;
+  Inputs replay = make_replay_inputs(scene, dir.string(), frames);
+  EXPECT_EQ(frames, kFrames);
+  SessionOptions again;
+  again.render = false;
+  again.frames = frames;
+  again.on_frame = [&](const Model&, const State& s, const FrameRecord&) { replayed_x = s.x; };
+  const SessionResult replayed = run_session(*f.model, std::move(replay), again);
+  expect_same_frames(served.session.frames, replayed.frames);
+  EXPECT_EQ(served_x, replayed_x);
+}
+
+TEST(Serve, MalformedMessagesAreCountedByReasonAndIgnored) {
+  constexpr int kFrames = 16;
+  Served f(kFrames);
+  const Scene& scene = f.scene;
+  SessionOptions& session = f.session;
+  Client c;
+  const Eigen::Vector3f good_mm(1.0f, 2.0f, 0.0f);
+  const ServeResult served = serve_with(scene, *f.model, session, [&](int port) {
+    ASSERT_TRUE(c.connect(port));
+    c.start_reading();
+    const Eigen::Matrix3f id = Eigen::Matrix3f::Identity();
+    // Bad CRC: a packed TRANSFORM with one body byte changed.
+    {
+      igtl::TransformMessage::Pointer m = igtl::TransformMessage::New();
+      m->SetDeviceName("Hand");
+      igtl::Matrix4x4 t;
+      igtl::IdentityMatrix(t);
+      m->SetMatrix(t);
+      m->Pack();
+      static_cast<unsigned char*>(m->GetPackBodyPointer())[5] ^= 0x5a;
+      c.send(m);
+    }
+    // Short body: a TRANSFORM header announcing 12 body bytes (a TRANSFORM has 48), and 12 bytes.
+    {
+      igtl::TransformMessage::Pointer m = igtl::TransformMessage::New();
+      m->SetDeviceName("Hand");
+      m->Pack();
+      constexpr int kHeader = 58, kBodySizeOffset = 42, kShort = 12;  // header: body size, big-endian uint64
+      std::vector<unsigned char> bytes(static_cast<unsigned char*>(m->GetPackPointer()),
+                                       static_cast<unsigned char*>(m->GetPackPointer()) + kHeader + kShort);
+      for (int k = 0; k < 8; ++k) bytes[kBodySizeOffset + k] = k == 7 ? kShort : 0;
+      c.send_bytes(bytes.data(), static_cast<int>(bytes.size()));
+    }
+    // Unknown type, unknown device, non-finite pose, non-orthonormal rotation.
+    {
+      igtl::StatusMessage::Pointer m = igtl::StatusMessage::New();
+      m->SetDeviceName("Hand");
+      m->SetCode(igtl::StatusMessage::STATUS_OK);
+      m->Pack();
+      c.send(m);
+    }
+    c.send_transform("Nobody", id, good_mm);
+    c.send_transform("Hand", id, Eigen::Vector3f(std::nanf(""), 0.0f, 0.0f));
+    c.send_transform("Hand", 2.0f * id, good_mm);
+    // Then a good one, as a POSITION (quaternion x, y, z, w).
+    {
+      igtl::PositionMessage::Pointer m = igtl::PositionMessage::New();
+      m->SetDeviceName("Hand");
+      m->SetPosition(good_mm.x(), good_mm.y(), good_mm.z());
+      m->SetQuaternion(0.0f, 0.0f, 0.0f, 1.0f);
+      m->Pack();
+      c.send(m);
+    }
+    c.finish();
+  });
+  const json& s = served.session.report["serve"];
+  ASSERT_EQ(served.session.frames.size(), static_cast<size_t>(kFrames));
+  for (const char* reason : {"bad_crc", "short_body", "unknown_type", "unknown_device", "non_finite_pose",
+                             "non_orthonormal_rotation"})
+    EXPECT_EQ(s["rejected"].value(reason, 0L), 1L) << reason << "\n" << s.dump(1);
+  EXPECT_EQ(s["rejected_total"].get<long>(), 6);
+  EXPECT_EQ(s["received"]["TRANSFORM"].get<long>(), 5);
+  EXPECT_EQ(s["received"]["POSITION"].get<long>(), 1);
+  EXPECT_EQ(s["received"]["STATUS"].get<long>(), 1);
+  // Only the good pose moved the probe: 1 mm along x, 2 mm up from the device origin.
+  const Eigen::Vector3d expected(0.001, kOuterRadius + 0.0005 + 0.002, 0.05);
+  EXPECT_LE((served.session.frames.back().instruments[0].position - expected).norm(), 1e-9);
+}
+
+TEST(Serve, APortInUseIsAClearError) {
+  Listener taken("127.0.0.1", 0);
+  const std::string msg = lumen::test::message_of<InputError>([&] { Listener again("127.0.0.1", taken.port()); });
+  EXPECT_NE(msg.find("--port " + std::to_string(taken.port()) + ": cannot listen: Address already in use"),
+            std::string::npos)
+      << msg;
+}
+
+TEST(Serve, ADeviceThatDisconnectsLeavesTheInstrumentAtItsLastPoseAndMayReconnect) {
+  constexpr int kFrames = 40;
+  Served f(kFrames);
+  const Scene& scene = f.scene;
+  SessionOptions& session = f.session;
+  std::atomic<int> frames_done{0};
+  session.on_frame = [&](const Model&, const State&, const FrameRecord&) { ++frames_done; };
+  auto wait_frames = [&](int n) {
+    while (frames_done.load() < n) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  };
+  const Eigen::Vector3f a_mm(2.0f, 1.0f, 0.0f), b_mm(-1.0f, 3.0f, 0.0f);
+  std::vector<Eigen::Vector3d> positions;
+  const ServeResult served = serve_with(scene, *f.model, session, [&](int port) {
+    // First client: one pose, then it goes away after a few frames; a second client comes later with another.
+    Client first;
+    ASSERT_TRUE(first.connect(port));
+    first.send_transform("Hand", Eigen::Matrix3f::Identity(), a_mm);
+    wait_frames(5);
+    first.close();
+    wait_frames(20);
+    Client second;
+    ASSERT_TRUE(second.connect(port));
+    second.start_reading();
+    second.send_transform("Hand", Eigen::Matrix3f::Identity(), b_mm);
+    second.finish();
+  });
+  const json& s = served.session.report["serve"];
+  EXPECT_EQ(s["connections"].get<long>(), 2);
+  EXPECT_GT(s["devices"][0]["disconnected_frames"].get<long>(), 0);
+  // While disconnected the probe stayed at the first pose; at the end it is at the second.
+  const Eigen::Vector3d origin(0.0, kOuterRadius + 0.0005, 0.05);
+  const Eigen::Vector3d a = origin + 1e-3 * a_mm.cast<double>(), b = origin + 1e-3 * b_mm.cast<double>();
+  EXPECT_LE((served.session.frames[19].instruments[0].position - a).norm(), 1e-9);
+  EXPECT_LE((served.session.frames.back().instruments[0].position - b).norm(), 1e-9);
+}
+
+TEST(Serve, TheSensorReactionIsInTheDevicesFrame) {
+  // to_organ turns the device frame 90 degrees about z (device x -> organ y) and shifts it.
+  auto to_sim = std::make_shared<PoseChannel>(), to_haptics = std::make_shared<PoseChannel>();
+  BridgeSlot slot;
+  slot.device_name = "Hand";
+  slot.to_organ = Eigen::Translation3d(0.0, 0.1, 0.0) * Eigen::AngleAxisd(0.5 * EIGEN_PI, Eigen::Vector3d::UnitZ());
+  slot.to_simulation = to_sim;
+  slot.to_haptics = to_haptics;
+  Listener listener("127.0.0.1", 0);
+  const int port = listener.port();
+  Bridge bridge(std::move(listener), {slot}, [] { return 0.0; });
+  bridge.start();
+  Client c;
+  ASSERT_TRUE(c.connect(port));
+  c.start_reading();
+  // A pose 10 mm along device x arrives 10 mm along organ y (plus the shift).
+  ASSERT_TRUE(c.send_transform("Hand", Eigen::Matrix3f::Identity(), Eigen::Vector3f(10.0f, 0.0f, 0.0f)));
+  DeviceSample s;
+  while (!to_sim->read(s)) std::this_thread::yield();
+  EXPECT_LE((s.pose.position - Eigen::Vector3d(0.0, 0.11, 0.0)).norm(), 1e-9);
+  // A force along organ y goes back along device x; sent until the client has one (the bridge records its socket
+  // after the pose).
+  HapticForce f;
+  f.force = Eigen::Vector3d(0.0, 0.25, 0.0);
+  while (c.sensors() == 0) {
+    bridge.send_reactions({f}, 0.0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  bridge.stop();
+  c.finish();
+  EXPECT_LE((c.force() - Eigen::Vector3d(0.25, 0.0, 0.0)).norm(), 1e-12);
+}
