@@ -330,6 +330,7 @@ TEST(Grasp, CommandedOpeningInterpolatesTheKeys) {
   EXPECT_DOUBLE_EQ(commanded_opening(keys, 0.7, 1.5), 0.0);
   EXPECT_DOUBLE_EQ(commanded_opening(keys, 0.7, 2.0), 0.2);
   EXPECT_EQ(commanded_opening(keys, 0.7, 9.0), 0.4);
+}
 
 TEST(InstrumentScene, ADeviceHomeThroughTheOrgansWallsIsRefusedWhenTheModelCompiles) {
   // Device only: home is the device origin mapped by to_organ, here with the tip across the outer wall.
