@@ -1,5 +1,8 @@
 #include "engine/haptics.hpp"
 
+#include <pthread.h>
+#include <sched.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -17,6 +20,8 @@ double quantile(std::vector<double> v, double q) {
   return v[k];
 }
 constexpr double kMedian = 0.5;
+// The haptic thread's SCHED_FIFO priority (1-99): above ordinary threads, below the kernel's own real-time work.
+constexpr int kHapticPriority = 40;
 constexpr double kP99 = 0.99;
 // Time constant of the device velocity's low-pass filter, seconds.
 constexpr double kVelocityFilterS = 0.01;
@@ -68,7 +73,8 @@ HapticForce render_force(const HapticsSpec& spec, const HapticModel& model, cons
 nlohmann::json HapticStats::json() const {
   return {{"ticks", ticks}, {"seconds", seconds}, {"rate_hz", rate_hz}, {"period_p50_ms", period_p50_ms},
           {"period_p99_ms", period_p99_ms}, {"period_max_ms", period_max_ms}, {"overruns", overruns},
-          {"force_clamps", force_clamps}, {"stiffness_clamps", stiffness_clamps}, {"faded_ticks", faded_ticks}};
+          {"force_clamps", force_clamps}, {"stiffness_clamps", stiffness_clamps}, {"faded_ticks", faded_ticks},
+          {"realtime", realtime}};
 }
 
 HapticLoop::HapticLoop(const HapticsSpec& spec, std::vector<std::shared_ptr<PoseChannel>> device_poses,
@@ -118,6 +124,11 @@ void HapticLoop::run() {
   std::vector<Eigen::Vector3d> velocity(n, Eigen::Vector3d::Zero());
   std::vector<HapticForce> forces(n);
   periods_ms_.clear();
+  // Real-time priority where the system allows it (a haptic device's loop must not wait behind the simulation's
+  // threads on a busy machine); otherwise an ordinary thread, reported.
+  sched_param priority{};
+  priority.sched_priority = kHapticPriority;
+  stats_.realtime = pthread_setschedparam(pthread_self(), SCHED_FIFO, &priority) == 0;
   auto next = Clock::now();
   Clock::time_point first, last;
   // Each tick: the newest model and pose of every slot, the velocity between the last two readings, the force.

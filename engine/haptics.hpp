@@ -67,6 +67,7 @@ struct HapticStats {
   long force_clamps = 0;        // ticks whose force hit max_force_n
   long stiffness_clamps = 0;    // published models whose stiffness hit max_stiffness_n_per_m
   long faded_ticks = 0;         // ticks with w < 1 (stale or non-finite model)
+  bool realtime = false;        // the thread runs under SCHED_FIFO (kHapticPriority); false when not permitted
   nlohmann::json json() const;
 };
 

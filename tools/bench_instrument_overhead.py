@@ -6,7 +6,7 @@ usage: tools/bench_instrument_overhead.py [--runs 3] [--out docs/bench_instrumen
 
 The twin is the same scene (mesh, material, self-collision, render) with the instruments replaced by point
 probes that apply, frame by frame, the force each instrument put on the organ in a first run of the scene (minus
-its reported force_n, as a probe force track), at the outer-wall point under the instrument's tip: the organ
+its reported force_n, as a probe force track), at the point where the instrument's tip first touched: the organ
 deforms about the same, so the difference of the frame times is what the instruments' sweeps, tool contact rows
 and posing cost. The two are run alternately, `lumen bench SCENE --json` each (render on, nothing written), and
 the CSV gives per scene and per run both totals and the stage medians, then the median over the runs of the
@@ -41,12 +41,12 @@ def twin_scene(lumen, scene_path, work):
         frames = json.load(f)["per_frame"]
     probes = []
     for k, tool in enumerate(scene["instruments"]):
-        # Where it pressed hardest, projected onto the wall along its force: the probe's point (snapped to the wall).
-        peak = max(frames, key=lambda fr: sum(c * c for c in fr["instruments"][k]["force_n"]))["instruments"][k]
+        # Where its tip first touched (the rest wall, within a frame's motion): the probe's point, snapped to the wall.
+        touch = next(fr for fr in frames if fr["instruments"][k]["contacts"] > 0)["instruments"][k]
         track = [{"t": 0.0, "force": [0.0, 0.0, 0.0]}]
         for fr in frames:
             track.append({"t": fr["t"], "force": [-c for c in fr["instruments"][k]["force_n"]]})
-        probes.append({"name": f"{tool.get('name', 'instrument')}-twin", "point": peak["position"], "track": track})
+        probes.append({"name": f"{tool.get('name', 'instrument')}-twin", "point": touch["position"], "track": track})
     twin = dict(scene)
     twin.pop("instruments")
     twin["name"] = scene["name"] + "-twin"
