@@ -41,6 +41,7 @@ struct FrameRecord {
   long bv_overlaps = 0, feature_tests = 0, contacts = 0;
   int response_iterations = 0;
   bool fallback = false;              // the safe fallback ended this frame's motion early
+  bool contact_rows_capped = false;   // ... because its contacts exceeded collision.max_contact_rows
   long intersecting_pairs = -1;       // exact check (--check), -1 when not run
   long instrument_intersecting_pairs = -1;  // exact check (--check) of instrument-organ pairs, -1 when not run
   int inverted_elements = 0;          // tets with non-positive volume after the frame

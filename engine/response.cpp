@@ -341,8 +341,14 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   bool resolved = found.empty() && rr.active.empty();
   while (!resolved && rr.iterations < cs.max_iterations) {
     ++rr.iterations;
-    // Add the contacts found on the current trial motion, solve for the correction.
+    // Add the contacts found on the current trial motion, solve for the correction; too many: the safe fallback
+    // (nothing of this frame's solves is kept).
     for (const HeldContact& h : found) rr.active[key_of(h)] = h;
+    if (rr.active.size() > static_cast<size_t>(cs.max_contact_rows)) {
+      rec.contact_rows_capped = true;
+      rr = ResponseRounds{};
+      break;
+    }
     rr.rows.clear();
     if (paper)
       solve_paper(model, state, x_free, u_free, rr);
@@ -362,7 +368,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     clock = Clock::now();
   }
   rec.response_iterations = rr.iterations;
-  if (rr.iterations > 0) {
+  if (rr.iterations > 0 && !rec.contact_rows_capped) {
     // Total normal force the walls carry (the constraint response's multipliers are contact forces).
     if (!paper) rec.contact_force = rr.solved.lambda.sum();
     for (const auto& [key, lambda] : rr.in_solve) rec.contact_force += lambda;

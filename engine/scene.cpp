@@ -452,7 +452,7 @@ void read_render(const Reader& r, const json& m, RenderSpec& spec) {
 }
 
 void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
-  r.only_keys(m, "collision", {"self", "kdop", "response", "gap", "max_iterations", "surfaces", "lcp", "lcp_sweeps",
+  r.only_keys(m, "collision", {"self", "kdop", "response", "gap", "max_iterations", "max_contact_rows", "surfaces", "lcp", "lcp_sweeps",
                                "coupling"});
   if (m.contains("surfaces")) {
     const json& list = m.at("surfaces");
@@ -476,6 +476,8 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
   if (m.contains("gap")) spec.gap = r.number_in(m.at("gap"), "collision.gap", 0.0, 0.01, false, false);
   if (m.contains("max_iterations"))
     spec.max_iterations = r.integer_in(m.at("max_iterations"), "collision.max_iterations", 1, 100);
+  if (m.contains("max_contact_rows"))
+    spec.max_contact_rows = r.integer_in(m.at("max_contact_rows"), "collision.max_contact_rows", 1, 1000000);
   if (m.contains("coupling"))
     spec.coupling = r.choice<ContactCoupling>(m.at("coupling"), "collision.coupling", kCouplingNames);
   if (m.contains("lcp_sweeps")) spec.lcp_sweeps = r.integer_in(m.at("lcp_sweeps"), "collision.lcp_sweeps", 2, 100000);

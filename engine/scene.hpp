@@ -95,12 +95,18 @@ struct RenderSpec {
   double force_scale = 1.0;         // arrow length per newton, metres / N
 };
 
+// Default of collision.max_contact_rows: ten times the most contacts any shipped scene holds (378).
+inline constexpr int kDefaultMaxContactRows = 4000;
+
 struct CollisionSpec {
   bool self = false;               // inner-wall self-collision on/off
   int kdop = 26;                   // 6, 14, 18, 26
   ResponseKind response = ResponseKind::kConstraint;
   double gap = 1e-4;               // minimum separation, metres
   int max_iterations = 8;          // response/re-check rounds before the safe fallback
+  // Most contacts a frame's response holds: past it the frame takes the safe fallback instead of solving (a tool
+  // driven deep through the wall in one frame makes thousands, whose dense LCP would take seconds and gigabytes).
+  int max_contact_rows = kDefaultMaxContactRows;
   // Walls that take part in self-collision: the inner wall only (the paper's, the default), or also the outer
   // wall ("outer") when a scene folds the organ so that its outside meets itself.
   bool outer_wall = false;         // key "surfaces": ["inner"] | ["inner", "outer"]

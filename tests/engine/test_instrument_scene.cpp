@@ -344,3 +344,16 @@ TEST(InstrumentScene, ADeviceHomeThroughTheOrgansWallsIsRefusedWhenTheModelCompi
   s["instruments"][0]["to_organ"][7] = 0.03;
   EXPECT_NO_THROW(compile_model(parse_scene(s.dump(), kScenePath)));
 }
+
+// collision.max_contact_rows: a positive integer, default kDefaultMaxContactRows.
+TEST(InstrumentScene, MaxContactRowsIsAPositiveInteger) {
+  json s = instrument_scene();
+  EXPECT_EQ(parse_scene(s.dump(), kScenePath).collision.max_contact_rows, kDefaultMaxContactRows);
+  s["collision"] = {{"max_contact_rows", 250}};
+  EXPECT_EQ(parse_scene(s.dump(), kScenePath).collision.max_contact_rows, 250);
+  s["collision"]["max_contact_rows"] = 0;
+  EXPECT_NE(error_of(s).find("collision.max_contact_rows"), std::string::npos) << error_of(s);
+  EXPECT_NE(error_of(s).find("value 0"), std::string::npos) << error_of(s);
+  s["collision"]["max_contact_rows"] = 2.5;
+  EXPECT_NE(error_of(s).find("collision.max_contact_rows"), std::string::npos) << error_of(s);
+}

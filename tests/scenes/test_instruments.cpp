@@ -165,3 +165,28 @@ TEST(InstrumentScenes, GastroscopeInTheOesophagusTouchesTheWallFromInside) {
   // Advancing on the axis (the first 2 s) it touches nothing.
   for (size_t i = 0; i < 80; ++i) EXPECT_EQ(run.result.frames[i].instruments[0].contacts, 0) << "frame " << i + 1;
 }
+
+// Too many contacts for one frame's response (a tool driven deep through the wall in one frame): the frame takes the
+// safe fallback instead of solving, and stays intersection-free. Here the two-tool pinch (up to 378 contacts) with
+// the cap at 60.
+TEST(InstrumentScenes, AFrameWithMoreContactsThanTheCapTakesTheSafeFallback) {
+  Scene scene = load_scene(std::string(LUMEN_SOURCE_DIR) + "/scenes/instrument-two-tools-pinch.json");
+  constexpr int kCap = 60;
+  scene.collision.max_contact_rows = kCap;
+  const lumen::test::CheckedRun run = lumen::test::run_checked(scene);
+  int capped = 0;
+  for (size_t i = 0; i < run.result.frames.size(); ++i) {
+    const FrameRecord& f = run.result.frames[i];
+    EXPECT_EQ(f.instrument_intersecting_pairs, 0) << "frame " << f.frame;
+    EXPECT_EQ(f.intersecting_pairs, 0) << "frame " << f.frame;
+    EXPECT_EQ(run.clearance[i].organ_nodes_inside_tool, 0) << "frame " << f.frame;
+    if (f.contact_rows_capped) {
+      EXPECT_TRUE(f.fallback) << "frame " << f.frame;
+    }
+    capped += f.contact_rows_capped;
+  }
+  EXPECT_GT(capped, 0);
+  // With the default cap the same scene never reaches it.
+  const lumen::test::CheckedRun normal = run_instrument_scene("instrument-two-tools-pinch.json");
+  for (const FrameRecord& f : normal.result.frames) EXPECT_FALSE(f.contact_rows_capped) << "frame " << f.frame;
+}
