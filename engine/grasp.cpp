@@ -5,6 +5,7 @@
 
 #include <Eigen/Cholesky>
 
+#include "engine/input.hpp"
 #include "engine/response.hpp"
 #include "engine/simulation.hpp"
 
@@ -76,16 +77,13 @@ void rebuild_holds(const Model& model, State& state) {
 
 double commanded_opening(const std::vector<OpeningKey>& keys, double rest, double t) {
   if (keys.empty()) return rest;
-  if (t <= keys.front().t) return keys.front().angle;
-  if (t >= keys.back().t) return keys.back().angle;
-  const auto next = std::upper_bound(keys.begin(), keys.end(), t, [](double v, const OpeningKey& k) { return v < k.t; });
-  const OpeningKey& a = *(next - 1);
-  const OpeningKey& b = *next;
-  const double w = (t - a.t) / (b.t - a.t);
-  return (1.0 - w) * a.angle + w * b.angle;
+  size_t i;
+  double w;
+  bracket_keys(keys, t, i, w);
+  return w == 0.0 ? keys[i].angle : (1.0 - w) * keys[i].angle + w * keys[i + 1].angle;
 }
 
-bool update_grasps(const Model& model, State& state, double t1) {
+void update_grasps(const Model& model, State& state, double t1) {
   bool changed = false;
   for (size_t i = 0; i < model.instruments.size(); ++i) {
     const CompiledInstrument& ci = model.instruments[i];
@@ -118,7 +116,6 @@ bool update_grasps(const Model& model, State& state, double t1) {
     changed = true;
   }
   if (changed) rebuild_holds(model, state);
-  return changed;
 }
 
 void hold_grasped_nodes(const Model& model, State& state, Eigen::VectorXd& u) {

@@ -45,8 +45,8 @@ double commanded_opening(const std::vector<OpeningKey>& keys, double rest, doubl
 // a holding grasper lets go when the command exceeds its held opening by the release margin, else keeps it; a
 // free one that is closing with each jaw pressing the tissue with at least the grip force (last frame's held tool
 // contacts) grasps the organ nodes of those contacts and stops at its current opening. Rebuilds state.grasp_holds when a
-// hold begins or ends. Returns whether one did.
-bool update_grasps(const Model& model, State& state, double t1);
+// hold begins or ends.
+void update_grasps(const Model& model, State& state, double t1);
 
 // Move the free displacement u (3n, metres) so that every held node sits at its target (the instrument's pose at
 // the frame's end applied to its instrument-frame position); keeps the holding forces on the organ

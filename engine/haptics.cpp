@@ -9,20 +9,13 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "engine/report.hpp"
+
 namespace lumen::engine {
 namespace {
 
-// Value at quantile q in [0, 1] of unsorted samples (nearest rank), 0 for none.
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())));
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(k), v.end());
-  return v[k];
-}
-constexpr double kMedian = 0.5;
 // The haptic thread's SCHED_FIFO priority (1-99): above ordinary threads, below the kernel's own real-time work.
 constexpr int kHapticPriority = 40;
-constexpr double kP99 = 0.99;
 // Time constant of the device velocity's low-pass filter, seconds.
 constexpr double kVelocityFilterS = 0.01;
 // Periods kept for the statistics: an hour at 1 kHz at most (the rest are counted, not kept).
@@ -170,9 +163,11 @@ void HapticLoop::run() {
   }
   stats_.seconds = stats_.ticks > 1 ? std::chrono::duration<double>(last - first).count() : 0.0;
   stats_.rate_hz = stats_.seconds > 0.0 ? static_cast<double>(stats_.ticks - 1) / stats_.seconds : 0.0;
-  stats_.period_p50_ms = quantile(periods_ms_, kMedian);
-  stats_.period_p99_ms = quantile(periods_ms_, kP99);
-  stats_.period_max_ms = periods_ms_.empty() ? 0.0 : *std::max_element(periods_ms_.begin(), periods_ms_.end());
+  // The periods' percentiles as the report's stage times have them (report.hpp summarize).
+  const StageSummary periods = summarize(periods_ms_);
+  stats_.period_p50_ms = periods.median_ms;
+  stats_.period_p99_ms = periods.p99_ms;
+  stats_.period_max_ms = periods.max_ms;
 }
 
 }  // namespace lumen::engine

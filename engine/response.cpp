@@ -367,8 +367,8 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     rec.ms[kCollision] += ms_since(clock);
     clock = Clock::now();
   }
-  rec.response_iterations = rr.iterations;
-  if (rr.iterations > 0 && !rec.contact_rows_capped) {
+  rec.response_iterations = rr.iterations;  // 0 after the cap (its rounds were discarded)
+  if (rr.iterations > 0) {
     // Total normal force the walls carry (the constraint response's multipliers are contact forces).
     if (!paper) rec.contact_force = rr.solved.lambda.sum();
     for (const auto& [key, lambda] : rr.in_solve) rec.contact_force += lambda;

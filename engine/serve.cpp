@@ -46,12 +46,6 @@ constexpr size_t kReadChunk = 1 << 16;
 constexpr long kCloseGraceRounds = 2;
 constexpr int kCloseWaitMs = 100;
 
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
-  return v[v.size() / 2];
-}
-
 }  // namespace
 
 Listener::Listener(const std::string& host, int port) {
@@ -327,7 +321,7 @@ nlohmann::json Bridge::report() const {
   j["sensors_dropped"] = sensors_dropped_.load();
   j["connections"] = connections_;
   j["disconnects"] = disconnects_;
-  j["latency_ms"] = {{"answered", static_cast<long>(latency_ms_.size())}, {"median", median_of(latency_ms_)}};
+  j["latency_ms"] = {{"answered", static_cast<long>(latency_ms_.size())}, {"median", summarize(latency_ms_).median_ms}};
   return j;
 }
 

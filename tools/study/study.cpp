@@ -45,6 +45,7 @@
 #include "engine/session.hpp"
 #include "engine/simulation.hpp"
 #include "physics/lame.hpp"
+#include "physics/support.hpp"
 
 namespace fs = std::filesystem;
 using namespace lumen;
@@ -180,12 +181,7 @@ Outcome run(const engine::Scene& scene, bool render) {
   const int top = (ring * (ms.layers + 1)) * ms.segments_around + ms.segments_around / 4;
   const int bottom = (ring * (ms.layers + 1)) * ms.segments_around + 3 * ms.segments_around / 4;
   // Inner-wall area per node (a third of each incident triangle's rest area), m^2.
-  std::vector<double> node_area(mesh.n_nodes(), 0.0);
-  for (int t = 0; t < mesh.surface(lumen::physics::kInnerWall).rows(); ++t) {
-    const Eigen::Vector3d a = mesh.rest.row(mesh.surface(lumen::physics::kInnerWall)(t, 0)), b = mesh.rest.row(mesh.surface(lumen::physics::kInnerWall)(t, 1)),
-                          c = mesh.rest.row(mesh.surface(lumen::physics::kInnerWall)(t, 2));
-    for (int k = 0; k < 3; ++k) node_area[mesh.surface(lumen::physics::kInnerWall)(t, k)] += (b - a).cross(c - a).norm() / 6.0;
-  }
+  const Eigen::VectorXd node_area = lumen::physics::lumped_areas(mesh.rest, mesh.surface(lumen::physics::kInnerWall));
 
   // The session, measuring the committed state after the last frame.
   engine::SessionOptions opt;
