@@ -25,6 +25,7 @@ constexpr const char* kResponseNames[] = {"paper", "constraint"};
 constexpr const char* kLcpSolverNames[] = {"active_set", "nncg"};
 constexpr const char* kCouplingNames[] = {"correct", "carried"};
 constexpr const char* kTangentNames[] = {"warped", "projected", "exact"};
+constexpr const char* kMethodNames[] = {"pcg", "chord"};
 constexpr const char* kTwistEndNames[] = {"", "start", "stop"};
 constexpr const char* kNodeSetNames[] = {"ends", "start", "stop"};
 constexpr const char* kCameraNames[] = {"side", "diagonal", "endoscope"};
@@ -485,8 +486,9 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
 
 void read_solver(const Reader& r, const json& m, SolverSpec& spec) {
   r.only_keys(m, "solver", {"type", "tolerance", "max_iterations", "rayleigh_mass", "rayleigh_stiffness",
-                            "background_factorisation", "anderson_depth", "tangent"});
+                            "background_factorisation", "anderson_depth", "tangent", "method"});
   if (m.contains("tangent")) spec.tangent = r.choice<Tangent>(m.at("tangent"), "solver.tangent", kTangentNames);
+  if (m.contains("method")) spec.method = r.choice<SolveMethod>(m.at("method"), "solver.method", kMethodNames);
   if (m.contains("anderson_depth"))
     spec.anderson_depth = r.integer_in(m.at("anderson_depth"), "solver.anderson_depth", 0, 20);
   if (m.contains("background_factorisation"))
@@ -759,15 +761,23 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   const std::string needs_corotational = std::string("needs material.model \"corotational\" and solver.type "
       "\"quasi_static\" (got \"") + name_of(s.material.model) + "\", \"" + name_of(s.solver.type) + "\")";
   // Carried contacts enter the corotational quasi-static solve's equilibrium, with the constraint response.
-  if (s.collision.coupling == ContactCoupling::kCarried) {
+  if (s.collision.coupling != ContactCoupling::kCorrect) {
     const json* at = &root.at("collision").at("coupling");
-    if (!corotational_quasi_static) r.fail("collision.coupling", "\"carried\" " + needs_corotational, at);
+    const std::string quoted = std::string("\"") + name_of(s.collision.coupling) + "\" ";
+    if (!corotational_quasi_static) r.fail("collision.coupling", quoted + needs_corotational, at);
     if (s.collision.response != ResponseKind::kConstraint)
-      r.fail("collision.coupling", "\"carried\" needs collision.response \"constraint\" (got \"paper\")", at);
+      r.fail("collision.coupling", quoted + "needs collision.response \"constraint\" (got \"paper\")", at);
   }
   // The tangent is the corotational quasi-static solve's (the other integrators have no choice of operator).
   if (s.solver.tangent != Tangent::kWarped && !corotational_quasi_static)
     r.fail("solver.tangent", needs_corotational, &root.at("solver").at("tangent"));
+  // The chord steps' operator is the lagged factorisation of K_w (the corotational quasi-static solve's).
+  if (s.solver.method != SolveMethod::kPcg) {
+    const json* at = &root.at("solver").at("method");
+    if (!corotational_quasi_static) r.fail("solver.method", needs_corotational, at);
+    if (s.solver.tangent != Tangent::kWarped)
+      r.fail("solver.method", std::string("\"chord\" needs solver.tangent \"warped\" (got \"") + name_of(s.solver.tangent) + "\")", at);
+  }
   // The 10-node corotational element has no twist modes: warped steps only.
   if (s.solver.tangent != Tangent::kWarped && s.element == ElementType::kTet10)
     r.fail("solver.tangent", std::string("\"") + name_of(s.solver.tangent) + "\" needs mesh.element \"tet4\" (got \"tet10\")",
@@ -781,7 +791,7 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   // after the nonlinear solve (not carried into it).
   if (!s.instruments.empty() && s.collision.response != ResponseKind::kConstraint)
     r.fail("collision.response", "instruments need \"constraint\"", &root.at("collision").at("response"));
-  if (!s.instruments.empty() && s.collision.coupling == ContactCoupling::kCarried)
+  if (!s.instruments.empty() && s.collision.coupling != ContactCoupling::kCorrect)
     r.fail("collision.coupling", "instruments need \"correct\"", &root.at("collision").at("coupling"));
   // Displacement-driven probes (held points) are solved on the linear quasi-static model's probe compliance.
   int held = -1;
@@ -822,6 +832,7 @@ const char* name_of(ResponseKind v) { return kResponseNames[static_cast<int>(v)]
 const char* name_of(LcpSolver v) { return kLcpSolverNames[static_cast<int>(v)]; }
 const char* name_of(ContactCoupling v) { return kCouplingNames[static_cast<int>(v)]; }
 const char* name_of(Tangent v) { return kTangentNames[static_cast<int>(v)]; }
+const char* name_of(SolveMethod v) { return kMethodNames[static_cast<int>(v)]; }
 const char* name_of(TwistEnd v) { return kTwistEndNames[static_cast<int>(v)]; }
 const char* name_of(MeshType v) { return kMeshTypeNames[static_cast<int>(v)]; }
 const char* name_of(render::CameraPreset v) { return kCameraNames[static_cast<int>(v)]; }

@@ -50,6 +50,7 @@ enum class ResponseKind { kPaper, kConstraint };      // "paper" | "constraint"
 enum class LcpSolver { kActiveSet, kNncg };           // "active_set" | "nncg"
 enum class ContactCoupling { kCorrect, kCarried };    // "correct" | "carried"
 enum class Tangent { kWarped, kProjected, kExact };  // "warped" | "projected" | "exact"
+enum class SolveMethod { kPcg, kChord };              // "pcg" | "chord"
 enum class TwistEnd { kNone, kStart, kStop };         // (no twist) | "start" | "stop"
 enum class NodeSetName { kEnds, kStart, kStop };      // "ends" | "start" | "stop"
 enum class MeshType { kHollowCylinder, kSweptTube, kVolume };  // "hollow_cylinder" | "swept_tube" | "volume"
@@ -61,6 +62,7 @@ const char* name_of(ResponseKind v);
 const char* name_of(LcpSolver v);
 const char* name_of(ContactCoupling v);
 const char* name_of(Tangent v);
+const char* name_of(SolveMethod v);
 const char* name_of(TwistEnd v);
 const char* name_of(MeshType v);
 const char* name_of(render::CameraPreset v);
@@ -135,6 +137,9 @@ struct SolverSpec {
   int anderson_depth = 5;
   // Corotational quasi-static: the linear steps' operator (physics::CorotationalTangent).
   Tangent tangent = Tangent::kWarped;
+  // Corotational quasi-static: the linear steps (physics::CorotationalMethod): PCG on the operator, or one
+  // back-substitution on the lagged factorisation (chord).
+  SolveMethod method = SolveMethod::kPcg;
   double rayleigh_mass = 0.0;         // dynamic: Rayleigh alpha (C = alpha M + beta K), 1/s, >= 0
   double rayleigh_stiffness = 0.0;    // dynamic: Rayleigh beta, s, >= 0
 };

@@ -264,7 +264,8 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
   if (model.mesh_type == MeshType::kVolume) r["mesh"]["file"] = model.mesh_file;
   r["model"] = {{"material", name_of(model.material)}, {"element", name_of(model.element)},
                 {"solver", name_of(model.solver)},
-                {"tangent", name_of(model.tangent)}, {"compile_seconds", model.compile_seconds}};
+                {"tangent", name_of(model.tangent)},
+                {"method", name_of(model.method)}, {"compile_seconds", model.compile_seconds}};
   r["collision"] = {{"self", model.collision.self}, {"kdop", model.collision.kdop},
                     {"response", name_of(model.collision.response)}, {"lcp", name_of(model.collision.lcp)},
                     {"coupling", name_of(model.collision.coupling)}, {"gap_m", model.collision.gap},

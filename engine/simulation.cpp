@@ -247,6 +247,8 @@ physics::CorotationalOptions corotational_options(const Scene& scene) {
                                                         physics::CorotationalTangent::exact};
   o.tangent = kTangents[static_cast<int>(scene.solver.tangent)];
   o.refactor_in_background = scene.solver.background_factorisation;
+  o.method = scene.solver.method == SolveMethod::kChord ? physics::CorotationalMethod::chord
+                                                         : physics::CorotationalMethod::pcg;
   return o;
 }
 
@@ -312,6 +314,7 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   m->element = scene.element;
   m->solver = scene.solver.type;
   m->tangent = scene.solver.tangent;
+  m->method = scene.solver.method;
   m->collision = scene.collision;
   m->render = scene.render;
   m->twist = scene.twist;
@@ -329,6 +332,7 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   m->integrator = make_integrator(scene, *m, quadratic.get());
   if (m->collision_surface && scene.collision.coupling == ContactCoupling::kCarried)
     m->coupling_stiffness = coupling_stiffness(*m);
+
   m->compile_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   return m;
 }

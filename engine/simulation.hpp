@@ -58,6 +58,7 @@ struct Model {
   ElementType element = ElementType::kTet4;        // element of the volume mesh
   SolverType solver = SolverType::kQuasiStatic;    // quasi-static or one implicit step per frame
   Tangent tangent = Tangent::kWarped;              // corotational quasi-static: the linear steps' operator
+  SolveMethod method = SolveMethod::kPcg;          // corotational quasi-static: PCG or chord steps
   CollisionSpec collision;                         // self-collision and response parameters
   RenderSpec render;                               // image size, camera, force arrows
   TwistSpec twist;                                 // the twisted ring's angle track (prescribed motion below)

@@ -3,6 +3,7 @@
 #include "physics/detail/messages.hpp"
 
 #include "physics/detail/dofs.hpp"
+#include "physics/anderson.hpp"
 
 #include <Eigen/Dense>
 #include <Eigen/IterativeLinearSolvers>
@@ -737,6 +738,8 @@ void validate_options(const CorotationalOptions& o) {
   if (o.max_cg_iterations < 1) detail::fail_must(where, "max_cg_iterations", "be >= 1", o.max_cg_iterations);
   if (o.anderson_depth < 0) detail::fail_must(where, "anderson_depth", "be >= 0", o.anderson_depth);
   if (o.refactor_cg_iterations < 0) detail::fail_must(where, "refactor_cg_iterations", "be >= 0", o.refactor_cg_iterations);
+  if (o.method == CorotationalMethod::chord && o.tangent != CorotationalTangent::warped)
+    throw std::invalid_argument(std::string(where) + ": method chord needs tangent warped (the factorisation is K_w's)");
 }
 
 namespace {
@@ -845,54 +848,6 @@ double extrapolate_start(CorotationalState& state, CorotationalResidual& residua
   return residual.evaluate();  // cached: no new evaluation
 }
 
-// Anderson acceleration (type II, Walker & Ni 2011) of the fixed-point map u -> u + du(u): the next iterate
-// u + du - (dX + dF) gamma, gamma minimising |du - dF gamma| over the last `depth` differences of iterates (dX)
-// and steps (dF). Depth 0: the plain step.
-class AndersonMixing {
- public:
-  explicit AndersonMixing(int depth) : depth_(depth) {}
-  // Moves u by the mixed step; returns whether it mixed (false: u += du, the plain step).
-  bool mix(Eigen::VectorXd& u, const Eigen::VectorXd& du) {
-    if (depth_ == 0) {
-      u += du;
-      return false;
-    }
-    // The differences since the last iterate, the oldest dropped past the depth.
-    if (last_u_.size() == u.size()) {
-      dX_.push_back(u - last_u_);
-      dF_.push_back(du - last_du_);
-      if (static_cast<int>(dX_.size()) > depth_) dX_.erase(dX_.begin()), dF_.erase(dF_.begin());
-    }
-    last_u_ = u;
-    last_du_ = du;
-    if (dX_.empty()) {
-      u += du;
-      return false;
-    }
-    const int m = static_cast<int>(dF_.size());
-    Eigen::MatrixXd F(du.size(), m), X(du.size(), m);
-    for (int j = 0; j < m; ++j) F.col(j) = dF_[j], X.col(j) = dX_[j];
-    const Eigen::VectorXd gamma = F.colPivHouseholderQr().solve(du);
-    if (!gamma.allFinite()) {
-      u += du;
-      return false;
-    }
-    u += du - (X + F) * gamma;
-    return true;
-  }
-  // Forget the history (a mixed step that did not help).
-  void clear() {
-    dX_.clear();
-    dF_.clear();
-    last_u_.resize(0);
-  }
-
- private:
-  int depth_;
-  std::vector<Eigen::VectorXd> dX_, dF_;  // per kept pair: iterate and step differences, 3n each
-  Eigen::VectorXd last_u_, last_du_;
-};
-
 // Carried contacts: a positive finite stiffness, one finite multiplier >= 0 per row, row nodes in the mesh.
 void validate_contacts(const char* where, const AugmentedContacts& c, int n_nodes) {
   if (!(c.stiffness > 0.0) || !std::isfinite(c.stiffness))
@@ -997,6 +952,36 @@ bool newton_step(CorotationalState& state, CorotationalResidual& residual_at, co
   return false;
 }
 
+// Chord iterations (CorotationalMethod::chord): du = A^-1 r with A the lagged factorisation (the rest one until
+// the first refresh), one back-substitution a step, Anderson-mixed; a refresh of the factorisation at the current
+// rotations is asked for every options.refactor_cg_iterations steps of a solve (on the background thread, or at
+// once). result: in the start's residual, out the end's.
+void chord_iterations(const CorotationalModel& model, const CorotationalOptions& options, CorotationalState& state,
+                      CorotationalResidual& residual, CorotationalResult& result) {
+  AndersonMixing anderson(options.anderson_depth);
+  Eigen::VectorXd du;
+  int since_refresh = 0;  // steps since this solve last asked for a factorisation
+  for (;;) {
+    result.n_inverted = state.n_inverted;
+    result.converged = result.residual <= options.tolerance;
+    if (result.converged || result.iterations >= options.max_iterations) break;
+    adopt_finished_factorisation(state, result);
+    if (options.refactor_cg_iterations > 0 && since_refresh >= options.refactor_cg_iterations &&
+        !state.pending.valid()) {
+      start_factorisation(model, options, state, result);
+      since_refresh = 0;
+    }
+    ++since_refresh;
+    // The step on the lagged factorisation, mixed with the last ones when that lowers the residual.
+    const StaticSolver& A = state.preconditioner ? *state.preconditioner : model.solver();
+    A.solve(residual.r(), du);
+    ++result.iterations;
+    ++result.cg_iterations;
+    if (!du.allFinite()) break;  // keep the last finite iterate (not converged)
+    take_step(state, residual, anderson, du, result.residual, result.residual);
+  }
+}
+
 }  // namespace
 
 CorotationalResult solve_corotational(const CorotationalModel& model, const Eigen::VectorXd& f_ext,
@@ -1025,6 +1010,12 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
   result.residual = residual.evaluate();
   if (can_extrapolate && result.residual > options.tolerance)
     result.residual = extrapolate_start(state, residual, fixed, u_before, result.residual);
+
+  if (options.method == CorotationalMethod::chord) {
+    chord_iterations(model, options, state, residual, result);
+    if (contacts) result.contact_lambda = residual.contact_lambda();
+    return result;
+  }
 
   // Fixed-point iterations on the warped system, or Newton's on the tangent.
   AndersonMixing anderson(options.anderson_depth);

@@ -218,6 +218,15 @@ class CorotationalModel {
 // step that finds no decrease is replaced by the warped step from the same start.
 enum class CorotationalTangent { warped, projected, exact };
 
+// How each linear step is taken. pcg: PCG on the step's operator (K_w or the tangent), preconditioned by the
+// lagged factorisation, to a relative tolerance (several back-substitutions and operator products per step).
+// chord: the lagged factorisation itself is the operator (du = A^-1 r, one back-substitution, no CG): a chord /
+// quasi-Newton iteration whose operator is K_w at the rotations of the last refresh, accelerated by Anderson
+// mixing (the multisecant update Liu, Bouaziz and Kavan 2017 get from L-BFGS over a constant prefactored matrix),
+// with the factorisation refreshed at the current rotations every refactor_cg_iterations steps of a solve (on the
+// background thread with refactor_in_background; warped tangent only).
+enum class CorotationalMethod { pcg, chord };
+
 // Iteration bounds and tolerances of the corotational solves (validated by each solve).
 struct CorotationalOptions {
   // Outer (fixed-point) convergence: |f_ext - f_int(u)| on the free DOFs <= tolerance * force scale, where the
@@ -244,6 +253,7 @@ struct CorotationalOptions {
   // Factorise on a background thread (the solves go on with the previous preconditioner until it is ready)
   // rather than at once inside the solve.
   bool refactor_in_background = false;
+  CorotationalMethod method = CorotationalMethod::pcg;  // the linear steps (chord: warped tangent only)
 };
 
 // Throws std::invalid_argument naming the field and its value unless every option is in range.
@@ -288,5 +298,6 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
                                       CorotationalState& state, const CorotationalOptions& options = {},
                                       const Eigen::VectorXd& u_fixed = Eigen::VectorXd(),
                                       const AugmentedContacts* contacts = nullptr);
+
 
 }  // namespace lumen::physics

@@ -226,6 +226,23 @@ TEST(Scene, CouplingKey) {
                          "(got \"paper\") (value \"carried\")");
 }
 
+TEST(Scene, SolverMethodKey) {
+  json s = good_scene();
+  s["material"]["model"] = "corotational";
+  EXPECT_EQ(parse_scene(s.dump(), "dir/s.json").solver.method, lumen::engine::SolveMethod::kPcg);
+  s["solver"] = {{"method", "chord"}};
+  EXPECT_EQ(parse_scene(s.dump(), "dir/s.json").solver.method, lumen::engine::SolveMethod::kChord);
+  s["solver"]["method"] = "newton";
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.method: must be one of pcg, chord (value \"newton\")");
+  s["solver"] = {{"method", "chord"}, {"tangent", "exact"}};
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.method: \"chord\" needs solver.tangent \"warped\" (got \"exact\") "
+                         "(value \"chord\")");
+  s["solver"] = {{"method", "chord"}};
+  s["material"]["model"] = "linear";
+  EXPECT_EQ(error_of(s), "dir/s.json: solver.method: needs material.model \"corotational\" and solver.type "
+                         "\"quasi_static\" (got \"linear\", \"quasi_static\") (value \"chord\")");
+}
+
 TEST(Scene, UnreadableFile) {
   try {
     lumen::engine::load_scene("/nonexistent/scene.json");

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "physics/corotational.hpp"
@@ -216,6 +217,47 @@ TEST(AndersonMixing, ANegativeDepthIsRefused) {
     FAIL();
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("anderson_depth"), std::string::npos) << e.what();
+  }
+}
+
+// Chord steps (one back-substitution on the lagged factorisation each, Anderson-mixed) reach the equilibrium of
+// the PCG iteration on K_w, on a large press and on the buckling end-to-end crush, both at tight tolerance.
+TEST(ChordMethod, ReachesThePcgEquilibriumOnAPressAndABucklingCrush) {
+  const Pressed p = pressed_tube(3e-2);
+  const CorotationalModel model(p.mesh, kMaterial, p.fixed);
+  Eigen::VectorXd crush = Eigen::VectorXd::Zero(3 * p.mesh.n_nodes());
+  for (int v : p.mesh.node_set(kStopEnd)) crush[3 * v + 2] = -0.4 * 0.04;
+  const Pressed nudge = pressed_tube(1e-3);
+  for (const auto& [f, u_fixed] : {std::pair{p.f, Eigen::VectorXd()}, std::pair{nudge.f, crush}}) {
+    CorotationalOptions pcg;
+    pcg.tolerance = 1e-8;
+    pcg.max_iterations = 4000;
+    pcg.max_cg_iterations = 400;
+    pcg.anderson_depth = 5;
+    CorotationalOptions chord = pcg;
+    chord.method = CorotationalMethod::chord;
+    chord.refactor_cg_iterations = 5;  // refresh the factorisation (inside the solve) when a solve takes longer
+    CorotationalState a, b;
+    const CorotationalResult ra = solve_corotational(model, f, a, pcg, u_fixed);
+    const CorotationalResult rb = solve_corotational(model, f, b, chord, u_fixed);
+    std::printf("pcg: %d iterations (%d back-substitutions); chord: %d iterations (%d refactorisations)\n",
+                ra.iterations, ra.cg_iterations, rb.iterations, rb.refactorisations);
+    ASSERT_TRUE(ra.converged);
+    ASSERT_TRUE(rb.converged);
+    EXPECT_EQ(rb.cg_iterations, rb.iterations);  // one back-substitution a step
+    EXPECT_LT((a.u - b.u).norm(), 1e-5 * a.u.norm());
+  }
+}
+
+TEST(ChordMethod, NeedsTheWarpedTangent) {
+  CorotationalOptions o;
+  o.method = CorotationalMethod::chord;
+  o.tangent = CorotationalTangent::exact;
+  try {
+    validate_options(o);
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("method chord needs tangent warped"), std::string::npos) << e.what();
   }
 }
 
