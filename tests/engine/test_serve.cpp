@@ -405,7 +405,7 @@ TEST(Serve, ASensorPartlySentToAFullSocketIsFinishedOnTheNextRound) {
 
 // A violent device: the probe's pose jumps every 25 ms between 0.5 mm above the tube and 20 mm down through its top
 // wall into the lumen, 15 mm to either side, against a contact cap of 60 rows. Every frame stays finite and free of
-// intersections (exact check, walls and instrument), and a frame over the cap takes the safe fallback.
+// intersections (exact check, walls and instrument), frames over the cap among them.
 TEST(Serve, AViolentDeviceAgainstTheContactCapStaysFiniteAndIntersectionFree) {
   constexpr int kFrames = 40;
   constexpr int kMaxContactRows = 60;
@@ -439,11 +439,12 @@ TEST(Serve, AViolentDeviceAgainstTheContactCapStaysFiniteAndIntersectionFree) {
     EXPECT_TRUE(std::isfinite(f.max_displacement)) << "frame " << f.frame;
     EXPECT_TRUE(f.instruments[0].force.allFinite()) << "frame " << f.frame;
     EXPECT_TRUE(f.instruments[0].position.allFinite()) << "frame " << f.frame;
-    EXPECT_TRUE(!f.contact_rows_capped || f.fallback) << "frame " << f.frame << ": capped without the fallback";
     capped += f.contact_rows_capped;
     stopped += f.fallback;
   }
-  // The jumps were violent: some frames had to stop short of the device's pose.
+  // The jumps were violent: frames went over the cap and had to stop short of the device's pose. (A capped frame
+  // whose sweep holds no true contact, only pairs within the gap, runs its whole motion: not a fallback frame.)
+  EXPECT_GT(capped, 0);
   EXPECT_GT(stopped, 0);
   std::printf("violent device: %d of %d frames capped, %d took the fallback\n", capped, kFrames, stopped);
 }
