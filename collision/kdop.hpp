@@ -233,12 +233,20 @@ class BvhBoxes {
   // larger one, pushing only child pairs that overlap.
   template <class F>
   void self_pairs(const BvhTopology& topo, F&& f) const {
+    self_pairs_where(topo, AnyPair{}, f);
+  }
+
+  // Self-traversal restricted to the node pairs keep(a, b) accepts: f(i, j) for the overlapping leaf pairs
+  // whose every ancestor pair was accepted. keep must accept a pair whenever it accepts a pair of their
+  // descendants (e.g. "either node holds a flagged primitive"), so that pruning loses no accepted leaf pair.
+  template <class Keep, class F>
+  void self_pairs_where(const BvhTopology& topo, Keep&& keep, F&& f) const {
     for (int i = 0; i < topo.num_nodes(); ++i) {
       const BvhTopology::Node& nd = topo.node(i);
-      if (nd.prim >= 0) continue;
+      if (nd.prim >= 0 || !keep(nd.left, nd.right)) continue;
       stack_.clear();
       if (box(nd.left).overlaps(box(nd.right))) stack_.push_back({nd.left, nd.right});
-      descend(topo, *this, topo, f);
+      descend(topo, *this, topo, keep, f);
     }
   }
 
@@ -250,18 +258,22 @@ class BvhBoxes {
     stack_.clear();
     if (topo.num_nodes() == 0 || other_topo.num_nodes() == 0) return;
     if (box(0).overlaps(other.box(0))) stack_.push_back({0, 0});
-    descend(topo, other, other_topo, f);
+    descend(topo, other, other_topo, AnyPair{}, f);
   }
 
  private:
   struct Pair {
     int a, b;  // node of this tree (topology ta), node of the other (tb)
   };
+  // The traversal's default filter: every node pair.
+  struct AnyPair {
+    bool operator()(int, int) const { return true; }
+  };
 
   // Pop node pairs off stack_ until empty: a leaf pair is reported, otherwise the larger node (or the
   // one that is not a leaf) is descended, pushing only the child pairs that overlap.
-  template <class F>
-  void descend(const BvhTopology& ta, const BvhBoxes& ob, const BvhTopology& tb, F& f) const {
+  template <class Keep, class F>
+  void descend(const BvhTopology& ta, const BvhBoxes& ob, const BvhTopology& tb, const Keep& keep, F& f) const {
     while (!stack_.empty()) {
       const Pair pr = stack_.back();
       stack_.pop_back();
@@ -271,12 +283,12 @@ class BvhBoxes {
         f(na.prim, nb.prim);
       } else if (nb.prim >= 0 || (na.prim < 0 && extent_[static_cast<std::size_t>(pr.a)] >= ob.extent_[static_cast<std::size_t>(pr.b)])) {
         const Kdop<K>& bb = ob.box(pr.b);
-        if (box(na.right).overlaps(bb)) stack_.push_back({na.right, pr.b});
-        if (box(na.left).overlaps(bb)) stack_.push_back({na.left, pr.b});
+        if (keep(na.right, pr.b) && box(na.right).overlaps(bb)) stack_.push_back({na.right, pr.b});
+        if (keep(na.left, pr.b) && box(na.left).overlaps(bb)) stack_.push_back({na.left, pr.b});
       } else {
         const Kdop<K>& ba = box(pr.a);
-        if (ba.overlaps(ob.box(nb.right))) stack_.push_back({pr.a, nb.right});
-        if (ba.overlaps(ob.box(nb.left))) stack_.push_back({pr.a, nb.left});
+        if (keep(pr.a, nb.right) && ba.overlaps(ob.box(nb.right))) stack_.push_back({pr.a, nb.right});
+        if (keep(pr.a, nb.left) && ba.overlaps(ob.box(nb.left))) stack_.push_back({pr.a, nb.left});
       }
     }
   }

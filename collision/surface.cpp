@@ -222,6 +222,11 @@ struct CollisionWorkspace::Impl {
   std::vector<double> vbox;             // swept axis-aligned box of each vertex: lo xyz, hi xyz, n_points x 6
   double feature_pad = 0.0;             // feature-box overlap margin: 2 gap plus rounding, metres
   std::vector<FeaturePair> tested;      // the feature pairs run by the last detect_self call
+  // detect_self_moved: per-vertex moves (n_points x 3), and per BVH node whether a flagged vertex is under it and
+  // the box of the moves under it (lo xyz, hi xyz).
+  std::vector<double> move;
+  std::vector<std::uint8_t> node_flagged;
+  std::vector<double> node_move;
   long bv_overlaps = 0;
   // k-DOP study (off by default): overlapping leaf pairs of the call and running totals.
   bool classify = false;
@@ -289,6 +294,58 @@ struct CollisionWorkspace::Impl {
     b.refit(s.bvh());
   }
 
+  // Per BVH node of s, bottom-up: whether a flagged vertex is under it and the box of the moves under it.
+  void mark_nodes(const CollisionSurface& s, const std::uint8_t* flagged, const double* moves) {
+    const BvhTopology& topo = s.bvh();
+    const std::size_t n = static_cast<std::size_t>(topo.num_nodes());
+    node_flagged.assign(n, 0);
+    node_move.assign(6 * n, 0.0);
+    for (int i = topo.num_nodes() - 1; i >= 0; --i) {
+      const BvhTopology::Node& nd = topo.node(i);
+      double* box = &node_move[6 * static_cast<std::size_t>(i)];
+      if (nd.prim < 0) {
+        // Internal: the union of its children.
+        const double* l = &node_move[6 * static_cast<std::size_t>(nd.left)];
+        const double* r = &node_move[6 * static_cast<std::size_t>(nd.right)];
+        for (int d = 0; d < 3; ++d) {
+          box[d] = std::min(l[d], r[d]);
+          box[3 + d] = std::max(l[3 + d], r[3 + d]);
+        }
+        node_flagged[static_cast<std::size_t>(i)] = node_flagged[static_cast<std::size_t>(nd.left)] |
+                                                     node_flagged[static_cast<std::size_t>(nd.right)];
+        continue;
+      }
+      // Leaf: its triangle's three vertices.
+      const int* t = s.triangle(nd.prim);
+      for (int d = 0; d < 3; ++d) {
+        box[d] = std::numeric_limits<double>::infinity();
+        box[3 + d] = -std::numeric_limits<double>::infinity();
+      }
+      for (int j = 0; j < 3; ++j) {
+        if (flagged && flagged[t[j]]) node_flagged[static_cast<std::size_t>(i)] = 1;
+        for (int d = 0; d < 3; ++d) {
+          const double m = moves ? moves[3 * static_cast<std::size_t>(t[j]) + static_cast<std::size_t>(d)] : 0.0;
+          box[d] = std::min(box[d], m);
+          box[3 + d] = std::max(box[3 + d], m);
+        }
+      }
+    }
+  }
+
+  // Whether BVH nodes a and b can hold a selected pair: a flag under either, or moves under them differing by at
+  // least the margin somewhere (the largest difference of two points of their boxes).
+  bool node_pair_wanted(int a, int b, double margin2) const {
+    if (node_flagged[static_cast<std::size_t>(a)] || node_flagged[static_cast<std::size_t>(b)]) return true;
+    const double* p = &node_move[6 * static_cast<std::size_t>(a)];
+    const double* q = &node_move[6 * static_cast<std::size_t>(b)];
+    double d2 = 0.0;
+    for (int d = 0; d < 3; ++d) {
+      const double span = std::max(p[3 + d] - q[d], q[3 + d] - p[d]);
+      d2 += span * span;
+    }
+    return d2 >= margin2;
+  }
+
   // Reset the per-call candidates and statistics.
   void begin_call() {
     vf_keys.clear();
@@ -335,6 +392,29 @@ using WsImpl = CollisionWorkspace::Impl;
 struct SelfDetector {
   const CollisionSurface& s;
   WsImpl& w;
+  // Restricted detection (detect_self_moved): flags and per-vertex moves (n_points x 3, row-major), or null.
+  const std::uint8_t* flagged = nullptr;
+  const double* move = nullptr;
+  double margin2 = 0.0;  // squared margin
+  bool restricted = false;
+
+  // Whether vertex sets a and b hold a selected pair: a flag, or a relative move of at least the margin.
+  bool wanted(const int* a, int na, const int* b, int nb) const {
+    if (!restricted) return true;
+    for (int i = 0; i < na; ++i)
+      if (flagged && flagged[a[i]]) return true;
+    for (int j = 0; j < nb; ++j)
+      if (flagged && flagged[b[j]]) return true;
+    if (!move) return false;
+    for (int i = 0; i < na; ++i)
+      for (int j = 0; j < nb; ++j) {
+        const double* da = move + 3 * static_cast<std::size_t>(a[i]);
+        const double* db = move + 3 * static_cast<std::size_t>(b[j]);
+        const double dx = da[0] - db[0], dy = da[1] - db[1], dz = da[2] - db[2];
+        if (dx * dx + dy * dy + dz * dz >= margin2) return true;
+      }
+    return false;
+  }
 
   // Compact feature pair keys, ordered as (first id, second id).
   std::uint64_t vf_key(int v, int t) const {
@@ -352,8 +432,8 @@ struct SelfDetector {
     const int* A = s.triangle(ta);
     const int* B = s.triangle(tb);
     for (int i = 0; i < 3; ++i) {
-      if (!has_vertex(B, A[i])) w.vf_keys.push_back(vf_key(A[i], tb));
-      if (!has_vertex(A, B[i])) w.vf_keys.push_back(vf_key(B[i], ta));
+      if (!has_vertex(B, A[i]) && wanted(&A[i], 1, B, 3)) w.vf_keys.push_back(vf_key(A[i], tb));
+      if (!has_vertex(A, B[i]) && wanted(&B[i], 1, A, 3)) w.vf_keys.push_back(vf_key(B[i], ta));
     }
     for (int i = 0; i < 3; ++i) {
       const int ea = s.triangle_edge(ta, i);
@@ -362,6 +442,7 @@ struct SelfDetector {
         const int eb = s.triangle_edge(tb, j);
         const int* vb = s.edge(eb);
         if (va[0] == vb[0] || va[0] == vb[1] || va[1] == vb[0] || va[1] == vb[1]) continue;
+        if (!wanted(va, 2, vb, 2)) continue;
         w.ee_keys.push_back(ee_key(std::min(ea, eb), std::max(ea, eb)));
       }
     }
@@ -460,6 +541,56 @@ void detect_self(const CollisionSurface& surface, CollisionWorkspace& ws, const 
     constexpr int K = decltype(k_tag)::value;
     w.refit<K>(surface, x0, x1, gap);
     std::get<BvhBoxes<K>>(w.boxes).self_pairs(surface.bvh(), [&](int ta, int tb) { det.add_candidates(ta, tb); });
+  });
+  det.run_features(x0, x1, gap, out, stats);
+}
+
+namespace {
+
+// Check a move filter against the surface (sizes, finite reference, margin).
+void check_filter(const CollisionSurface& surface, const MoveFilter& f) {
+  if (f.flagged && f.flagged->size() != static_cast<std::size_t>(surface.num_points())) {
+    throw std::invalid_argument("flagged has " + std::to_string(f.flagged->size()) + " entries, expected n_points = " +
+                                std::to_string(surface.num_points()));
+  }
+  if (f.x1_ref) check_points(*f.x1_ref, surface.num_points(), "x1_ref");
+  if (!(f.margin >= 0.0) || !std::isfinite(f.margin)) {
+    std::ostringstream msg;
+    msg << "margin must be finite and >= 0 metres, got " << f.margin;
+    throw std::invalid_argument(msg.str());
+  }
+}
+
+}  // namespace
+
+void detect_self_moved(const CollisionSurface& surface, CollisionWorkspace& ws, const PointsRef& x0,
+                       const PointsRef& x1, double gap, const MoveFilter& filter, std::vector<Contact>& out,
+                       CollisionStats* stats) {
+  WsImpl& w = workspace_impl(ws);
+  validate_motion(surface, x0, x1, gap);
+  require_bvh(surface);
+  check_filter(surface, filter);
+  out.clear();
+  w.begin_call();
+  SelfDetector det{surface, w};
+  det.restricted = true;
+  det.flagged = filter.flagged ? filter.flagged->data() : nullptr;
+  det.margin2 = filter.margin * filter.margin;
+  // Each used vertex's move since the reference.
+  if (filter.x1_ref) {
+    w.move.assign(static_cast<std::size_t>(3 * surface.num_points()), 0.0);
+    for (const int v : surface.used_vertices())
+      for (int d = 0; d < 3; ++d) w.move[static_cast<std::size_t>(3 * v + d)] = x1(v, d) - (*filter.x1_ref)(v, d);
+    det.move = w.move.data();
+  }
+  w.mark_nodes(surface, det.flagged, det.move);
+  // Refit in full, traverse only the node pairs that can hold a selected pair.
+  const double node_margin2 = det.move ? det.margin2 : std::numeric_limits<double>::infinity();
+  auto keep = [&w, node_margin2](int a, int b) { return w.node_pair_wanted(a, b, node_margin2); };
+  with_k(w.k, [&](auto k_tag) {
+    constexpr int K = decltype(k_tag)::value;
+    w.refit<K>(surface, x0, x1, gap);
+    std::get<BvhBoxes<K>>(w.boxes).self_pairs_where(surface.bvh(), keep, [&](int ta, int tb) { det.add_candidates(ta, tb); });
   });
   det.run_features(x0, x1, gap, out, stats);
 }

@@ -162,6 +162,24 @@ void validate_motion(const CollisionSurface& surface, const PointsRef& x0, const
 // Throws std::logic_error when the surface has no BVH yet.
 void detect_self(const CollisionSurface& surface, CollisionWorkspace& ws, const PointsRef& x0, const PointsRef& x1,
                  double gap, std::vector<Contact>& out, CollisionStats* stats = nullptr);
+// Which feature pairs a restricted self-detection tests: those with a flagged vertex, and those whose vertices
+// moved relative to each other since reference end positions x1_ref by at least `margin` metres, the relative
+// move of a pair being max |d_i - d_j| over a vertex i of one feature and j of the other (d = x1 - x1_ref). Both
+// motions start at the same x0, so a pair's separation differs between the two at every time by at most its
+// relative move: a pair clear by more than g + margin on the reference motion is clear by more than g on this one.
+struct MoveFilter {
+  const PointsRef* x1_ref = nullptr;         // n_points x 3; null: no move test (flags only)
+  double margin = 0.0;                       // metres, >= 0
+  const std::vector<std::uint8_t>* flagged = nullptr;  // n_points entries (nonzero: flagged); null: none
+};
+// detect_self restricted to the pairs `filter` selects: the BVH is refitted in full, but the traversal skips node
+// pairs whose vertices can hold no selected pair (none flagged, and the moves under the two nodes, as boxes, differ
+// by less than the margin), and only selected features are tested; same order as detect_self, statistics of what
+// ran. With every vertex flagged it equals detect_self. Throws std::invalid_argument for flags or reference
+// positions of the wrong size, a non-finite reference or a negative margin.
+void detect_self_moved(const CollisionSurface& surface, CollisionWorkspace& ws, const PointsRef& x0,
+                       const PointsRef& x1, double gap, const MoveFilter& filter, std::vector<Contact>& out,
+                       CollisionStats* stats = nullptr);
 // The same with all pairs of triangle k-DOPs instead of the BVH (the paper's way; the oracle in tests).
 void detect_self_brute_force(const CollisionSurface& surface, CollisionWorkspace& ws, const PointsRef& x0,
                              const PointsRef& x1, double gap, std::vector<Contact>& out,

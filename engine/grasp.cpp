@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <cassert>
 
-#include <Eigen/Cholesky>
-
 #include "engine/input.hpp"
 #include "engine/response.hpp"
 #include "engine/simulation.hpp"
@@ -44,33 +42,24 @@ std::vector<int> nodes_between_jaws(const Model& model, const State& state, size
   return nodes;
 }
 
-// state.grasp_holds from every instrument's hold: U = K^-1 E by one multi-right-hand-side solve, S = (E^T U)^-1.
-void rebuild_holds(const Model& model, State& state) {
+// state.grasp_holds from every instrument's hold: S = (E^T K^-1 E)^-1 from the contact compliance's blocks of the
+// held nodes (wall nodes: no solve), no whole-mesh columns (the hold moves the mesh by one displacement a frame).
+void rebuild_holds(State& state) {
   GraspHolds& g = state.grasp_holds;
   g = GraspHolds{};
-  std::vector<int> nodes;
+  std::vector<physics::LoadPoint> points;
   for (size_t i = 0; i < state.grasps.size(); ++i)
     for (int node : state.grasps[i].nodes) {
       physics::LoadPoint p;
       p.node[0] = node;
       p.weight[0] = 1.0;
-      g.held.points.push_back(p);
+      points.push_back(p);
       g.instrument.push_back(static_cast<int>(i));
-      nodes.push_back(node);
     }
-  const Eigen::Index d3 = 3 * static_cast<Eigen::Index>(nodes.size());
-  state.grasp_force = Eigen::VectorXd::Zero(d3);
-  if (nodes.empty()) return;
-  const physics::StaticSolver& solver = model.contact_solver();
-  // E: unit loads on every held DOF (3n x 3d).
-  Eigen::MatrixXd E = Eigen::MatrixXd::Zero(solver.n_dofs(), d3);
-  for (size_t a = 0; a < nodes.size(); ++a)
-    for (int k = 0; k < 3; ++k) E(3 * nodes[a] + k, 3 * static_cast<Eigen::Index>(a) + k) = 1.0;
-  g.held.U = solver.solve_many(E);
-  // The held nodes' point compliance E^T U (symmetric positive definite: no held DOF is fixed) and its inverse.
-  Eigen::MatrixXd P(d3, d3);
-  for (size_t b = 0; b < nodes.size(); ++b) P.middleRows(3 * static_cast<Eigen::Index>(b), 3) = g.held.U.middleRows(3 * nodes[b], 3);
-  g.held.S = P.ldlt().solve(Eigen::MatrixXd::Identity(d3, d3));
+  state.grasp_force = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(points.size()));
+  if (points.empty()) return;
+  assert(state.compliance && "grasping needs instruments, which build the contact compliance");
+  g.held = physics::held_points_on(*state.compliance, std::move(points));
 }
 
 }  // namespace
@@ -115,7 +104,7 @@ void update_grasps(const Model& model, State& state, double t1) {
     target = hold.opening;
     changed = true;
   }
-  if (changed) rebuild_holds(model, state);
+  if (changed) rebuild_holds(state);
 }
 
 void hold_grasped_nodes(const Model& model, State& state, Eigen::VectorXd& u) {
@@ -134,8 +123,11 @@ void hold_grasped_nodes(const Model& model, State& state, Eigen::VectorXd& u) {
       shortfall.segment<3>(3 * a) = target - model.mesh.rest.row(node).transpose() - u.segment<3>(3 * node);
     }
   }
+  // The holding forces, and the whole mesh moved by them (one displacement: a back-substitution or kept columns).
   state.grasp_force = g.held.S * shortfall;
-  u += g.held.U * state.grasp_force;
+  Eigen::VectorXd du;
+  physics::held_displacement(*state.compliance, g.held, state.grasp_force, du);
+  u += du;
 }
 
 bool held_by_own_instrument(const Model& model, const State& state, const HeldContact& h) {

@@ -3,10 +3,11 @@
 // frame, until the jaws open again (scene key instruments[i].grasp).
 //
 // A hold is a set of prescribed displacements on the linear quasi-static model, as a displacement-driven probe
-// is: when the jaws close, the held nodes' whole-mesh columns U = K^-1 E (3n x 3d) are solved once and
-// S = (E^T U)^-1 (3d x 3d) kept; each frame the free solution is moved by U S (d - E^T u) so that the held nodes
-// sit at their targets d, and the contact solve keeps them there (physics::HeldPoints). The force the hold puts
-// on the organ, minus, is the grasp's part of the force on the instrument.
+// is: when the jaws close, S = (E^T K^-1 E)^-1 (3d x 3d) is taken from the contact compliance's 3 x 3 blocks of
+// the held (wall) nodes, with no solve; each frame the free solution is moved by K^-1 E S (d - E^T u), one
+// displacement of the holding forces, so that the held nodes sit at their targets d, and the contact solve keeps
+// them there (physics::HeldPoints without columns: its G = H K^-1 E comes from the same blocks). The force the
+// hold puts on the organ, minus, is the grasp's part of the force on the instrument.
 #include <vector>
 
 #include <Eigen/Core>
@@ -31,7 +32,7 @@ struct GraspHold {
 };
 
 // Every instrument's held nodes as one hold of the contact solve: points in instrument order (weight 1 on one
-// node each), U and S over all of them.
+// node each), S over all of them (no U: see physics::held_points_on).
 struct GraspHolds {
   physics::HeldPoints held;
   std::vector<int> instrument;  // per point, the instrument holding it

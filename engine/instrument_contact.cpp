@@ -230,6 +230,31 @@ std::vector<InstrumentRecord> instrument_records(const Model& model, const State
   return recs;
 }
 
+namespace {
+
+// The hold's rows for the stiffness: per held point and axis, a row of unit normal along the axis on the point's
+// nodes (the hold keeps that displacement), and the instrument whose grasp holds it (-1: a held probe, which no
+// instrument moves).
+void append_hold_rows(const Model& model, const State& state, std::vector<physics::ContactRow>& rows,
+                      std::vector<int>& holder) {
+  const bool grasped = !state.grasp_holds.empty();
+  const physics::HeldPoints* held = grasped ? &state.grasp_holds.held : model.integrator->held_points();
+  if (!held) return;
+  for (size_t a = 0; a < held->points.size(); ++a)
+    for (int axis = 0; axis < 3; ++axis) {
+      physics::ContactRow row;
+      for (int k = 0; k < 3; ++k) {
+        row.node[k] = held->points[a].node[k];
+        row.weight[k] = held->points[a].weight[k];
+      }
+      row.n = Eigen::Vector3d::Unit(axis);
+      rows.push_back(row);
+      holder.push_back(grasped ? state.grasp_holds.instrument[a] : -1);
+    }
+}
+
+}  // namespace
+
 void add_tool_stiffness(const Model& model, State& state, const std::vector<HeldContact>& contacts,
                         const std::vector<physics::ContactRow>& rows, const Eigen::VectorXd& lambda,
                         std::vector<InstrumentRecord>& records) {
@@ -244,14 +269,18 @@ void add_tool_stiffness(const Model& model, State& state, const std::vector<Held
       index.push_back(r);
       tool = tool || contacts[r].is_tool();
     }
-  if (!tool) return;
+  if (!tool && state.grasp_holds.empty()) return;
+  // The holds' rows after them (a grasper's move carries its held nodes along).
+  const Eigen::Index m_contact = static_cast<Eigen::Index>(pushing.size());
+  std::vector<int> holder;
+  append_hold_rows(model, state, pushing, holder);
   const Eigen::MatrixXd a = physics::coupling_matrix(*state.compliance, pushing);
   const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> solver(a);
-  // Per instrument: G over the pushing rows, K = G^T A^-1 G.
+  // Per instrument: G over the pushing rows and the holds' rows, K = G^T A^-1 G.
   const Eigen::Index m = static_cast<Eigen::Index>(pushing.size());
   for (size_t i = 0; i < records.size(); ++i) {
     Eigen::MatrixXd g = Eigen::MatrixXd::Zero(m, 3);
-    for (Eigen::Index a_row = 0; a_row < m; ++a_row) {
+    for (Eigen::Index a_row = 0; a_row < m_contact; ++a_row) {
       const HeldContact& h = contacts[index[static_cast<size_t>(a_row)]];
       if (!h.is_tool() || static_cast<size_t>(model.tool_parts[h.part].instrument) != i) continue;
       double w[4];
@@ -259,6 +288,10 @@ void add_tool_stiffness(const Model& model, State& state, const std::vector<Held
       for (int k = 0; k < 4; ++k)
         if (h.on_tool(k)) g.row(a_row) += w[k] * pushing[static_cast<size_t>(a_row)].n.transpose();
     }
+    // A held row's target moves with its grasper by dx (the row value by -n . dx, the contacts' sign convention).
+    for (Eigen::Index a_row = m_contact; a_row < m; ++a_row)
+      if (holder[static_cast<size_t>(a_row - m_contact)] == static_cast<int>(i))
+        g.row(a_row) = -pushing[static_cast<size_t>(a_row)].n.transpose();
     if (g.isZero(0.0)) continue;
     const Eigen::Matrix3d k = g.transpose() * solver.solve(g);
     records[i].stiffness = 0.5 * (k + k.transpose());

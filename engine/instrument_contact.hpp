@@ -81,7 +81,10 @@ std::vector<InstrumentRecord> instrument_records(const Model& model, const State
 // (lambda > 0, self-contacts included: they couple) held: a translation dx of the instrument moves the row values
 // by G dx (row a of G: sum of the row's weights on the part's vertices times its normal), so the multipliers by
 // -A^-1 G dx (A = H C H^T of the pushing rows on the contact compliance) and the force on it, G^T lambda, by
-// -G^T A^-1 G dx: K = G^T A^-1 G. Rows and contacts in the same order (the constraint response's).
+// -G^T A^-1 G dx: K = G^T A^-1 G. Held points (a grasp's nodes, or displacement-driven probes) are rows too, three
+// per point along the axes: a grasper's translation moves its held nodes' targets by dx (its G rows -e_axis, so
+// that G^T nu is minus the holding force, the hold's part of the force on it); a held probe's stay (G rows 0).
+// Rows and contacts in the same order (the constraint response's).
 void add_tool_stiffness(const Model& model, State& state, const std::vector<HeldContact>& contacts,
                         const std::vector<physics::ContactRow>& rows, const Eigen::VectorXd& lambda,
                         std::vector<InstrumentRecord>& records);

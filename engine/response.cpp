@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <map>
 #include <set>
 
@@ -116,6 +117,10 @@ constexpr double kIterativeToleranceGapFraction = 1e-3;  // NNCG: residual accep
 constexpr double kRecheckGapFraction = 0.5;   // re-check the corrected motion at this fraction of the gap
 constexpr double kFallbackTimeFraction = 0.9; // the fallback stops the motion at this fraction of the first contact
 constexpr double kEqualityTolerance = 1e-9;   // paper response: metres
+// Restricted re-check: a wall feature pair is tested again when its vertices moved relative to each other, since
+// the first detection, by this share of the difference between that detection's gap and the re-check's (the
+// other half is the spare that keeps a skipped pair clear of the re-check's gap).
+constexpr double kRecheckMarginShare = 0.5;
 
 // One frame's response rounds: the active constraints and the last solve.
 struct ResponseRounds {
@@ -210,16 +215,53 @@ void add_contact_to_probe_forces(const Model& model, State& state, const Respons
   }
 }
 
+// The frame's first detection, which a restricted re-check starts from: its end positions, its gap, and the
+// nodes of the self-contacts it found.
+struct RecheckReference {
+  Points x1;
+  double gap = 0.0;
+  std::vector<int> contact_nodes;
+};
+
+// The wall features a re-check at `gap` must test again: those of the reference's contacts (flagged), and those
+// whose vertices moved relative to each other, since the reference, by at least half the gaps' difference. Any
+// other pair was farther apart than ref.gap all along the reference sweep (no contact: the tests are
+// conservative) and, with the same start and its separation off by at most its relative move at every time, is
+// farther than gap + (ref.gap - gap) / 2 on the new one: clear, with half the difference to spare.
+void flag_reference_contacts(const Model& model, const RecheckReference& ref, std::vector<std::uint8_t>& flagged) {
+  flagged.assign(static_cast<size_t>(model.mesh.n_nodes()), 0);
+  for (const int v : ref.contact_nodes) flagged[static_cast<size_t>(v)] = 1;
+}
+
 // Every contact of the organ motion state.x -> x1 within gap: the walls' self-contacts (when they collide) and the
-// instruments' contacts along their sweeps; `out` is cleared first.
+// instruments' contacts along their sweeps; `out` is cleared first. With a reference (a re-check at a smaller
+// gap), the walls' features that provably stay clear since it are not tested again (the instruments' sweeps are).
 void detect_all(const Model& model, State& state, const Points& x1, double gap, std::vector<HeldContact>& out,
-                collision::CollisionStats* stats) {
+                collision::CollisionStats* stats, const RecheckReference* ref = nullptr) {
   out.clear();
-  if (model.collision_surface) {
+  if (model.collision_surface && ref && ref->gap > gap) {
+    flag_reference_contacts(model, *ref, state.recheck_flags);
+    const collision::PointsRef x1_ref(ref->x1);
+    const collision::MoveFilter filter{&x1_ref, kRecheckMarginShare * (ref->gap - gap), &state.recheck_flags};
+    collision::detect_self_moved(*model.collision_surface, *state.detector, state.x, x1, gap, filter, state.contacts,
+                                 stats);
+  } else if (model.collision_surface) {
     collision::detect_self(*model.collision_surface, *state.detector, state.x, x1, gap, state.contacts, stats);
-    for (const collision::Contact& c : state.contacts) out.push_back(HeldContact{c, -1, 0});
   }
+  if (model.collision_surface)
+    for (const collision::Contact& c : state.contacts) out.push_back(HeldContact{c, -1, 0});
   if (!model.tool_parts.empty()) detect_tool_contacts(model, state, state.x, x1, gap, out, stats);
+}
+
+// The first detection as a re-check's reference (none when the scene asks for full re-checks).
+RecheckReference reference_of(const Model& model, const Points& x1, double gap, const std::vector<HeldContact>& found) {
+  RecheckReference ref;
+  if (model.collision.recheck != Recheck::kRestricted || !model.collision_surface) return ref;
+  ref.x1 = x1;
+  ref.gap = gap;
+  for (const HeldContact& h : found)
+    if (!h.is_tool()) ref.contact_nodes.insert(ref.contact_nodes.end(), h.c.v, h.c.v + 4);
+  return ref;
 }
 
 // Fallback: stop the motion x0 -> x1, and the instruments' sweeps, at a safe fraction of the earliest true contact
@@ -328,6 +370,8 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   collision::CollisionStats stats;
   std::vector<HeldContact> found;
   detect_all(model, state, x1, cs.gap, found, &stats);
+  const RecheckReference reference = reference_of(model, x1, cs.gap, found);
+  const RecheckReference* restrict_to = reference.gap > 0.0 ? &reference : nullptr;
   rec.bv_overlaps = stats.bv_overlaps;
   rec.feature_tests = stats.feature_tests;
   rec.contacts = stats.contacts;
@@ -360,9 +404,10 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     rec.ms[kResponse] += ms_since(clock);
 
     // Re-check the corrected motion with one CCD pass at a fraction of the gap (the rows ask for the full gap, so
-    // a held contact is done when this is clear); what it finds joins the active set for the next round.
+    // a held contact is done when this is clear), restricted to the wall features that moved since the first
+    // detection; what it finds joins the active set for the next round.
     clock = Clock::now();
-    detect_all(model, state, x1, kRecheckGapFraction * cs.gap, found, nullptr);
+    detect_all(model, state, x1, kRecheckGapFraction * cs.gap, found, nullptr, restrict_to);
     resolved = found.empty();
     rec.ms[kCollision] += ms_since(clock);
     clock = Clock::now();

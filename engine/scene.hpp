@@ -48,6 +48,7 @@ enum class ElementType { kTet4, kTet10 };             // "tet4" | "tet10"
 enum class SolverType { kQuasiStatic, kDynamic };     // "quasi_static" | "dynamic"
 enum class ResponseKind { kPaper, kConstraint };      // "paper" | "constraint"
 enum class LcpSolver { kActiveSet, kNncg };           // "active_set" | "nncg"
+enum class Recheck { kRestricted, kFull };            // "restricted" | "full"
 enum class ContactCoupling { kCorrect, kCarried };    // "correct" | "carried"
 enum class Tangent { kWarped, kProjected, kExact };  // "warped" | "projected" | "exact"
 enum class SolveMethod { kPcg, kChord };              // "pcg" | "chord"
@@ -60,6 +61,7 @@ const char* name_of(ElementType v);
 const char* name_of(SolverType v);
 const char* name_of(ResponseKind v);
 const char* name_of(LcpSolver v);
+const char* name_of(Recheck v);
 const char* name_of(ContactCoupling v);
 const char* name_of(Tangent v);
 const char* name_of(SolveMethod v);
@@ -117,6 +119,11 @@ struct CollisionSpec {
   // matrix, warm-started from last frame's multipliers, at most lcp_sweeps sweeps; its residual is reported).
   LcpSolver lcp = LcpSolver::kActiveSet;
   int lcp_sweeps = 200;            // "nncg": sweep budget per solve, >= 2
+  // The response rounds' re-check of the corrected motion (key "recheck"): "restricted" (the default: only the
+  // wall features with a vertex the correction moved, since the first detection, by at least a quarter of the
+  // difference of the two gaps, or with a vertex in one of its contacts; the others provably stay clear) or
+  // "full" (every feature again: the twin the restricted one is tested against, bit for bit).
+  Recheck recheck = Recheck::kRestricted;
   // How the contacts meet a corotational quasi-static solve (key "coupling"): "correct" (the contact-free
   // solution is corrected on the rest compliance) or "carried" (the last frame's contacts, re-linearised at the
   // frame's start, enter the nonlinear equilibrium by an augmented Lagrangian; the response then corrects what

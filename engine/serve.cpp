@@ -96,6 +96,8 @@ Bridge::Bridge(Listener listener, std::vector<BridgeSlot> slots, std::function<d
   for (size_t i = 0; i < slots_.size(); ++i) slot_fd_.push_back(std::make_unique<std::atomic<int>>(-1));
   seq_.assign(slots_.size(), 0);
   answered_seq_.assign(slots_.size(), 0);
+  for (size_t i = 0; i < slots_.size(); ++i) pending_.push_back(std::make_unique<PendingSensor>());
+  send_ = [](int fd, const void* data, size_t size) { return send(fd, data, size, MSG_DONTWAIT | MSG_NOSIGNAL); };
 }
 
 Bridge::~Bridge() { stop(); }
@@ -278,11 +280,52 @@ void Bridge::close_client(Client& c) {
   ++disconnects_;
 }
 
+// A SENSOR message being written to a socket: its bytes, how many are out, and the reading it answers.
+struct Bridge::PendingSensor {
+  int fd = -1;
+  std::vector<std::uint8_t> bytes;
+  size_t sent = 0;
+  std::uint64_t seq = 0;
+  double reading_time_s = 0.0;
+};
+
+void Bridge::set_sender(Sender sender) { send_ = std::move(sender); }
+
+bool Bridge::flush_sensor(size_t slot) {
+  PendingSensor& p = *pending_[slot];
+  // Write what the socket takes now (nothing more when it is full).
+  while (p.sent < p.bytes.size()) {
+    const ssize_t n = send_(p.fd, p.bytes.data() + p.sent, p.bytes.size() - p.sent);
+    if (n <= 0) return false;
+    p.sent += static_cast<size_t>(n);
+  }
+  sensors_sent_.fetch_add(1, std::memory_order_relaxed);
+  // The first SENSOR rendered at a new reading answers it.
+  if (p.seq != answered_seq_[slot] && p.seq > 0) {
+    answered_seq_[slot] = p.seq;
+    latency_ms_.push_back(1e3 * (clock_() - p.reading_time_s));
+  }
+  p.bytes.clear();
+  p.sent = 0;
+  return true;
+}
+
 void Bridge::send_reactions(const std::vector<HapticForce>& forces, double now_s) {
   // One SENSOR per slot with a client: the force in newtons.
   for (size_t i = 0; i < forces.size() && i < slots_.size(); ++i) {
     const int fd = slot_fd_[i]->load();
+    PendingSensor& pending = *pending_[i];
+    // A message left half-written belongs to its connection: gone with it, or finished first (until then this
+    // round's message is dropped whole, so the stream never holds a torn message).
+    if (pending.fd != fd) {
+      pending = PendingSensor{};
+      pending.fd = fd;
+    }
     if (fd < 0) continue;
+    if (!pending.bytes.empty() && !flush_sensor(i)) {
+      sensors_dropped_.fetch_add(1, std::memory_order_relaxed);
+      continue;
+    }
     igtl::SensorMessage::Pointer msg = igtl::SensorMessage::New();
     msg->SetDeviceName(slots_[i].device_name.c_str());
     msg->SetLength(kSensorValues);
@@ -293,16 +336,17 @@ void Bridge::send_reactions(const std::vector<HapticForce>& forces, double now_s
     const Eigen::Vector3d f = slots_[i].to_organ.linear().transpose() * forces[i].force;
     for (unsigned k = 0; k < kSensorValues; ++k) msg->SetValue(k, f[static_cast<int>(k)]);
     msg->Pack();
-    const ssize_t sent = send(fd, msg->GetPackPointer(), static_cast<size_t>(msg->GetPackSize()), MSG_DONTWAIT | MSG_NOSIGNAL);
-    if (sent != msg->GetPackSize()) {
+    const auto* packed = static_cast<const std::uint8_t*>(msg->GetPackPointer());
+    pending.bytes.assign(packed, packed + msg->GetPackSize());
+    pending.seq = forces[i].seq;
+    pending.reading_time_s = forces[i].reading_time_s;
+    // Sent whole, dropped whole (the socket took none of it), or partly: the rest goes out first next round.
+    if (flush_sensor(i)) continue;
+    if (pending.sent == 0) {
+      pending.bytes.clear();
       sensors_dropped_.fetch_add(1, std::memory_order_relaxed);
-      continue;
-    }
-    sensors_sent_.fetch_add(1, std::memory_order_relaxed);
-    // The first SENSOR rendered at a new reading answers it.
-    if (forces[i].seq != answered_seq_[i] && forces[i].seq > 0) {
-      answered_seq_[i] = forces[i].seq;
-      latency_ms_.push_back(1e3 * (clock_() - forces[i].reading_time_s));
+    } else {
+      sensors_partial_.fetch_add(1, std::memory_order_relaxed);
     }
   }
   (void)now_s;
@@ -319,6 +363,7 @@ nlohmann::json Bridge::report() const {
   j["rejected_total"] = rejected;
   j["sensors_sent"] = sensors_sent_.load();
   j["sensors_dropped"] = sensors_dropped_.load();
+  j["sensors_partial"] = sensors_partial_.load();
   j["connections"] = connections_;
   j["disconnects"] = disconnects_;
   j["latency_ms"] = {{"answered", static_cast<long>(latency_ms_.size())}, {"median", summarize(latency_ms_).median_ms}};

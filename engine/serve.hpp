@@ -9,8 +9,11 @@
 // channels). A bad message (bad CRC, short body, unknown type, unknown device name, non-finite pose, rotation
 // not orthonormal) is counted by reason and ignored; a client that goes away leaves its instruments at their last
 // poses, and may reconnect.
+#include <sys/types.h>
+
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -64,14 +67,25 @@ class Bridge {
   Bridge& operator=(const Bridge&) = delete;
   void start();
   void stop();  // joins the thread, closes every socket (idempotent)
-  // Haptic thread: one SENSOR per slot whose device has a client. Never blocks (a full socket drops the message).
+  // Haptic thread: one SENSOR per slot whose device has a client. Never blocks: a message the socket takes only
+  // part of keeps its remainder, written first on the next call (the socket's next writable opportunity at the
+  // haptic rate), and until it is out the new messages of that slot are dropped whole; a message the full socket
+  // takes none of is dropped. The client's stream never holds a torn message.
   void send_reactions(const std::vector<HapticForce>& forces, double now_s);
-  // After stop(): messages received by type, rejected by reason, SENSOR messages sent, connections, and the
-  // TRANSFORM/POSITION -> SENSOR latency (from the pose's arrival to the send of the first SENSOR rendered at it).
+  // After stop(): messages received by type, rejected by reason, SENSOR messages sent (whole), dropped and partly
+  // sent at first, connections, and the TRANSFORM/POSITION -> SENSOR latency (from the pose's arrival to the send
+  // of the first SENSOR rendered at it).
   nlohmann::json report() const;
+  // The socket write send_reactions uses: returns the bytes taken, or <= 0 when none (default: send() with
+  // MSG_DONTWAIT | MSG_NOSIGNAL). Set before start(); tests replace it to take messages in pieces.
+  using Sender = std::function<ssize_t(int fd, const void* data, size_t size)>;
+  void set_sender(Sender sender);
 
  private:
   struct Client;
+  struct PendingSensor;
+  // Write slot's pending SENSOR bytes; true (and counted as sent) when the whole message is out.
+  bool flush_sensor(size_t slot);
   void run();
   void read_client(Client& c);
   void handle_message(Client& c, const std::string& type, const std::string& device, const void* header,
@@ -89,7 +103,9 @@ class Bridge {
   // Counts (network thread until joined), and the haptic thread's.
   std::map<std::string, long> received_, rejected_;
   long connections_ = 0, disconnects_ = 0;
-  std::atomic<long> sensors_sent_{0}, sensors_dropped_{0};
+  std::atomic<long> sensors_sent_{0}, sensors_dropped_{0}, sensors_partial_{0};
+  std::vector<std::unique_ptr<PendingSensor>> pending_;  // haptic thread: per slot, a SENSOR not yet all out
+  Sender send_;
   std::vector<std::uint64_t> answered_seq_;  // haptic thread: per slot, the last reading a SENSOR answered
   std::vector<double> latency_ms_;           // haptic thread
 };

@@ -1,6 +1,7 @@
 #pragma once
 // The compiled model (immutable after compile) and the mutable session state; one step per frame.
 #include <array>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -148,6 +149,7 @@ struct State {
   std::vector<std::uint8_t> in_contact;               // per node, 1 when part of a contact this frame
   std::unique_ptr<collision::CollisionWorkspace> detector;  // BVH refit workspace (the surface is the model's)
   std::vector<collision::Contact> contacts;           // this frame's contacts (first detection)
+  std::vector<std::uint8_t> recheck_flags;            // the restricted re-check's flagged wall nodes (scratch)
   std::unique_ptr<physics::SurfaceCompliance> compliance;  // contact compliance on the colliding walls
   std::vector<collision::Contact> active;             // contacts held at the end of the last frame (warm start)
   std::vector<double> active_lambda;                  // their multipliers at the end of the last frame, newtons

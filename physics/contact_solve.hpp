@@ -26,14 +26,33 @@ struct ContactResult {
   Eigen::VectorXd held_force;  // solve_contacts with held points: change of their forces, 3d, newtons
 };
 
-// Load points held at prescribed displacements while contacts are solved (displacement-driven probes): their
-// forces change so that the contacts do not move them. U: K^-1 of unit loads at the points (3n x 3d, m/N, e.g.
-// columns of LoadResponse::response()); S: the inverse of their point compliance (3d x 3d, N/m).
+// Load points held at prescribed displacements while contacts are solved (displacement-driven probes, grasps):
+// their forces change so that the contacts do not move them. U: K^-1 of unit loads at the points (3n x 3d, m/N,
+// e.g. columns of LoadResponse::response()), or empty (held_points_on): the solves then take G = H U from the
+// compliance's 3 x 3 blocks and move the mesh by one displacement of the total force, with no 3d columns solved;
+// S: the inverse of their point compliance (3d x 3d, N/m).
 struct HeldPoints {
   std::vector<LoadPoint> points;  // d points
-  Eigen::MatrixXd U;              // 3n x 3d, metres per newton
+  Eigen::MatrixXd U;              // 3n x 3d, metres per newton (or empty)
   Eigen::MatrixXd S;              // 3d x 3d, newtons per metre
+  bool has_columns() const { return U.size() > 0; }
 };
+
+// The points' compliance E^T K^-1 E (3d x 3d, m/N; E: unit loads at the points by their weights) from the
+// compliance's 3 x 3 blocks: no solve for points on its set (the columns of other nodes are solved and cached).
+Eigen::MatrixXd point_compliance(SurfaceCompliance& compliance, const std::vector<LoadPoint>& points);
+
+// Held points without whole-mesh columns: S = (E^T K^-1 E)^-1 from point_compliance, U empty. The points' nodes
+// must carry no fixed DOF (E^T K^-1 E is then symmetric positive definite).
+HeldPoints held_points_on(SurfaceCompliance& compliance, std::vector<LoadPoint> points);
+
+// Nodal forces E f (3n, newtons) of forces f at the points (3d, newtons, point order).
+Eigen::VectorXd point_forces(const std::vector<LoadPoint>& points, const Eigen::VectorXd& f, int n_dofs);
+
+// The whole-mesh displacement of forces f at the held points (3n, metres): U f with columns, else
+// compliance.displacement(E f) (one back-substitution, or a short sum of kept columns). Both are K^-1 E f.
+void held_displacement(SurfaceCompliance& compliance, const HeldPoints& held, const Eigen::VectorXd& f,
+                       Eigen::VectorXd& du);
 
 // Equality constraints H (u_free + du) = g: A lambda = g - H u_free (Cholesky, or the minimum-norm least-squares
 // solution when A is singular; rows on fixed DOFs only, whose diagonal of A is 0, get lambda = 0 and do not

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <random>
 #include <set>
@@ -15,6 +16,7 @@
 
 #include "collision/kdop.hpp"
 #include "collision/self_collision.hpp"
+#include "collision/surface.hpp"
 #include "support/tube.hpp"
 
 namespace lumen::collision {
@@ -558,6 +560,106 @@ TEST(SelfCollision, EmptyAndSingleTriangle) {
   b.detect(x, x, 0.1, out, &st);
   EXPECT_TRUE(out.empty());
   EXPECT_EQ(st.bv_overlaps, 0);
+}
+
+// detect_self_moved against its twin, detect_self with its contacts filtered by the definition (a flagged vertex,
+// or two vertices of the two features whose moves since the reference differ by at least the margin): the same
+// contacts, times and order, on random pinched tubes with random flags and a random smooth reference. Returns the
+// number of selected contacts.
+std::size_t check_moved_equals_filtered_full(int k, unsigned seed) {
+  const double r = 0.01, len = 0.05, gap = 1e-4, margin = 2e-4;
+  Points rest;
+  Tris tris;
+  make_tube(10, 14, r, len, rest, tris);
+  std::mt19937 rng(seed);
+  const Shape shape = random_shape(r, len, rng);
+  const Points x0 = deform(rest, shape, len, 0.85, 1e-4, rng);
+  const Points x1 = deform(rest, shape, len, 1.1 + 0.1 * (seed % 3), 1e-4, rng);
+  // The reference: x1 off by a smooth bump along the tube (moves up to 1 mm, relative moves around the margin).
+  Points x1_ref = x1;
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const double zc = len * u(rng), width = 0.2 * len;
+  for (Eigen::Index i = 0; i < x1.rows(); ++i)
+    x1_ref(i, 1) += 1e-3 * std::exp(-std::pow((rest(i, 2) - zc) / width, 2));
+  std::bernoulli_distribution coin(0.05);
+  std::vector<std::uint8_t> flags(static_cast<std::size_t>(rest.rows()));
+  for (auto& f : flags) f = coin(rng);
+  CollisionSurface surface(tris, rest);
+  CollisionWorkspace ws(k);
+  std::vector<Contact> full, moved;
+  detect_self(surface, ws, x0, x1, gap, full);
+  const PointsRef ref(x1_ref);
+  detect_self_moved(surface, ws, x0, x1, gap, MoveFilter{&ref, margin, &flags}, moved);
+  // The definition, pair by pair.
+  auto selected = [&](const Contact& c) {
+    const int n_first = c.kind == FeatureKind::VertexFace ? 1 : 2;
+    for (int a = 0; a < 4; ++a) {
+      if (flags[static_cast<std::size_t>(c.v[a])]) return true;
+      for (int b = n_first; b < 4; ++b)
+        if (a < n_first && ((x1.row(c.v[a]) - x1_ref.row(c.v[a])) - (x1.row(c.v[b]) - x1_ref.row(c.v[b]))).norm() >= margin)
+          return true;
+    }
+    return false;
+  };
+  std::vector<Contact> expected;
+  for (const Contact& c : full)
+    if (selected(c)) expected.push_back(c);
+  EXPECT_EQ(moved.size(), expected.size()) << "k = " << k << " seed = " << seed;
+  if (moved.size() != expected.size()) return 0;
+  if (!full.empty()) {
+    EXPECT_LT(expected.size(), full.size()) << "every contact selected: the filter proves little";
+  }
+  for (std::size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(static_cast<int>(moved[i].kind), static_cast<int>(expected[i].kind));
+    EXPECT_TRUE(std::equal(moved[i].v, moved[i].v + 4, expected[i].v));
+    EXPECT_EQ(moved[i].toi, expected[i].toi);
+  }
+  // Every vertex flagged, or a zero margin: detect_self exactly, statistics included.
+  CollisionStats s_full, s_all, s_zero;
+  detect_self(surface, ws, x0, x1, gap, full, &s_full);
+  const std::vector<std::uint8_t> all(flags.size(), 1);
+  detect_self_moved(surface, ws, x0, x1, gap, MoveFilter{nullptr, 0.0, &all}, moved, &s_all);
+  EXPECT_EQ(contact_set(moved), contact_set(full));
+  detect_self_moved(surface, ws, x0, x1, gap, MoveFilter{&ref, 0.0, nullptr}, moved, &s_zero);
+  EXPECT_EQ(contact_set(moved), contact_set(full));
+  for (const CollisionStats& st : {s_all, s_zero}) {
+    EXPECT_EQ(st.bv_overlaps, s_full.bv_overlaps);
+    EXPECT_EQ(st.feature_tests, s_full.feature_tests);
+  }
+  return expected.size();
+}
+
+TEST(SelfCollision, MovedDetectionEqualsTheFullOneFilteredByTheDefinition) {
+  std::size_t selected = 0;
+  for (int k : {6, 26}) {
+    for (unsigned seed : {3u, 4u, 5u}) selected += check_moved_equals_filtered_full(k, seed);
+  }
+  EXPECT_GT(selected, 10u);
+}
+
+TEST(SelfCollision, MovedDetectionRefusesABadFilterNamingIt) {
+  Points rest;
+  Tris tris;
+  make_tube(4, 4, 0.01, 0.02, rest, tris);
+  CollisionSurface surface(tris, rest);
+  CollisionWorkspace ws(26);
+  std::vector<Contact> out;
+  const std::vector<std::uint8_t> three(3, 1);
+  const Points short_ref = rest.topRows(2);
+  const PointsRef ref(short_ref);
+  auto message = [&](const MoveFilter& f) {
+    try {
+      detect_self_moved(surface, ws, rest, rest, 1e-4, f, out);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no throw");
+  };
+  EXPECT_EQ(message(MoveFilter{nullptr, 0.0, &three}),
+            "flagged has 3 entries, expected n_points = " + std::to_string(rest.rows()));
+  EXPECT_EQ(message(MoveFilter{&ref, 0.0, nullptr}),
+            "x1_ref has 2 rows, expected n_points = " + std::to_string(rest.rows()));
+  EXPECT_EQ(message(MoveFilter{nullptr, -1.0, nullptr}), "margin must be finite and >= 0 metres, got -1");
 }
 
 }  // namespace

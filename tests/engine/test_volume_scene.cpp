@@ -5,8 +5,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <stdexcept>
+#include <stdlib.h>
 #include <string>
 #include <sys/wait.h>
+#include <system_error>
 
 #include <nlohmann/json.hpp>
 
@@ -27,8 +30,36 @@ namespace {
 
 const std::string kScenes = std::string(LUMEN_SOURCE_DIR) + "/scenes/";
 
+// This process's own temporary folder, made once by mkdtemp (parallel runs of the tests never share it) and
+// removed when the process ends.
+class TempRoot {
+ public:
+  TempRoot() {
+    std::string pattern = (fs::temp_directory_path() / "lumen_volume_XXXXXX").string();
+    if (::mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed for " + pattern);
+    path_ = pattern;
+  }
+  ~TempRoot() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+const fs::path& temp_root() {
+  static const TempRoot root;
+  return root.path();
+}
+
+// The folder of one case (name) under this process's temporary folder.
+fs::path case_dir(const std::string& name) { return temp_root() / name; }
+
+// The folder of one case, emptied.
 fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("lumen_volume_" + name);
+  const fs::path d = case_dir(name);
   fs::remove_all(d);
   fs::create_directories(d);
   return d;
@@ -117,8 +148,8 @@ TEST(VolumeScene, TagsByNumberOrNameAndFoundWalls) {
 }
 
 TEST(VolumeScene, RefusesBadKeysNamingFileKeyAndValue) {
-  const std::string scene = (fs::temp_directory_path() / "lumen_volume_error" / "s.json").string();
-  const std::string mesh = (fs::temp_directory_path() / "lumen_volume_error" / "tube.msh").string();
+  const std::string scene = (case_dir("error") / "s.json").string();
+  const std::string mesh = (case_dir("error") / "tube.msh").string();
   json s = volume_scene();
   s["mesh"].erase("outer_tag");
   EXPECT_EQ(error_of(s), scene + ": mesh.inner_tag: give both mesh.inner_tag and mesh.outer_tag, or neither (the "
@@ -138,7 +169,7 @@ TEST(VolumeScene, RefusesBadKeysNamingFileKeyAndValue) {
   EXPECT_EQ(error_of(s), scene + ": mesh.radius: unknown key");
   s = volume_scene();
   s["mesh"]["file"] = "none.msh";
-  EXPECT_EQ(error_of(s), (fs::temp_directory_path() / "lumen_volume_error" / "none.msh").string() +
+  EXPECT_EQ(error_of(s), (case_dir("error") / "none.msh").string() +
                              ": file: no such volume mesh file");
   s = volume_scene();
   s["twist"] = json::parse(R"({"end": "stop", "track": [{"t": 0.0, "degrees": 0.0}]})");
@@ -159,9 +190,9 @@ TEST(VolumeScene, NamedEndsNeedTwoEndCaps) {
   outer << m.surface(physics::kOuterWall), m.surface(physics::kEndCaps);
   const lumen::test::TaggedVolume v{m.rest, m.tets, {m.surface(physics::kInnerWall), outer}, {1, 2}, {"a", "b"}};
   const std::string text = lumen::test::write_msh22(v);
-  const std::string mesh = (fs::temp_directory_path() / "lumen_volume_error" / "tube.msh").string();
+  const std::string mesh = (case_dir("error") / "tube.msh").string();
   EXPECT_EQ(error_of(volume_scene(), text),
-            (fs::temp_directory_path() / "lumen_volume_error" / "s.json").string() + ": fixed[0]: the volume mesh " +
+            (case_dir("error") / "s.json").string() + ": fixed[0]: the volume mesh " +
                 mesh + " has no end node sets (its end caps are not two separate pieces): hold nodes by {\"box\": "
                 "...} or {\"plane\": ...} (value \"ends\")");
   json boxed = volume_scene();

@@ -128,6 +128,120 @@ TEST(SolveContacts, EqualsLemkeOnContactRows) {
                std::invalid_argument);
 }
 
+// Held points on the inner wall (single nodes, one point spread over three nodes) and one off the set.
+std::vector<LoadPoint> held_test_points(const Tube& t) {
+  std::vector<int> free_inner;
+  for (int v : t.inner)
+    if (!t.solver->is_fixed_dof(3 * v)) free_inner.push_back(v);
+  std::vector<LoadPoint> points;
+  for (size_t k : {3u, 11u, 12u, 20u}) {
+    LoadPoint p;
+    p.node[0] = free_inner[k % free_inner.size()];
+    p.weight[0] = 1.0;
+    points.push_back(p);
+  }
+  LoadPoint spread;
+  for (int k = 0; k < 3; ++k) spread.node[k] = free_inner[(30 + 2 * k) % free_inner.size()];
+  spread.weight[0] = 0.2, spread.weight[1] = 0.5, spread.weight[2] = 0.3;
+  points.push_back(spread);
+  LoadPoint outside;
+  outside.node[0] = t.outer_free[7];
+  outside.weight[0] = 1.0;
+  points.push_back(outside);
+  return points;
+}
+
+// The brute-force twin: the held points with their whole-mesh columns U = K^-1 E (one solve_many) and
+// S = (E^T U)^-1.
+HeldPoints held_with_columns(const Tube& t, const std::vector<LoadPoint>& points) {
+  const Eigen::Index n = t.solver->n_dofs(), d3 = 3 * static_cast<Eigen::Index>(points.size());
+  Eigen::MatrixXd E = Eigen::MatrixXd::Zero(n, d3);
+  for (size_t p = 0; p < points.size(); ++p)
+    for (int c = 0; c < 3; ++c) {
+      Eigen::VectorXd col = Eigen::VectorXd::Zero(n);
+      add_point_force(points[p], Eigen::Vector3d::Unit(c), col);
+      E.col(3 * static_cast<Eigen::Index>(p) + c) = col;
+    }
+  HeldPoints held;
+  held.points = points;
+  held.U = t.solver->solve_many(E);
+  const Eigen::MatrixXd P = E.transpose() * held.U;
+  held.S = P.ldlt().solve(Eigen::MatrixXd::Identity(d3, d3));
+  return held;
+}
+
+// Relative distance of two results, scaled by the twin's size.
+double relative(const Eigen::MatrixXd& a, const Eigen::MatrixXd& twin) { return (a - twin).norm() / (twin.norm() + 1e-300); }
+
+// Held points without columns (S and G from the compliance's blocks, the hold's whole-mesh move by one
+// displacement) equal the U-columns formulation to round-off: the point compliance and S, the hold correction
+// U S d, and solve_contacts on the Schur complement (multipliers, held forces, force, correction, whole mesh and
+// on the set and the rows' nodes), on feasible random rows; the held points do not move under the contacts.
+TEST(SolveContacts, HeldPointsFromBlocksEqualTheColumnsFormulation) {
+  constexpr double kRoundOff = 1e-10;  // relative, far above the round-off of these well-conditioned solves
+  constexpr double kHeldStill = 1e-12;  // metres the contacts may move a held point (round-off of ~1e-4 m motions)
+  Tube& t = tube();
+  const std::vector<LoadPoint> points = held_test_points(t);
+  const HeldPoints twin = held_with_columns(t, points);
+  const HeldPoints blocks = held_points_on(*t.compliance, points);
+  EXPECT_FALSE(blocks.has_columns());
+  // The point compliance and its inverse.
+  const Eigen::MatrixXd P = point_compliance(*t.compliance, points);
+  EXPECT_LE(relative(P, twin.S.inverse()), kRoundOff);
+  EXPECT_LE(relative(blocks.S, twin.S), kRoundOff);
+  // The hold correction of a shortfall: U S d against one displacement of the holding forces.
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<double> d(-1e-3, 1e-3), force(-0.02, 0.02);
+  Eigen::VectorXd shortfall(3 * static_cast<Eigen::Index>(points.size()));
+  for (Eigen::Index i = 0; i < shortfall.size(); ++i) shortfall[i] = d(rng);
+  Eigen::VectorXd du;
+  held_displacement(*t.compliance, blocks, blocks.S * shortfall, du);
+  EXPECT_LE(relative(du, twin.U * (twin.S * shortfall)), kRoundOff);
+  long pushing = 0;
+  for (int trial = 0; trial < 8; ++trial) {
+    // Feasible rows (some reaching off the set) on a free displacement with the points held.
+    const int m = 6 + 4 * trial;
+    Eigen::VectorXd f(t.solver->n_dofs());
+    for (Eigen::Index i = 0; i < f.size(); ++i) f[i] = force(rng);
+    Eigen::VectorXd u_free, u_target;
+    t.solver->solve(f, u_free);
+    for (Eigen::Index i = 0; i < f.size(); ++i) f[i] = force(rng);
+    t.solver->solve(f, u_target);
+    std::vector<ContactRow> rows;
+    for (int r = 0; r < m; ++r) rows.push_back(random_row(rng, t, r % 2 == 1, trial % 2 == 1 && r % 5 == 0));
+    const Eigen::VectorXd h_target = row_values(rows, u_target);
+    for (int r = 0; r < m; ++r) rows[static_cast<size_t>(r)].g = h_target[r] - 0.2 * std::abs(d(rng));
+    const std::string what = "trial " + std::to_string(trial);
+    for (bool whole_mesh : {true, false}) {
+      const ContactResult a = solve_contacts(*t.compliance, rows, u_free, {}, {}, whole_mesh, &blocks);
+      const ContactResult b = solve_contacts(*t.compliance, rows, u_free, {}, {}, whole_mesh, &twin);
+      ASSERT_TRUE(a.converged && b.converged) << what;
+      pushing += (a.lambda.array() > 0.0).count();
+      EXPECT_LE(relative(a.lambda, b.lambda), kRoundOff) << what;
+      EXPECT_LE(relative(a.held_force, b.held_force), kRoundOff) << what;
+      EXPECT_LE(relative(a.force, b.force), kRoundOff) << what;
+      // The correction where both define it: the whole mesh, or the set and the rows' nodes.
+      std::vector<int> defined = t.inner;
+      for (const ContactRow& r : rows) defined.insert(defined.end(), r.node, r.node + 4);
+      if (whole_mesh) {
+        EXPECT_LE(relative(a.correction, b.correction), kRoundOff) << what;
+      } else {
+        for (int v : defined)
+          EXPECT_LE((a.correction.segment<3>(3 * v) - b.correction.segment<3>(3 * v)).norm(),
+                    kRoundOff * b.correction.norm()) << what << " node " << v;
+      }
+      // The held points keep their displacement (the correction is whole-mesh, or the set holds them).
+      for (size_t p = 0; whole_mesh && p < points.size(); ++p) {
+        Eigen::Vector3d moved = Eigen::Vector3d::Zero();
+        for (int k = 0; k < 3; ++k)
+          if (points[p].node[k] >= 0) moved += points[p].weight[k] * a.correction.segment<3>(3 * points[p].node[k]);
+        EXPECT_LE(moved.norm(), kHeldStill) << what << " point " << p;
+      }
+    }
+  }
+  EXPECT_GT(pushing, 20);
+}
+
 // The iterative solve (NNCG on all of A) against the exact active-set solve on the same feasible contact
 // problems (no duplicated rows, so A is definite and the multipliers unique): the same multipliers and correction
 // to the tolerance asked, the residual reported within it; warm-started from the exact multipliers it needs at
