@@ -24,7 +24,7 @@ import statistics
 import tempfile
 
 from csv_out import write_csv
-from session_run import run_report
+from session_run import percentile, run_report
 
 TIP_RADIUS = 0.003   # metres: the tip disk's radius
 TIP_POINTS = 7       # its centre and 6 rim points
@@ -55,14 +55,6 @@ def tips_scene(force, coupling, anderson, tangent, method="pcg", serial=True):
                                      {"t": 3.0, "force": f}]})
     s["probes"] = probes
     return s
-
-
-def percentile(values, q):
-    """Linear-interpolation percentile of a list (as report.json's stage statistics)."""
-    v = sorted(values)
-    x = q / 100.0 * (len(v) - 1)
-    i = int(math.floor(x))
-    return v[i] if i + 1 >= len(v) else v[i] + (x - i) * (v[i + 1] - v[i])
 
 
 def summarise(coupling, anderson, tangent, method, force, runs):

@@ -21,7 +21,7 @@ import statistics
 import tempfile
 
 from csv_out import write_csv
-from session_run import run_report
+from session_run import percentile, run_report
 
 METHODS = ("pcg", "chord")  # solver.method's values
 
@@ -34,14 +34,6 @@ def variant(path, method):
     s["material"]["model"] = "corotational"
     s.setdefault("solver", {})["method"] = method
     return s
-
-
-def percentile(values, q):
-    """Linear-interpolation percentile (as report.json's stage statistics)."""
-    v = sorted(values)
-    x = q / 100.0 * (len(v) - 1)
-    i = int(math.floor(x))
-    return v[i] if i + 1 >= len(v) else v[i] + (x - i) * (v[i + 1] - v[i])
 
 
 def summarise(path, method, runs):
