@@ -763,12 +763,11 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   const std::string needs_corotational = std::string("needs material.model \"corotational\" and solver.type "
       "\"quasi_static\" (got \"") + name_of(s.material.model) + "\", \"" + name_of(s.solver.type) + "\")";
   // Carried contacts enter the corotational quasi-static solve's equilibrium, with the constraint response.
-  if (s.collision.coupling != ContactCoupling::kCorrect) {
+  if (s.collision.coupling == ContactCoupling::kCarried) {
     const json* at = &root.at("collision").at("coupling");
-    const std::string quoted = std::string("\"") + name_of(s.collision.coupling) + "\" ";
-    if (!corotational_quasi_static) r.fail("collision.coupling", quoted + needs_corotational, at);
+    if (!corotational_quasi_static) r.fail("collision.coupling", "\"carried\" " + needs_corotational, at);
     if (s.collision.response != ResponseKind::kConstraint)
-      r.fail("collision.coupling", quoted + "needs collision.response \"constraint\" (got \"paper\")", at);
+      r.fail("collision.coupling", "\"carried\" needs collision.response \"constraint\" (got \"paper\")", at);
   }
   // The tangent is the corotational quasi-static solve's (the other integrators have no choice of operator).
   if (s.solver.tangent != Tangent::kWarped && !corotational_quasi_static)
@@ -793,7 +792,7 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   // after the nonlinear solve (not carried into it).
   if (!s.instruments.empty() && s.collision.response != ResponseKind::kConstraint)
     r.fail("collision.response", "instruments need \"constraint\"", &root.at("collision").at("response"));
-  if (!s.instruments.empty() && s.collision.coupling != ContactCoupling::kCorrect)
+  if (!s.instruments.empty() && s.collision.coupling == ContactCoupling::kCarried)
     r.fail("collision.coupling", "instruments need \"correct\"", &root.at("collision").at("coupling"));
   // Displacement-driven probes (held points) are solved on the linear quasi-static model's probe compliance.
   int held = -1;

@@ -332,7 +332,6 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   m->integrator = make_integrator(scene, *m, quadratic.get());
   if (m->collision_surface && scene.collision.coupling == ContactCoupling::kCarried)
     m->coupling_stiffness = coupling_stiffness(*m);
-
   m->compile_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   return m;
 }

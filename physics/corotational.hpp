@@ -299,5 +299,4 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
                                       const Eigen::VectorXd& u_fixed = Eigen::VectorXd(),
                                       const AugmentedContacts* contacts = nullptr);
 
-
 }  // namespace lumen::physics

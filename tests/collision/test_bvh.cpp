@@ -326,17 +326,28 @@ TEST(SelfCollision, StaticTubeHasNoContactsButTestsNeighbours) {
   EXPECT_GT(st.feature_tests, 0);
 }
 
+// The tube the detection twins run on (10 around, 14 along) and one frame of a pinch pushing its walls through
+// each other, plus noise, drawn from rng (deeper for some seeds).
+constexpr double kTwinRadius = 0.01, kTwinLength = 0.05;  // metres
+struct PinchedFrame {
+  Points rest, x0, x1;
+  Tris tris;
+};
+PinchedFrame random_pinched_frame(unsigned seed, std::mt19937& rng) {
+  PinchedFrame pf;
+  make_tube(10, 14, kTwinRadius, kTwinLength, pf.rest, pf.tris);
+  const Shape shape = random_shape(kTwinRadius, kTwinLength, rng);
+  pf.x0 = deform(pf.rest, shape, kTwinLength, 0.85, 1e-4, rng);
+  pf.x1 = deform(pf.rest, shape, kTwinLength, 1.1 + 0.1 * (seed % 3), 1e-4, rng);
+  return pf;
+}
+
 // BVH contacts and statistics equal the all-pairs ones on random deformed tubes.
 void check_bvh_equals_brute(int k, unsigned seed, bool build_over_rest) {
-  const double r = 0.01, len = 0.05;
-  Points rest;
-  Tris tris;
-  make_tube(10, 14, r, len, rest, tris);
   std::mt19937 rng(seed);
-  // One frame of a pinch pushing the walls through each other, plus noise.
-  const Shape shape = random_shape(r, len, rng);
-  const Points x0 = deform(rest, shape, len, 0.85, 1e-4, rng);
-  const Points x1 = deform(rest, shape, len, 1.1 + 0.1 * (seed % 3), 1e-4, rng);
+  const PinchedFrame pf = random_pinched_frame(seed, rng);
+  const Points &rest = pf.rest, &x0 = pf.x0, &x1 = pf.x1;
+  const Tris& tris = pf.tris;
   const double gap = 1e-4;
   SelfCollision sc = build_over_rest ? SelfCollision(tris, rest, k) : SelfCollision(tris, static_cast<int>(rest.rows()), k);
   std::vector<Contact> bvh, brute;
@@ -567,14 +578,11 @@ TEST(SelfCollision, EmptyAndSingleTriangle) {
 // contacts, times and order, on random pinched tubes with random flags and a random smooth reference. Returns the
 // number of selected contacts.
 std::size_t check_moved_equals_filtered_full(int k, unsigned seed) {
-  const double r = 0.01, len = 0.05, gap = 1e-4, margin = 2e-4;
-  Points rest;
-  Tris tris;
-  make_tube(10, 14, r, len, rest, tris);
+  const double len = kTwinLength, gap = 1e-4, margin = 2e-4;
   std::mt19937 rng(seed);
-  const Shape shape = random_shape(r, len, rng);
-  const Points x0 = deform(rest, shape, len, 0.85, 1e-4, rng);
-  const Points x1 = deform(rest, shape, len, 1.1 + 0.1 * (seed % 3), 1e-4, rng);
+  const PinchedFrame pf = random_pinched_frame(seed, rng);
+  const Points &rest = pf.rest, &x0 = pf.x0, &x1 = pf.x1;
+  const Tris& tris = pf.tris;
   // The reference: x1 off by a smooth bump along the tube (moves up to 1 mm, relative moves around the margin).
   Points x1_ref = x1;
   std::uniform_real_distribution<double> u(0.0, 1.0);

@@ -240,6 +240,24 @@ InstrumentRecord last_record(const Model& model, const Scene& scene, int frames,
   return run_session(model, std::move(in), opt).frames.back().instruments[0];
 }
 
+// Central differences of the force on the instrument over a 1 micrometre shift of the tool at the last of `frames`
+// frames, column j for axis j: -dF/dx, the stiffness the frame's solve implies. Each shifted run must keep the
+// base run's contacts and held nodes (the force is linear in the shift only while those stay).
+void finite_difference_stiffness(const Model& model, const Scene& scene, int frames, const InstrumentRecord& base,
+                                 Eigen::Matrix3d& fd) {
+  constexpr double kStep = 1e-6;
+  for (int j = 0; j < 3; ++j) {
+    const Eigen::Vector3d e = kStep * Eigen::Vector3d::Unit(j);
+    const InstrumentRecord plus = last_record(model, scene, frames, e);
+    const InstrumentRecord minus = last_record(model, scene, frames, -e);
+    ASSERT_EQ(plus.held_nodes, base.held_nodes);
+    ASSERT_EQ(minus.held_nodes, base.held_nodes);
+    ASSERT_EQ(plus.contacts, base.contacts);
+    ASSERT_EQ(minus.contacts, base.contacts);
+    fd.col(j) = -(plus.force - minus.force) / (2.0 * kStep);
+  }
+}
+
 }  // namespace
 
 TEST(HapticsStiffness, LocalStiffnessMatchesFiniteDifferencesOfTheFrameSolve) {
@@ -260,16 +278,8 @@ TEST(HapticsStiffness, LocalStiffnessMatchesFiniteDifferencesOfTheFrameSolve) {
   ASSERT_GT(base.contacts, 0);
   ASSERT_GT(base.stiffness.norm(), 0.0);
   // Central differences of the force on the tool over a 1 micrometre shift of the tip: -dF/dx = K.
-  constexpr double kStep = 1e-6;
   Eigen::Matrix3d fd;
-  for (int j = 0; j < 3; ++j) {
-    const Eigen::Vector3d e = kStep * Eigen::Vector3d::Unit(j);
-    const InstrumentRecord plus = last_record(*model, scene, kFrames, e);
-    const InstrumentRecord minus = last_record(*model, scene, kFrames, -e);
-    ASSERT_EQ(plus.contacts, base.contacts);
-    ASSERT_EQ(minus.contacts, base.contacts);
-    fd.col(j) = -(plus.force - minus.force) / (2.0 * kStep);
-  }
+  ASSERT_NO_FATAL_FAILURE(finite_difference_stiffness(*model, scene, kFrames, base, fd));
   // The frame's force is linear in the tool's position while the pushing set stays (measured: 4e-12 relative).
   EXPECT_LE((fd - base.stiffness).norm(), 1e-6 * base.stiffness.norm()) << "K\n" << base.stiffness << "\nFD\n" << fd;
   // The press is vertical: the stiffest direction is y.
@@ -291,18 +301,8 @@ TEST(HapticsStiffness, LocalStiffnessOfAGraspIncludesTheHoldAndMatchesFiniteDiff
   ASSERT_FALSE(base.held_nodes.empty()) << "not holding at the probed frame";
   ASSERT_GT(base.stiffness.norm(), 0.0);
   // Central differences of the force on the grasper (contacts and hold) over a 1 micrometre shift.
-  constexpr double kStep = 1e-6;
   Eigen::Matrix3d fd;
-  for (int j = 0; j < 3; ++j) {
-    const Eigen::Vector3d e = kStep * Eigen::Vector3d::Unit(j);
-    const InstrumentRecord plus = last_record(*model, scene, kFrames, e);
-    const InstrumentRecord minus = last_record(*model, scene, kFrames, -e);
-    ASSERT_EQ(plus.held_nodes, base.held_nodes);
-    ASSERT_EQ(minus.held_nodes, base.held_nodes);
-    ASSERT_EQ(plus.contacts, base.contacts);
-    ASSERT_EQ(minus.contacts, base.contacts);
-    fd.col(j) = -(plus.force - minus.force) / (2.0 * kStep);
-  }
+  ASSERT_NO_FATAL_FAILURE(finite_difference_stiffness(*model, scene, kFrames, base, fd));
   EXPECT_LE((fd - base.stiffness).norm(), 1e-6 * base.stiffness.norm()) << "K\n" << base.stiffness << "\nFD\n" << fd;
   // Every direction resists: the held wall is pulled along whichever way the grasper moves.
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(base.stiffness);
