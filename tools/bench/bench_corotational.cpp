@@ -129,6 +129,58 @@ BENCHMARK(BM_CorotationalProbeRamp)
     ->Iterations(3)
     ->Unit(benchmark::kMillisecond);
 
+// The engine's solve options (extrapolated start, lagged factorisation refreshed after a slow solve, Anderson
+// depth 5) on the same ramp, factorising inside the solve (deterministic), by method and preconditioner:
+// BM_CorotationalRampLagged/<peak mN>/<chord>/<tangent: 0 warped, 2 exact>/<tolerance 10^(-k/10)>: counters as
+// above, plus the refactorisations per ramp.
+void BM_CorotationalRampLagged(benchmark::State& state) {
+  CorotPaperModel& m = corot_model();
+  const int peak_mN = static_cast<int>(state.range(0));
+  const std::vector<Eigen::VectorXd>& tight = m.tight_solutions(peak_mN);
+  CorotationalOptions opt;
+  opt.extrapolate = true;
+  opt.refactor_cg_iterations = 5;
+  opt.anderson_depth = 5;
+  opt.method = state.range(1) != 0 ? CorotationalMethod::chord : CorotationalMethod::pcg;
+  opt.tangent = state.range(2) == 2 ? CorotationalTangent::exact : CorotationalTangent::warped;
+  opt.tolerance = std::pow(10.0, -0.1 * static_cast<double>(state.range(3)));
+  std::vector<double> frame_ms;
+  long outer = 0, cg = 0, frames = 0, not_converged = 0, refactorisations = 0;
+  double max_error = 0.0;
+  for (auto _ : state) {
+    CorotationalState s;
+    std::vector<double> ramp_ms;
+    for (int k = 1; k <= kFrames; ++k) {
+      const Eigen::VectorXd f = m.load(1e-3 * peak_mN, k);
+      const auto t0 = std::chrono::steady_clock::now();
+      const CorotationalResult r = solve_corotational(*m.model, f, s, opt);
+      ramp_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      outer += r.iterations, cg += r.cg_iterations, ++frames, refactorisations += r.refactorisations;
+      not_converged += r.converged ? 0 : 1;
+      max_error = std::max(max_error, (s.u - tight[k - 1]).norm() / tight[k - 1].norm());
+    }
+    frame_ms.insert(frame_ms.end(), ramp_ms.begin(), ramp_ms.end());
+    std::sort(ramp_ms.begin(), ramp_ms.end());
+    state.SetIterationTime(1e-3 * ramp_ms[ramp_ms.size() / 2]);
+  }
+  std::sort(frame_ms.begin(), frame_ms.end());
+  state.counters["median_ms"] = frame_ms[frame_ms.size() / 2];
+  state.counters["p99_ms"] = frame_ms[static_cast<size_t>(0.99 * (frame_ms.size() - 1))];
+  state.counters["outer_per_frame"] = static_cast<double>(outer) / frames;
+  state.counters["cg_per_frame"] = static_cast<double>(cg) / frames;
+  state.counters["refactor_per_ramp"] = static_cast<double>(refactorisations) / state.iterations();
+  state.counters["not_converged"] = static_cast<double>(not_converged);
+  state.counters["max_rel_error"] = max_error;
+}
+BENCHMARK(BM_CorotationalRampLagged)
+    ->ArgNames({"peak_mN", "chord", "tangent", "tol_exp10"})
+    ->ArgsProduct({{80}, {0, 1}, {0}, {30, 25, 20, 15}})
+    ->Args({80, 0, 2, 30})
+    ->Args({80, 0, 2, 20})
+    ->UseManualTime()
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
+
 // The kernels of one outer iteration at a deformed state (frame 40 of the 30 mN ramp).
 const Eigen::VectorXd& deformed_state() {
   static const Eigen::VectorXd u = corot_model().tight_solutions(30)[kFrames / 2 - 1];
