@@ -1,6 +1,7 @@
 # Included by CTest after the discovered tests (tests/CMakeLists.txt): the COST of the longest tests, so that
 # `ctest -j` starts them first when the build tree has no cost data of an earlier run (CI builds from scratch).
-# Without it they start in definition order, the scene tests last, and one core idles at the end.
+# Without it they start in definition order (test_scenes' last); on the measured times that costs a few seconds at
+# -j2, more when a long test is added late.
 # Each entry: test name, then its seconds in a Release run on 2 cores (measured; only the order matters).
 set(lumen_test_costs
   "Scenes.CorotationalTet10PinchApproachesTheCalculixReference 62"
