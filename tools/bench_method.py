@@ -41,7 +41,6 @@ def variant(path, method, tolerance=None):
     s.setdefault("solver", {})["method"] = method
     if tolerance:
         s["solver"]["tolerance"] = tolerance
-        s["solver"]["max_iterations"] = max(s["solver"].get("max_iterations", 20), 20)
     return s
 
 
