@@ -104,6 +104,7 @@ nlohmann::json frame_json(const FrameRecord& r) {
   j["bad_input"] = r.bad_input;
   j["physics_iterations"] = r.physics_iterations;
   j["physics_converged"] = r.physics_converged;
+  j["physics_diverged"] = r.physics_diverged;
   j["refactorisations"] = r.refactorisations;
   j["tangent_fallbacks"] = r.tangent_fallbacks;
   j["cg_iterations"] = r.cg_iterations;

@@ -49,6 +49,8 @@ struct FrameRecord {
   bool bad_input = false;             // a source gave a non-finite sample; its last good sample was used
   int physics_iterations = 0;         // corotational or dynamic: outer iterations of the solve (0 for static linear)
   bool physics_converged = true;      // corotational or dynamic: the solve reached its tolerance
+  bool physics_diverged = false;      // corotational: the solve diverged and went back to its start (a numerical
+                                      // failure: the last good frame was kept)
   int refactorisations = 0;           // corotational: lagged warped factorisations started this frame
   int tangent_fallbacks = 0;          // corotational, solver.tangent exact: steps redone with K_w this frame
   int cg_iterations = 0;              // corotational quasi-static: PCG iterations this frame

@@ -332,6 +332,8 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   m->integrator = make_integrator(scene, *m, quadratic.get());
   if (m->collision_surface && scene.collision.coupling == ContactCoupling::kCarried)
     m->coupling_stiffness = coupling_stiffness(*m);
+  const Points& rest = m->mesh.rest;
+  m->max_displacement = kImplausibleDisplacementScale * (rest.colwise().maxCoeff() - rest.colwise().minCoeff()).norm();
   m->compile_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   return m;
 }
@@ -480,6 +482,14 @@ int count_inverted(const Points& x, const Tets& tets) {
   return inverted;
 }
 
+// Whether the prediction u can be collided and committed: solved, finite, no node displaced beyond
+// model.max_displacement.
+bool usable(const Model& model, const physics::Prediction& pred, const Eigen::VectorXd& u) {
+  if (!pred.finite || pred.diverged || !u.allFinite()) return false;
+  const Eigen::Map<const Points> d(u.data(), u.size() / 3, 3);
+  return d.size() == 0 || d.rowwise().norm().maxCoeff() <= model.max_displacement;
+}
+
 // Commit the frame's end displacement u (finite and solved), or keep the last good state.
 void commit_frame(const Model& model, State& state, const Eigen::VectorXd& u, bool solved, bool bad_input,
                   FrameRecord& rec) {
@@ -573,6 +583,7 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   for (int p : model.held_probes) state.samples[p].force = loads.points[p].force;
   rec.physics_iterations = pred.iterations;
   rec.physics_converged = pred.converged;
+  rec.physics_diverged = pred.diverged;
   rec.refactorisations = pred.refactorisations;
   rec.tangent_fallbacks = pred.tangent_fallbacks;
   rec.cg_iterations = pred.cg_iterations;
@@ -580,19 +591,22 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   rec.preconditioner_failures = pred.preconditioner_failures;
   state.carried_lambda = loads.contacts ? pred.contact_lambda : Eigen::VectorXd();
   // Grasped nodes follow their graspers (prescribed displacements of the free motion).
-  if (pred.finite) hold_grasped_nodes(model, state, u);
+  const bool solved = usable(model, pred, u);
+  if (solved) hold_grasped_nodes(model, state, u);
   rec.ms[kPhysics] = ms_since(clock);
 
   // Collide and respond: contacts constrain the solve on the contact compliance, CCD re-checks.
   std::fill(state.in_contact.begin(), state.in_contact.end(), 0);
   state.contacts.clear();
   state.tool_records.clear();
-  if (state.compliance && pred.finite && u.allFinite()) collide_and_respond(model, state, u, rec);
+  if (state.compliance && solved) collide_and_respond(model, state, u, rec);
 
   // Commit (or keep the last good frame), then hand the reactions back to the sources.
-  commit_frame(model, state, u, pred.finite, input.bad_input, rec);
-  // Carried contacts: the next solve starts where this frame ended (its loads include the contacts).
-  if (model.coupling_stiffness > 0.0 && !rec.numerical_failure) state.work.corotational.u = state.sim.u;
+  commit_frame(model, state, u, solved, input.bad_input, rec);
+  // Carried contacts: the next solve starts where this frame ended (its loads include the contacts). A failed
+  // solve's warm start goes back to the last good frame too, never to what failed.
+  const bool restart = (model.coupling_stiffness > 0.0 && !rec.numerical_failure) || !solved;
+  if (restart && state.work.corotational.u.size() == state.sim.u.size()) state.work.corotational.u = state.sim.u;
   feed_back(inputs, state, t1, rec);
   feed_back_instruments(model, inputs, state, t1, rec);
   state.frame += 1;

@@ -34,6 +34,10 @@ constexpr double kProbeSnapWallFraction = 0.25;
 constexpr int kRefactorCgIterations = 5;
 // Carried contacts: the augmented Lagrangian's penalty per unit of the walls' mean diagonal stiffness.
 constexpr double kCouplingStiffnessScale = 1.0;
+// A frame's displacement larger than this many times the organ's rest bounding-box diagonal is not a deformation
+// but a failed solve (no organ in a training scene moves ten times its own size): the frame is a numerical failure
+// and the last good frame stands. (Collision cannot work on such positions: the CCD's cubic overflows.)
+constexpr double kImplausibleDisplacementScale = 10.0;
 
 // The value at a surface point of a per-node field (positions, or displacements as n x 3): the barycentric sum
 // over its nodes.
@@ -105,6 +109,9 @@ struct Model {
   double time_step = 0.025;                        // 1 / fps, seconds
   double budget_ms = 25.0;                         // 1000 / fps
   double compile_seconds = 0.0;                    // wall time to build the model
+  // kImplausibleDisplacementScale times the rest mesh's bounding-box diagonal, metres: a node displaced further is
+  // a numerical failure.
+  double max_displacement = 0.0;
 
   const Tris& inner_wall() const { return mesh.surfaces[inner_surface].tris; }
   const Tris& outer_wall() const { return mesh.surfaces[outer_surface].tris; }

@@ -281,6 +281,8 @@ struct CorotationalResult {
   int cg_iterations = 0;   // PCG iterations over all linear solves
   double residual = 0.0;   // final |f_ext - f_int(u)| on the free DOFs / force scale (see CorotationalOptions)
   bool converged = false;  // residual <= tolerance
+  bool diverged = false;   // |r| grew past 1e4 x its start or became non-finite: state went back to the solve's
+                           // start (the returned u is the start's; a factorisation at its rotations was asked for)
   int n_inverted = 0;      // tets with det F <= 0 at the returned u
   int refactorisations = 0;  // warped preconditioner factorisations this solve started
   int tangent_fallbacks = 0; // exact tangent: steps taken with K_w instead (no descent or no decrease)

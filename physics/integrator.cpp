@@ -131,6 +131,7 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
   Prediction p;
   p.iterations = r.iterations;
   p.converged = r.converged;
+  p.diverged = r.diverged;
   p.refactorisations = r.refactorisations;
   p.tangent_fallbacks = r.tangent_fallbacks;
   p.cg_iterations = r.cg_iterations;

@@ -60,6 +60,7 @@ struct Prediction {
   int iterations = 0;     // nonlinear (outer) iterations; 0 for a direct linear solve
   bool converged = true;  // the solve reached its tolerance
   bool finite = true;     // false: the solve failed (non-finite values); the frame must be rejected
+  bool diverged = false;  // the nonlinear solve diverged and went back to its start; the frame must be rejected
   int refactorisations = 0;         // lagged factorisations started (corotational quasi-static)
   int tangent_fallbacks = 0;        // exact-tangent steps redone with K_w (corotational quasi-static)
   int cg_iterations = 0;            // PCG iterations over the frame's linear solves (corotational quasi-static)

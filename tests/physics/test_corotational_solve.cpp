@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -244,9 +245,50 @@ TEST(ChordMethod, ReachesThePcgEquilibriumOnAPressAndABucklingCrush) {
                 ra.iterations, ra.cg_iterations, rb.iterations, rb.refactorisations);
     ASSERT_TRUE(ra.converged);
     ASSERT_TRUE(rb.converged);
+    EXPECT_FALSE(ra.diverged);
+    EXPECT_FALSE(rb.diverged);
     EXPECT_EQ(rb.cg_iterations, rb.iterations);  // one back-substitution a step
     EXPECT_LT((a.u - b.u).norm(), 1e-5 * a.u.norm());
   }
+}
+
+// A lagged factorisation far softer than the tangent (here the rest one scaled to 1/100 of K, steps 100 times
+// too long) makes the chord iteration diverge: the solve must go back exactly to its start, say so, and factorise
+// at the start's rotations, after which the same solve converges to the equilibrium a tight PCG solve finds.
+TEST(ChordMethod, ADivergingSolveGoesBackToItsStartAndConvergesAfterItsRefactorisation) {
+  constexpr double kSoftening = 1e-2;
+  const Pressed half = pressed_tube(1.5e-2), full = pressed_tube(3e-2);
+  const CorotationalModel model(full.mesh, kMaterial, full.fixed);
+  CorotationalOptions chord;
+  chord.method = CorotationalMethod::chord;
+  chord.tolerance = 1e-8;
+  chord.max_iterations = 4000;
+  chord.refactor_cg_iterations = 0;  // no periodic refresh: only the guard refactorises
+  CorotationalState state;
+  ASSERT_TRUE(solve_corotational(model, half.f, state, chord).converged);
+  const Eigen::VectorXd start = state.u;
+  auto soft = std::make_shared<const StaticSolver>(model.solver().scaled(kSoftening));
+  state.preconditioner = soft;
+
+  const CorotationalResult bad = solve_corotational(model, full.f, state, chord);
+  EXPECT_TRUE(bad.diverged);
+  EXPECT_FALSE(bad.converged);
+  EXPECT_LT(bad.iterations, 10);  // caught within a few steps, not at the iteration cap
+  EXPECT_EQ(bad.refactorisations, 1);
+  EXPECT_TRUE(state.u.allFinite());
+  EXPECT_EQ(state.u, start);  // exactly the start, not an iterate on the way out
+  EXPECT_NE(state.preconditioner, soft);
+
+  const CorotationalResult good = solve_corotational(model, full.f, state, chord);
+  ASSERT_TRUE(good.converged);
+  EXPECT_FALSE(good.diverged);
+  CorotationalOptions pcg;
+  pcg.tolerance = 1e-10;
+  pcg.max_iterations = 4000;
+  pcg.max_cg_iterations = 400;
+  CorotationalState reference;
+  ASSERT_TRUE(solve_corotational(model, full.f, reference, pcg).converged);
+  EXPECT_LT((state.u - reference.u).norm(), 1e-5 * reference.u.norm());
 }
 
 TEST(ChordMethod, NeedsTheWarpedTangent) {
