@@ -4,6 +4,7 @@
 
 #include <limits>
 #include <memory>
+#include <vector>
 
 #include "engine/simulation.hpp"
 
@@ -170,4 +171,48 @@ TEST(Models, ADivergingCorotationalFrameIsReportedAndTheLastGoodFrameKept) {
     EXPECT_TRUE(s.sim.u.allFinite());
   }
   EXPECT_GT(s.sim.u.norm(), last_good.norm());  // the load kept growing and the wall followed it
+}
+
+// A frame whose solve returns a finite displacement far beyond anything an organ does (here the linear model under
+// a force ramped past the point where the tube would move 10 times its own size) is a numerical failure too: the
+// frames below that point commit, the ones above keep the last good frame.
+TEST(Models, AnImplausiblyLargeDisplacementIsANumericalFailure) {
+  constexpr double kProbeForce = 0.004, kBeyond = 2.2;  // the ramp's end: 2.2 x the force at the bound
+  struct Run {
+    double bound = 0.0;  // the model's max_displacement, metres
+    int failures = 0;
+    Eigen::VectorXd u_end, u_at_4;  // committed displacements at the end and after frame 4
+    std::vector<engine::FrameRecord> records;
+  };
+  auto run = [](double force) {
+    const engine::Scene scene = engine::parse_scene(scene_text("linear", force), "m.json");
+    auto m = engine::compile_model(scene);
+    engine::Inputs in = engine::make_inputs(scene);
+    engine::State s = engine::make_state(*m);
+    Run r;
+    r.bound = m->max_displacement;
+    r.records.resize(10);
+    for (int i = 0; i < 10; ++i) {
+      engine::step(*m, in, s, r.records[i]);
+      EXPECT_TRUE(s.sim.u.allFinite());
+      if (i == 3) r.u_at_4 = s.sim.u;
+    }
+    r.failures = s.failures;
+    r.u_end = s.sim.u;
+    return r;
+  };
+  const Run small = run(kProbeForce);
+  const double at_full = small.records.back().max_displacement;  // metres at kProbeForce (linear: proportional)
+  ASSERT_EQ(small.failures, 0);
+  ASSERT_GT(at_full, 0.0);
+  ASSERT_LT(at_full, small.bound);
+  const Run large = run(kBeyond * kProbeForce * small.bound / at_full);
+  for (int i = 0; i < 10; ++i) {
+    const bool beyond = (i + 1) / 10.0 * kBeyond > 1.0;  // frame i+1 carries (i+1)/10 of the ramp's end
+    EXPECT_EQ(large.records[i].numerical_failure, beyond) << "frame " << i + 1;
+    EXPECT_FALSE(large.records[i].physics_diverged);
+    EXPECT_LE(large.records[i].max_displacement, large.bound) << "frame " << i + 1;
+  }
+  EXPECT_EQ(large.failures, 6);
+  EXPECT_EQ(large.u_end, large.u_at_4);  // frames 5-10 kept frame 4
 }
