@@ -164,3 +164,10 @@ TEST(Scenes, CorotationalTet10PinchApproachesTheCalculixReference) {
   const double linear = top_tip_displacement(run_session(*model, make_inputs(scene), opt));
   EXPECT_LT(std::abs(corotational - reference), std::abs(linear - reference) - 0.1 * reference) << linear;
 }
+
+// The same sigmoid segment with its lumen radius sampled from the real CT surface (mesh.radius from_surface)
+// instead of a constant with synthetic haustra, pinched shut by the same two probes.
+TEST(Scenes, ColonSigmoidSurfacePinchNeverIntersects) { expect_never_intersects("colon-sigmoid-surface-pinch.json"); }
+// A 0.5 mm wall grown outward from the real aneurysm's lumen surface (mesh.type surface_wall), one probe pressing
+// the vessel shut, self-collision on.
+TEST(Scenes, AneurysmWallPressNeverIntersects) { expect_never_intersects("aneurysm-wall-press.json"); }
