@@ -128,10 +128,18 @@ std::string wall_triangle(int stacked, int triangles) {
                              : "triangle " + std::to_string(stacked - triangles) + " of the offset wall";
 }
 
+// The prism wall between the surface and its offset (`walls`, stacked): inner the surface when growing outward,
+// else the offset.
+physics::TetMesh prism_wall(const SurfaceMesh& s, const StackedPoints& walls, WallDirection d, int layers) {
+  const Eigen::Index nv = s.points.rows();
+  const bool outward = d == WallDirection::kOutward;
+  return physics::make_prism_wall(outward ? walls.topRows(nv) : walls.bottomRows(nv),
+                                  outward ? walls.bottomRows(nv) : walls.topRows(nv), s.tris, layers);
+}
+
 // The surface's triangles whose prism (one layer, between the stacked walls) has an inverted or flat tet.
-std::vector<int> inverted_prisms(const SurfaceMesh& s, const StackedPoints& walls) {
-  const physics::TetMesh prisms =
-      physics::make_prism_wall(walls.topRows(s.points.rows()), walls.bottomRows(s.points.rows()), s.tris, 1);
+std::vector<int> inverted_prisms(const SurfaceMesh& s, const StackedPoints& walls, WallDirection d) {
+  const physics::TetMesh prisms = prism_wall(s, walls, d, 1);
   std::vector<int> bad;
   for (Eigen::Index t = 0; t < prisms.tets.rows(); ++t) {
     Eigen::Matrix<double, 4, 3> x;
@@ -176,7 +184,7 @@ std::vector<double> valid_offsets(const SurfaceWallSpec& spec, const SurfaceMesh
   for (rounds = 0;; ++rounds) {
     const StackedPoints walls = stacked_walls(s, dirs, offset);
     const std::vector<std::array<int, 2>> pairs = collision::intersecting_pairs(walls, tris);
-    const std::vector<int> inverted = inverted_prisms(s, walls);
+    const std::vector<int> inverted = inverted_prisms(s, walls, spec.direction);
     if (pairs.empty() && inverted.empty()) return offset;
     if (rounds == kWallShrinkRounds) throw InputError(refusal(spec, pairs, inverted, nt));
     std::vector<int> around = inverted;
@@ -216,11 +224,7 @@ SurfaceWall grow_surface_wall(const SurfaceWallSpec& spec) {
   const std::vector<double> offset = valid_offsets(spec, s, dirs, wall.shrink_rounds);
   wall.clamped_vertices = static_cast<int>(std::count_if(offset.begin(), offset.end(), [&](double o) { return o < spec.thickness; }));
   wall.min_offset = *std::min_element(offset.begin(), offset.end());
-  const StackedPoints both = stacked_walls(s, dirs, offset);
-  const Points offset_points = both.bottomRows(s.points.rows());
-  const bool outward = spec.direction == WallDirection::kOutward;
-  wall.mesh = physics::make_prism_wall(outward ? s.points : offset_points, outward ? offset_points : s.points, s.tris,
-                                       spec.layers);
+  wall.mesh = prism_wall(s, stacked_walls(s, dirs, offset), spec.direction, spec.layers);
   wall.grow_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   require_valid_prisms(spec, wall.mesh);
   return wall;

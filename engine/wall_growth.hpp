@@ -44,7 +44,9 @@ struct SurfaceWall {
 };
 
 // Reads the surface (engine/surface_file.hpp read_closed_surface: closed, edge-manifold, consistently oriented,
-// no degenerate triangle; reversed if it faces inwards), refuses one that intersects itself (the exact check),
+// no degenerate triangle; reversed if it faces inwards), untangles planar fold-overs (a vertex whose triangles lie
+// in one plane but do not all face one way moves to the mean of its neighbours when that unfolds them: the
+// aneurysm's flat end cap has one), refuses a surface that intersects itself (the exact check),
 // offsets every vertex along its smoothed normal (outward: +, inward: -) by the thickness clamped to
 // kWallGapFraction of its ray-cast gap (directions: smoothed normals, or a vertex's own where the smoothed one
 // leans past kMinNormalCosine from a triangle), then while the two walls together (the surface and its offset)
