@@ -21,6 +21,7 @@
 #include "engine/wall_growth.hpp"
 #include "physics/mesh_quality.hpp"
 #include "support/files.hpp"
+#include "support/sphere.hpp"
 
 namespace fs = std::filesystem;
 using lumen::engine::InputError;
@@ -70,24 +71,15 @@ void write_cone(const fs::path& file, double z0, double z1, double r0, double sl
   write_obj(file, v, f);
 }
 
-// A latitude-longitude sphere of radius r about c, outward.
-void write_sphere(const fs::path& file, double r, int rings, int around, const Eigen::Vector3d& c = Eigen::Vector3d::Zero()) {
-  std::vector<Eigen::Vector3d> v = {c + Eigen::Vector3d(0, 0, -r), c + Eigen::Vector3d(0, 0, r)};
-  for (int k = 0; k < rings; ++k)
-    for (int i = 0; i < around; ++i) {
-      const double phi = kPi * (k + 1) / (rings + 1), a = 2 * kPi * i / around;
-      v.push_back(c + Eigen::Vector3d(r * std::sin(phi) * std::cos(a), r * std::sin(phi) * std::sin(a), -r * std::cos(phi)));
-    }
-  auto id = [&](int k, int i) { return 2 + k * around + i % around; };
+// A latitude-longitude sphere of radius r (mm) about the origin (tests/support/sphere.hpp) as an OBJ file.
+void write_sphere(const fs::path& file, double r, int rings, int around) {
+  lumen::test::TubePoints x;
+  lumen::test::TubeTris t;
+  lumen::test::make_uv_sphere(r, rings, around, x, t);
+  std::vector<Eigen::Vector3d> v;
+  for (Eigen::Index i = 0; i < x.rows(); ++i) v.emplace_back(x.row(i).transpose());
   std::vector<std::array<int, 3>> f;
-  for (int i = 0; i < around; ++i) {
-    f.push_back({0, id(0, i + 1), id(0, i)});
-    f.push_back({1, id(rings - 1, i), id(rings - 1, i + 1)});
-    for (int k = 0; k + 1 < rings; ++k) {
-      f.push_back({id(k, i), id(k, i + 1), id(k + 1, i + 1)});
-      f.push_back({id(k, i), id(k + 1, i + 1), id(k + 1, i)});
-    }
-  }
+  for (Eigen::Index i = 0; i < t.rows(); ++i) f.push_back({t(i, 0), t(i, 1), t(i, 2)});
   write_obj(file, v, f);
 }
 

@@ -9,6 +9,7 @@
 #include "physics/mesh.hpp"
 #include "physics/surface_wall.hpp"
 #include "physics/swept_tube.hpp"
+#include "support/sphere.hpp"
 
 using namespace lumen::physics;
 using lumen::Points;
@@ -17,30 +18,6 @@ using lumen::Tris;
 namespace {
 
 constexpr double kPi = static_cast<double>(EIGEN_PI);
-
-// A latitude-longitude sphere of radius r about the origin: poles and `rings` x `around` vertices, outward.
-void uv_sphere(double r, int rings, int around, Points& x, Tris& tris) {
-  x.resize(2 + rings * around, 3);
-  x.row(0) << 0.0, 0.0, -r;
-  x.row(1) << 0.0, 0.0, r;
-  auto id = [&](int k, int i) { return 2 + k * around + (i % around); };
-  for (int k = 0; k < rings; ++k)
-    for (int i = 0; i < around; ++i) {
-      const double phi = kPi * (k + 1) / (rings + 1), a = 2.0 * kPi * i / around;
-      x.row(id(k, i)) << r * std::sin(phi) * std::cos(a), r * std::sin(phi) * std::sin(a), -r * std::cos(phi);
-    }
-  std::vector<std::array<int, 3>> t;
-  for (int i = 0; i < around; ++i) {
-    t.push_back({0, id(0, i + 1), id(0, i)});
-    t.push_back({1, id(rings - 1, i), id(rings - 1, i + 1)});
-    for (int k = 0; k + 1 < rings; ++k) {
-      t.push_back({id(k, i), id(k, i + 1), id(k + 1, i + 1)});
-      t.push_back({id(k, i), id(k + 1, i + 1), id(k + 1, i)});
-    }
-  }
-  tris.resize(static_cast<Eigen::Index>(t.size()), 3);
-  for (size_t k = 0; k < t.size(); ++k) tris.row(static_cast<Eigen::Index>(k)) << t[k][0], t[k][1], t[k][2];
-}
 
 // Volume enclosed by a closed surface (divergence theorem), independent of the tets.
 double enclosed(const Points& x, const Tris& tris) {
@@ -58,7 +35,7 @@ double enclosed(const Points& x, const Tris& tris) {
 TEST(PrismWall, ConformingPositiveTetsFillTheVolumeBetweenTheSurfaces) {
   Points x;
   Tris tris;
-  uv_sphere(0.01, 9, 16, x, tris);
+  lumen::test::make_uv_sphere(0.01, 9, 16, x, tris);
   const Points n = vertex_normals(x, tris);
   const Points outer = x + 0.002 * n;
   const int layers = 2;
@@ -107,7 +84,7 @@ TEST(PrismWall, ConformingPositiveTetsFillTheVolumeBetweenTheSurfaces) {
 TEST(PrismWall, VertexNormalsOfASphereAreNearlyRadial) {
   Points x;
   Tris tris;
-  uv_sphere(1.0, 15, 32, x, tris);
+  lumen::test::make_uv_sphere(1.0, 15, 32, x, tris);
   const Points n = smooth_normals(vertex_normals(x, tris), tris, 3);
   for (Eigen::Index v = 0; v < x.rows(); ++v) {
     EXPECT_NEAR(n.row(v).norm(), 1.0, 1e-12);
@@ -119,7 +96,7 @@ TEST(PrismWall, VertexNormalsOfASphereAreNearlyRadial) {
 TEST(PrismWall, RefusesMismatchedArraysAndLayers) {
   Points x;
   Tris tris;
-  uv_sphere(1.0, 3, 6, x, tris);
+  lumen::test::make_uv_sphere(1.0, 3, 6, x, tris);
   EXPECT_THROW(make_prism_wall(x, x.topRows(3), tris, 1), std::invalid_argument);
   EXPECT_THROW(make_prism_wall(x, x, tris, 0), std::invalid_argument);
 }
