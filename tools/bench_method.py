@@ -4,8 +4,13 @@ by the lagged factorisation; "chord", one back-substitution on the lagged factor
 with the corotational model and each method `--runs` times, the methods alternating run by run, the lagged
 factorisation on the second core as shipped scenes run it, headless with the exact intersection check.
 
-usage: tools/bench_method.py [--runs 3] [--methods pcg,chord] [--out docs/bench_method.csv] [--lumen build/lumen]
-       SCENE.json ...
+usage: tools/bench_method.py [--runs 3] [--methods pcg,chord] [--tolerances 1e-3] [--reference-tolerance 1e-7]
+       [--out docs/bench_method.csv] [--lumen build/lumen] SCENE.json ...
+
+With --tolerances, each method runs at each solver.tolerance, and the error against a tightly converged run (PCG
+at --reference-tolerance, once per scene, untimed) is reported: the largest difference over frames and probe
+points of the probe points' displacements, relative to the largest reference displacement (probe_error_max), and
+its median over frames (probe_error_median; max over runs).
 
 Per scene and method (ms: median over runs of each run's statistic; counts: max over runs): physics median / p99 /
 max, physics + collision + response per frame median / p99, frames whose nonlinear solve converged, nonlinear
@@ -26,22 +31,38 @@ from session_run import percentile, run_report
 METHODS = ("pcg", "chord")  # solver.method's values
 
 
-def variant(path, method):
-    """The scene at `path` with the corotational model and the given method (other solver keys kept)."""
+def variant(path, method, tolerance=None):
+    """The scene at `path` with the corotational model, the given method and, when given, solver.tolerance (other
+    solver keys kept)."""
     with open(path) as f:
         s = json.load(f)
-    s["name"] = f"{s['name']}-{method}"
+    s["name"] = f"{s['name']}-{method}" + (f"-tol{tolerance:g}" if tolerance else "")
     s["material"]["model"] = "corotational"
     s.setdefault("solver", {})["method"] = method
+    if tolerance:
+        s["solver"]["tolerance"] = tolerance
     return s
 
 
-def summarise(path, method, runs):
+def probe_errors(run, reference):
+    """Per frame the largest |d - d_ref| over the probe points, relative to the largest |d_ref| of the session
+    (probe displacements)."""
+    scale = max((math.hypot(*r) for g in reference["per_frame"] for r in g["probe_displacement_m"]), default=0.0)
+    errors = [max((math.dist(d, r) for d, r in zip(f["probe_displacement_m"], g["probe_displacement_m"])), default=0.0)
+              for f, g in zip(run["per_frame"], reference["per_frame"])]
+    return [e / scale for e in errors] if scale > 0.0 else [0.0 for _ in errors]
+
+
+def summarise(path, method, runs, tolerance=None, reference=None):
     per = [r["per_frame"] for r in runs]
     pcr = [[f["physics_ms"] + f["collision_ms"] + f["response_ms"] for f in p] for p in per]
     med = lambda values: round(statistics.median(values), 3)
     tip = per[0][-1]["probe_displacement_m"]
-    return {"scene": os.path.basename(path), "method": method, "runs": len(runs), "frames": len(per[0]),
+    return {"scene": os.path.basename(path), "method": method, "tolerance": tolerance or "scene",
+            "probe_error_median": (round(max(statistics.median(probe_errors(r, reference)) for r in runs), 6)
+                                   if reference else ""),
+            "probe_error_max": round(max(max(probe_errors(r, reference)) for r in runs), 6) if reference else "",
+            "runs": len(runs), "frames": len(per[0]),
             "physics_median_ms": med(r["stages"]["physics"]["median_ms"] for r in runs),
             "physics_p99_ms": med(r["stages"]["physics"]["p99_ms"] for r in runs),
             "physics_max_ms": med(r["stages"]["physics"]["max_ms"] for r in runs),
@@ -62,22 +83,37 @@ def main():
     ap.add_argument("--methods", default="pcg,chord", help="comma-separated solver.method values")
     ap.add_argument("--out", default="docs/bench_method.csv")
     ap.add_argument("--lumen", default="build/lumen")
+    ap.add_argument("--tolerances", default="", help="comma-separated solver.tolerance values (default: the scene's)")
+    ap.add_argument("--reference-tolerance", type=float, default=1e-7)
     a = ap.parse_args()
     methods = a.methods.split(",")
     bad = [m for m in methods if m not in METHODS]
-    if bad or a.runs < 1:
-        ap.error(f"--methods must name {', '.join(METHODS)} and --runs be >= 1 (got {a.methods!r}, {a.runs})")
+    try:
+        tolerances = [float(t) for t in a.tolerances.split(",")] if a.tolerances else [None]
+    except ValueError:
+        ap.error(f"--tolerances must be comma-separated numbers (got {a.tolerances!r})")
+    if bad or a.runs < 1 or any(t is not None and not t > 0 for t in tolerances):
+        ap.error(f"--methods must name {', '.join(METHODS)}, --runs be >= 1 and --tolerances > 0 "
+                 f"(got {a.methods!r}, {a.runs}, {a.tolerances!r})")
+    cases = [(m, t) for t in tolerances for m in methods]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for path in a.scenes:
-            runs = {m: [] for m in methods}
+            reference = None
+            if a.tolerances:
+                tight = variant(path, "pcg", a.reference_tolerance)
+                tight["solver"]["max_iterations"] = 500
+                tight["solver"]["background_factorisation"] = False
+                reference = run_report(a.lumen, tight, tmp)
+            runs = {c: [] for c in cases}
             for _ in range(a.runs):
-                for m in methods:
-                    runs[m].append(run_report(a.lumen, variant(path, m), tmp))
-            for m in methods:
-                rows.append(summarise(path, m, runs[m]))
+                for m, t in cases:
+                    runs[(m, t)].append(run_report(a.lumen, variant(path, m, t), tmp))
+            for m, t in cases:
+                rows.append(summarise(path, m, runs[(m, t)], t, reference))
                 print(rows[-1], flush=True)
-    header = [f"made by: tools/bench_method.py --runs {a.runs} --methods {a.methods} --out {a.out} "
+    tol_args = f" --tolerances {a.tolerances} --reference-tolerance {a.reference_tolerance:g}" if a.tolerances else ""
+    header = [f"made by: tools/bench_method.py --runs {a.runs} --methods {a.methods}{tol_args} --out {a.out} "
               + " ".join(a.scenes),
               f"machine: {platform.machine()}, {os.cpu_count()} cores; ms = median over runs (methods alternating); "
               "counts = max over runs"]

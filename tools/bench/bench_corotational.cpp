@@ -6,7 +6,8 @@
 //
 // BM_CorotationalProbeRamp/<peak mN>/<rotated preconditioner>/<extrapolate>/<tolerance 10^-k>: default options
 // except those; the reported time is the MEDIAN
-// per-frame physics time over the ramp (manual time); counters: max_ms, outer and CG iterations per frame,
+// per-frame physics time over the ramp (manual time); counters: p99_ms, max_ms, outer and CG iterations per frame,
+// refactorisations per ramp,
 // max_rel_error = max over frames of |u - u_tight| / |u_tight| against a tightly converged solve (tolerance
 // 1e-10), max_u_mm the largest displacement at the peak, inverted = inverted tets at the peak.
 #include <benchmark/benchmark.h>
@@ -77,20 +78,22 @@ CorotPaperModel& corot_model() {
   return m;
 }
 
-void BM_CorotationalProbeRamp(benchmark::State& state) {
-  CorotPaperModel& m = corot_model();
-  const int peak_mN = static_cast<int>(state.range(0));
-  const std::vector<Eigen::VectorXd>& tight = m.tight_solutions(peak_mN);
-  CorotationalOptions opt;
-  opt.rotate_preconditioner = state.range(1) != 0;
-  opt.extrapolate = state.range(2) != 0;
-  opt.tolerance = std::pow(10.0, -static_cast<double>(state.range(3)));
-  std::vector<double> frame_ms;
-  long outer = 0, cg = 0, frames = 0, not_converged = 0;
-  double max_error = 0.0, max_u = 0.0;
+// The state at the end of the last ramp: the largest displacement (metres) and the inverted tets.
+struct RampEnd {
+  double max_u = 0.0;
   int inverted = 0;
+};
+
+// Runs one ramp from rest per benchmark iteration (every frame warm-started from the previous one; the iteration
+// time is the ramp's median frame) and sets the counters: median_ms, p99_ms, max_ms, outer and CG iterations per
+// frame, refactorisations per ramp, frames not converged, max_rel_error against the tight solutions.
+RampEnd run_ramps(benchmark::State& state, CorotPaperModel& m, int peak_mN, const CorotationalOptions& opt) {
+  const std::vector<Eigen::VectorXd>& tight = m.tight_solutions(peak_mN);
+  std::vector<double> frame_ms;
+  long outer = 0, cg = 0, frames = 0, not_converged = 0, refactorisations = 0;
+  double max_error = 0.0;
+  RampEnd end;
   for (auto _ : state) {
-    // One ramp from rest; every frame warm-started from the previous one.
     CorotationalState s;
     std::vector<double> ramp_ms;
     for (int k = 1; k <= kFrames; ++k) {
@@ -98,10 +101,10 @@ void BM_CorotationalProbeRamp(benchmark::State& state) {
       const auto t0 = std::chrono::steady_clock::now();
       const CorotationalResult r = solve_corotational(*m.model, f, s, opt);
       ramp_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-      outer += r.iterations, cg += r.cg_iterations, ++frames;
+      outer += r.iterations, cg += r.cg_iterations, ++frames, refactorisations += r.refactorisations;
       not_converged += r.converged ? 0 : 1;
       max_error = std::max(max_error, (s.u - tight[k - 1]).norm() / tight[k - 1].norm());
-      if (k == kFrames) max_u = s.u.cwiseAbs().maxCoeff(), inverted = r.n_inverted;
+      if (k == kFrames) end.max_u = s.u.cwiseAbs().maxCoeff(), end.inverted = r.n_inverted;
     }
     frame_ms.insert(frame_ms.end(), ramp_ms.begin(), ramp_ms.end());
     std::sort(ramp_ms.begin(), ramp_ms.end());
@@ -109,13 +112,24 @@ void BM_CorotationalProbeRamp(benchmark::State& state) {
   }
   std::sort(frame_ms.begin(), frame_ms.end());
   state.counters["median_ms"] = frame_ms[frame_ms.size() / 2];
+  state.counters["p99_ms"] = frame_ms[static_cast<size_t>(0.99 * (frame_ms.size() - 1))];
   state.counters["max_ms"] = frame_ms.back();
   state.counters["outer_per_frame"] = static_cast<double>(outer) / frames;
   state.counters["cg_per_frame"] = static_cast<double>(cg) / frames;
+  state.counters["refactor_per_ramp"] = static_cast<double>(refactorisations) / state.iterations();
   state.counters["not_converged"] = static_cast<double>(not_converged);
   state.counters["max_rel_error"] = max_error;
-  state.counters["max_u_mm"] = 1e3 * max_u;
-  state.counters["inverted"] = inverted;
+  return end;
+}
+
+void BM_CorotationalProbeRamp(benchmark::State& state) {
+  CorotationalOptions opt;
+  opt.rotate_preconditioner = state.range(1) != 0;
+  opt.extrapolate = state.range(2) != 0;
+  opt.tolerance = std::pow(10.0, -static_cast<double>(state.range(3)));
+  const RampEnd end = run_ramps(state, corot_model(), static_cast<int>(state.range(0)), opt);
+  state.counters["max_u_mm"] = 1e3 * end.max_u;
+  state.counters["inverted"] = end.inverted;
 }
 BENCHMARK(BM_CorotationalProbeRamp)
     ->ArgNames({"peak_mN", "rotated", "extrapolate", "tol_exp"})
@@ -127,6 +141,29 @@ BENCHMARK(BM_CorotationalProbeRamp)
     ->Args({30, 1, 1, 3})
     ->UseManualTime()
     ->Iterations(3)
+    ->Unit(benchmark::kMillisecond);
+
+// The engine's solve options (extrapolated start, lagged factorisation refreshed after a slow solve, Anderson
+// depth 5) on the same ramp, factorising inside the solve (deterministic), by method and preconditioner:
+// BM_CorotationalRampLagged/<peak mN>/<chord>/<tangent: 0 warped, 2 exact>/<tolerance 10^(-k/10)>: counters as
+// above (run_ramps).
+void BM_CorotationalRampLagged(benchmark::State& state) {
+  CorotationalOptions opt;
+  opt.extrapolate = true;
+  opt.refactor_cg_iterations = 5;
+  opt.anderson_depth = 5;
+  opt.method = state.range(1) != 0 ? CorotationalMethod::chord : CorotationalMethod::pcg;
+  opt.tangent = state.range(2) == 2 ? CorotationalTangent::exact : CorotationalTangent::warped;
+  opt.tolerance = std::pow(10.0, -0.1 * static_cast<double>(state.range(3)));
+  run_ramps(state, corot_model(), static_cast<int>(state.range(0)), opt);
+}
+BENCHMARK(BM_CorotationalRampLagged)
+    ->ArgNames({"peak_mN", "chord", "tangent", "tol_exp10"})
+    ->ArgsProduct({{80}, {0, 1}, {0}, {30, 25, 20, 15}})
+    ->Args({80, 0, 2, 30})
+    ->Args({80, 0, 2, 20})
+    ->UseManualTime()
+    ->Iterations(1)
     ->Unit(benchmark::kMillisecond);
 
 // The kernels of one outer iteration at a deformed state (frame 40 of the 30 mN ramp).
