@@ -1,6 +1,7 @@
 #pragma once
-// Closed triangle surfaces read from files through assimp (an instrument's mesh, an organ's surface for
-// engine/organ_surface.hpp) and their checks: closed, edge-manifold, consistently oriented, no degenerate triangle.
+// Closed triangle surfaces read from files through assimp (an instrument's mesh; an organ's surface for
+// engine/wall_growth.hpp and engine/surface_radius.hpp) and their checks: closed, edge-manifold, consistently
+// oriented, no degenerate triangle.
 // Messages name the file (`where`), the triangle index and the edge's vertices with their positions.
 #include <string>
 

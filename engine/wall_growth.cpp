@@ -71,7 +71,7 @@ int untangle_flat_folds(SurfaceMesh& s) {
   return moved;
 }
 
-const char* direction_name(WallDirection d) { return d == WallDirection::kOutward ? "outward" : "inward"; }
+const char* direction_name(WallDirection d) { return kWallDirectionNames[static_cast<int>(d)]; }
 
 // Each vertex's unit direction of growth: its smoothed normal, or its own area-weighted normal where the smoothed
 // one makes less than kMinNormalCosine with an incident triangle's normal (a prism over that triangle would lean

@@ -15,14 +15,16 @@ inline constexpr int kWallNormalSmoothingRounds = 3;
 // A vertex whose smoothed normal makes less than this cosine with one of its triangles' normals grows along its
 // own (unsmoothed, area-weighted) normal instead.
 inline constexpr double kMinNormalCosine = 0.1;
-// Where the grown walls still intersect (or a prism between them is inverted), the offsets of the intersecting triangles' vertices are scaled by this,
-// for at most kWallShrinkRounds rounds (then the surface is refused).
+// Where the grown walls still intersect (or a prism between them is inverted), the offsets of those triangles'
+// vertices are scaled by this, for at most kWallShrinkRounds rounds (then the surface is refused).
 inline constexpr double kWallShrinkFactor = 0.5;
 inline constexpr int kWallShrinkRounds = 8;
 
 // Which way the wall grows from the surface: outward (the surface is the inner wall, the lumen's) or inward
 // (the surface is the outer wall).
 enum class WallDirection { kInward, kOutward };
+// The names of WallDirection by value: what mesh.direction says and the messages repeat.
+inline constexpr const char* kWallDirectionNames[] = {"inward", "outward"};
 
 struct SurfaceWallSpec {
   std::string file;                                // the surface (OBJ, STL, PLY, OFF), absolute path
@@ -39,6 +41,7 @@ struct SurfaceWall {
   int triangles = 0;
   int clamped_vertices = 0;   // vertices whose offset is less than the thickness (the gap clamp or the shrinking)
   int shrink_rounds = 0;      // rounds of shrinking the offsets around intersecting triangles
+  int untangled_vertices = 0; // vertices of the surface moved to untangle planar fold-overs (before growing)
   double min_offset = 0.0;    // the thinnest wall at a vertex, metres
   double grow_ms = 0.0;       // normals, gaps, offsets, the intersection checks and the prisms, milliseconds
 };
