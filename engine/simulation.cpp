@@ -92,6 +92,7 @@ physics::TetMesh generate_mesh(const Scene& scene, Model& m) {
   if (scene.mesh_type == MeshType::kSurfaceWall) {
     m.mesh_file = scene.surface_wall.spec.file;
     m.clamped_vertices = scene.surface_wall.wall.clamped_vertices;
+    m.untangled_vertices = scene.surface_wall.wall.untangled_vertices;
     return scene.surface_wall.wall.mesh;
   }
   const physics::HollowCylinderSpec& c = scene.mesh;

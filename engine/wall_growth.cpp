@@ -211,13 +211,13 @@ SurfaceWall grow_surface_wall(const SurfaceWallSpec& spec) {
     throw InputError(spec.file + ": the wall thickness must be > 0 and finite (value " + value_text(spec.thickness) + ")");
   if (spec.layers < 1) throw InputError(spec.file + ": the wall needs at least 1 layer (value " + std::to_string(spec.layers) + ")");
   SurfaceMesh s = read_closed_surface(spec.file, spec.metres_per_unit);
-  untangle_flat_folds(s);
+  SurfaceWall wall;
+  wall.untangled_vertices = untangle_flat_folds(s);
   const std::vector<std::array<int, 2>> self = collision::intersecting_pairs(s.points, s.tris);
   if (!self.empty())
     throw InputError(spec.file + ": the surface intersects itself: triangles " + std::to_string(self[0][0]) + " and " +
                      std::to_string(self[0][1]) + " intersect (" + std::to_string(self.size()) + " intersecting pairs)");
   const auto t0 = Clock::now();
-  SurfaceWall wall;
   wall.vertices = static_cast<int>(s.points.rows());
   wall.triangles = static_cast<int>(s.tris.rows());
   const Points dirs = growth_directions(s, spec.direction);

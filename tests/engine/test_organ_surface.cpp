@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 
@@ -51,9 +52,10 @@ void write_obj(const fs::path& file, const std::vector<Eigen::Vector3d>& v, cons
 }
 
 // A closed cone frustum about the z axis from z0 to z1 (radius r0 + slope (z - z0)), `around` sides, `along`
-// bands, flat end caps fanned from their centres; outward.
-void write_cone(const fs::path& file, double z0, double z1, double r0, double slope, int around, int along) {
-  std::vector<Eigen::Vector3d> v = {{0, 0, z0}, {0, 0, z1}};
+// bands, flat end caps fanned from their centres (the z0 cap's centre at x = cap_x on its plane); outward.
+void write_cone(const fs::path& file, double z0, double z1, double r0, double slope, int around, int along,
+                double cap_x = 0.0) {
+  std::vector<Eigen::Vector3d> v = {{cap_x, 0, z0}, {0, 0, z1}};
   for (int k = 0; k <= along; ++k) {
     const double z = z0 + (z1 - z0) * k / along, r = r0 + slope * (z - z0);
     for (int i = 0; i < around; ++i) v.emplace_back(r * std::cos(2 * kPi * i / around), r * std::sin(2 * kPi * i / around), z);
@@ -133,9 +135,9 @@ std::string load_error(const std::string& scene) {
   return lumen::test::message_of<InputError>([&] { lumen::engine::load_scene(scene); });
 }
 
-// lumen run on a scene: the exit code and whether the output folder stayed empty; the output in `text`.
-int run_lumen(const std::string& scene, const fs::path& out, std::string& text) {
-  const std::string cmd = std::string(LUMEN_BINARY) + " run " + scene + " --out " + out.string() + " 2>&1";
+// lumen run on a scene (with `options`): the exit code; the output in `text`.
+int run_lumen(const std::string& scene, const fs::path& out, std::string& text, const std::string& options = "") {
+  const std::string cmd = std::string(LUMEN_BINARY) + " run " + scene + options + " --out " + out.string() + " 2>&1";
   FILE* p = popen(cmd.c_str(), "r");
   char buf[4096];
   size_t n;
@@ -196,6 +198,11 @@ TEST(SurfaceRadius, RefusesBadSurfacesNamingFileProblemAndRing) {
             std::string::npos) << load_error(write_scene(d, scene));
   scene["mesh"]["radius"] = json::parse(R"({"from_surface": "surf.obj", "rays": 8})");
   EXPECT_EQ(load_error(write_scene(d, scene)), (d / "s.json").string() + ": mesh.radius.rays: unknown key");
+  scene["mesh"]["radius"] = json::object();
+  EXPECT_EQ(load_error(write_scene(d, scene)), (d / "s.json").string() + ": mesh.radius.from_surface: missing key");
+  scene["mesh"]["radius"]["from_surface"] = 5;
+  EXPECT_EQ(load_error(write_scene(d, scene)),
+            (d / "s.json").string() + ": mesh.radius.from_surface: must be a string (value 5)");
 }
 
 // The program on a ring that misses the surface: exit 2, the message, nothing written.
@@ -299,6 +306,33 @@ TEST(SurfaceWall, RefusesBadSurfacesNamingFileProblemAndWhere) {
   EXPECT_EQ(load_error(write_scene(d, wall_scene("x.obj", -0.5, "outward"))), scene + ": mesh.thickness: must be > 0 (value -0.5)");
   EXPECT_EQ(load_error(write_scene(d, wall_scene("x.obj", 0.1, "out"))),
             scene + ": mesh.direction: must be one of inward, outward (value \"out\")");
+  // Every key of mesh by its message: missing, of the wrong type, out of range, unknown; and what a closed wall
+  // cannot be combined with.
+  auto scene_error = [&](const std::function<void(json&)>& edit) {
+    json j = wall_scene("x.obj", 0.1, "outward");
+    edit(j);
+    return load_error(write_scene(d, j));
+  };
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"].erase("surface"); }), scene + ": mesh.surface: missing key");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["surface"] = 3; }), scene + ": mesh.surface: must be a string (value 3)");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"].erase("thickness"); }), scene + ": mesh.thickness: missing key");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["thickness"] = "thick"; }),
+            scene + ": mesh.thickness: must be a number (value \"thick\")");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"].erase("direction"); }), scene + ": mesh.direction: missing key");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["layers"] = 0; }), scene + ": mesh.layers: out of range [1, 256] (value 0)");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["layers"] = 1.5; }), scene + ": mesh.layers: must be an integer (value 1.5)");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["units"] = "cm"; }),
+            scene + ": mesh.units: must be one of m, mm (value \"cm\")");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["radius"] = 5; }), scene + ": mesh.radius: unknown key");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["element"] = "tet10"; }),
+            scene + ": mesh.element: \"tet10\" needs mesh.type \"hollow_cylinder\" (got \"surface_wall\") (value \"tet10\")");
+  // The growth's own checks, for a caller that fills the spec (the scene reader refuses these first).
+  lumen::engine::SurfaceWallSpec spec;
+  spec.file = (d / "x.obj").string();
+  spec.thickness = 0.0001;
+  spec.layers = 0;
+  EXPECT_EQ(lumen::test::message_of<InputError>([&] { lumen::engine::grow_surface_wall(spec); }),
+            spec.file + ": the wall needs at least 1 layer (value 0)");
   json named = wall_scene("x.obj", 0.1, "outward");
   named["fixed"] = {"ends"};
   EXPECT_EQ(load_error(write_scene(d, named)), scene + ": fixed[0]: the wall grown from " + (d / "x.obj").string() +
@@ -340,12 +374,42 @@ TEST(SurfaceWall, AneurysmGrownHalfAMillimetreOutwardIsIntersectionFree) {
   int moved = 0;
   for (Eigen::Index v = 0; v < read.points.rows(); ++v) moved += (w.mesh.rest.row(v) != read.points.row(v));
   EXPECT_LE(moved, 10);
+  EXPECT_GT(moved, 0);
+  EXPECT_EQ(w.untangled_vertices, moved);
   std::printf("aneurysm 0.5 mm outward: %d vertices, %d triangles, %d tets; grown in %.1f ms (read, checks and growth "
               "%.1f ms); %d vertices clamped, %d shrink rounds, thinnest %.3f mm; min dihedral %.2f deg (p1 %.2f, "
               "median %.2f), radius ratio min %.4f (median %.3f); %d vertices moved to untangle fold-overs\n",
               w.vertices, w.triangles, static_cast<int>(w.mesh.tets.rows()), w.grow_ms, load_ms, w.clamped_vertices,
               w.shrink_rounds, 1e3 * w.min_offset, q.min_dihedral_deg.min, q.min_dihedral_deg.p1,
               q.min_dihedral_deg.p50, q.radius_ratio.min, q.radius_ratio.p50, moved);
+}
+
+// A planar fold-over: a cone's flat end cap fanned from a centre moved in the cap's plane 1.5 radii out, past the
+// rim, so the fan triangles next to it fold back over their neighbours. The growth moves that one vertex (to the
+// mean of its neighbours, the cap's centre) and says so; lumen run reports the count the growth returns in
+// report.json (mesh.untangled_vertices) and on the mesh line.
+TEST(SurfaceWall, UntangledFoldOverIsCountedInTheReportAndTheMeshLine) {
+  const fs::path d = temp_dir("untangle");
+  write_cone(d / "cone.obj", 0.0, 20.0, 6.0, 0.0, 24, 4, 9.0);
+  lumen::engine::SurfaceWallSpec spec;
+  spec.file = (d / "cone.obj").string();
+  spec.metres_per_unit = 1e-3;
+  spec.thickness = 0.0005;
+  const lumen::engine::SurfaceWall w = lumen::engine::grow_surface_wall(spec);
+  EXPECT_EQ(w.untangled_vertices, 1);
+  // The inner wall (outward: the surface) has the cap's centre at the mean of its ring (the origin), every other
+  // vertex where the file put it.
+  EXPECT_LT(w.mesh.rest.row(0).norm(), 1e-12) << w.mesh.rest.row(0);
+  const std::string scene = write_scene(d, wall_scene("cone.obj", 0.5, "outward"));
+  const fs::path out = d / "out";
+  std::string text;
+  ASSERT_EQ(run_lumen(scene, out, text, " --no-render"), 0) << text;
+  EXPECT_NE(text.find(", " + std::to_string(w.untangled_vertices) + " vertices moved to untangle fold-overs"),
+            std::string::npos) << text;
+  std::ifstream in(out / "report.json");
+  const json report = json::parse(in);
+  EXPECT_EQ(report["mesh"]["untangled_vertices"], w.untangled_vertices) << report["mesh"].dump();
+  EXPECT_EQ(report["mesh"]["clamped_vertices"], w.clamped_vertices) << report["mesh"].dump();
 }
 
 // The CT colon (20,000 triangles, haustral folds, creases sharper than 90 degrees): growing a 2.5 mm wall from it
