@@ -296,6 +296,19 @@ TEST(SurfaceWall, RefusesBadSurfacesNamingFileProblemAndWhere) {
   EXPECT_EQ(error("x.obj", tet + "v 0.2 0.2 -0.5\nv 1.2 0.2 -0.5\nv 0.2 1.2 -0.5\nv 0.2 0.2 0.5\n"
                               "f 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\nf 5 7 6\nf 5 6 8\nf 6 7 8\nf 5 8 7\n"),
             f + ": the surface intersects itself: triangles 0 and 5 intersect (3 intersecting pairs)");
+  // A closed tetrahedron: its corners turn too sharply for a wall along vertex normals. Outward, the prisms over
+  // its faces stay inverted however far the offsets shrink; inward, the offset wall crosses the surface.
+  const std::string closed_tet = tet + "f 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n";
+  EXPECT_EQ(error("x.obj", closed_tet),
+            f + ": a wall of 0.0001 m grown outward has an inverted or zero-volume prism over triangle 0 after 8 rounds "
+                "of shrinking the offset around them (3 such triangles): the surface turns too sharply there for its "
+                "vertex normals");
+  EXPECT_EQ(load_error(write_scene(d, wall_scene("x.obj", 0.1, "inward"))),
+            f + ": a wall of 0.0001 m grown inward cannot be made intersection-free: triangle 0 of the surface and "
+                "triangle 0 of the offset wall still intersect after 8 rounds of shrinking the offset around them (12 "
+                "intersecting pairs; offsetting along vertex normals fails where the surface folds more sharply than "
+                "the wall is thick: for a tubular organ, sweep a tube along its centreline with the radius from the "
+                "surface, mesh.type \"swept_tube\" with mesh.radius {\"from_surface\": ...})");
   EXPECT_EQ(error("missing.obj", tet).empty(), false);
   fs::remove(d / "missing.obj");
   EXPECT_EQ(load_error(write_scene(d, wall_scene("missing.obj", 0.1, "outward"))), (d / "missing.obj").string() + ": no such surface file");
