@@ -3,6 +3,7 @@
 #include "collision/intersect.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cfloat>
 #include <cmath>
 #include <cstdint>
@@ -720,10 +721,11 @@ bool mesh_triangles_intersect(const PointsRef& x, const int* ta, const int* tb) 
   return mesh_pair_intersects(x, ta, tb, pa, pb);
 }
 
-long count_intersecting_pairs(const PointsRef& x, const TrisRef& tris) {
+std::vector<std::array<int, 2>> intersecting_pairs(const PointsRef& x, const TrisRef& tris) {
   check_mesh(x, tris);
   const int n = static_cast<int>(tris.rows());
-  if (n < 2) return 0;
+  std::vector<std::array<int, 2>> pairs;
+  if (n < 2) return pairs;
   // AABB tree over the triangles (exact min/max, closed overlap: never prunes a touching pair).
   std::vector<double> centres(static_cast<std::size_t>(3 * n));
   for (int t = 0; t < n; ++t) {
@@ -744,13 +746,18 @@ long count_intersecting_pairs(const PointsRef& x, const TrisRef& tris) {
     const auto pt = [&x](int i) { return x.data() + i * x.outerStride(); };
     planes[static_cast<std::size_t>(t)].set(pt(tris(t, 0)), pt(tris(t, 1)), pt(tris(t, 2)));
   }
-  long count = 0;
   bvh.self_pairs([&](int i, int j) {
     const int ta[3] = {tris(i, 0), tris(i, 1), tris(i, 2)};
     const int tb[3] = {tris(j, 0), tris(j, 1), tris(j, 2)};
-    if (mesh_pair_intersects(x, ta, tb, planes[static_cast<std::size_t>(i)], planes[static_cast<std::size_t>(j)])) ++count;
+    if (mesh_pair_intersects(x, ta, tb, planes[static_cast<std::size_t>(i)], planes[static_cast<std::size_t>(j)]))
+      pairs.push_back({std::min(i, j), std::max(i, j)});
   });
-  return count;
+  std::sort(pairs.begin(), pairs.end());
+  return pairs;
+}
+
+long count_intersecting_pairs(const PointsRef& x, const TrisRef& tris) {
+  return static_cast<long>(intersecting_pairs(x, tris).size());
 }
 
 }  // namespace lumen::collision

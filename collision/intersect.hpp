@@ -1,6 +1,9 @@
 #pragma once
 // Exact discrete intersection check: orientation predicates and triangle-triangle tests built on them.
 // Independent of the CCD code. Points are 3 doubles (metres); all inputs must be finite.
+#include <array>
+#include <vector>
+
 #include "collision/self_collision.hpp"
 
 namespace lumen::collision {
@@ -34,5 +37,9 @@ bool triangles_intersect(const double* a0, const double* a1, const double* a2, c
 //   the same side of the edge (non-coplanar edge neighbours meet only on the edge);
 // - same three vertices: true (the triangles coincide).
 bool mesh_triangles_intersect(const PointsRef& x, const int* ta, const int* tb);
+
+// Every pair of triangles of the mesh that intersect by mesh_triangles_intersect at positions x, as (i, j) with
+// i < j, sorted; count_intersecting_pairs is its size.
+std::vector<std::array<int, 2>> intersecting_pairs(const PointsRef& x, const TrisRef& tris);
 
 }  // namespace lumen::collision

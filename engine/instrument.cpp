@@ -3,12 +3,6 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
-#include <map>
-#include <tuple>
-
-#include <assimp/Importer.hpp>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
 
 #include "engine/input.hpp"
 #include "engine/scene.hpp"
@@ -140,82 +134,6 @@ Instrument single_part(RigidMesh mesh) {
   return inst;
 }
 
-// "vertex 3 at [x, y, z]", for messages.
-std::string vertex_text(const RigidMesh& m, int v) {
-  return "vertex " + std::to_string(v) + " at " + values_text(m.points.row(v).data(), 3);
-}
-
-// Refuse a triangle with a repeated vertex or (near) zero area.
-void require_nondegenerate(const RigidMesh& m, const std::string& where) {
-  const Eigen::RowVector3d extent = m.points.colwise().maxCoeff() - m.points.colwise().minCoeff();
-  const double min_area = kDegenerateAreaRatio * extent.squaredNorm();
-  for (int t = 0; t < m.tris.rows(); ++t) {
-    const int a = m.tris(t, 0), b = m.tris(t, 1), c = m.tris(t, 2);
-    const Eigen::Vector3d pa = m.points.row(a), pb = m.points.row(b), pc = m.points.row(c);
-    const double area = 0.5 * (pb - pa).cross(pc - pa).norm();
-    if (a == b || b == c || c == a || !(area > min_area))
-      throw InputError(where + ": triangle " + std::to_string(t) + " is degenerate (area " + value_text(area) +
-                       " m^2): " + vertex_text(m, a) + ", " + vertex_text(m, b) + ", " + vertex_text(m, c));
-  }
-}
-
-// Refuse an edge not shared by exactly two triangles that run it in opposite directions.
-void require_paired_edges(const RigidMesh& m, const std::string& where) {
-  // Every triangle side as (low id, high id, triangle, runs low -> high), sorted so each edge's sides are adjacent.
-  std::vector<std::tuple<int, int, int, bool>> sides;
-  for (int t = 0; t < m.tris.rows(); ++t)
-    for (int j = 0; j < 3; ++j) {
-      const int a = m.tris(t, j), b = m.tris(t, (j + 1) % 3);
-      sides.emplace_back(std::min(a, b), std::max(a, b), t, a < b);
-    }
-  std::sort(sides.begin(), sides.end());
-  for (size_t i = 0; i < sides.size();) {
-    const int lo = std::get<0>(sides[i]), hi = std::get<1>(sides[i]);
-    const bool up0 = std::get<3>(sides[i]);
-    size_t j = i;
-    std::string tris;
-    for (; j < sides.size() && std::get<0>(sides[j]) == lo && std::get<1>(sides[j]) == hi; ++j)
-      tris += (j > i ? ", " : "") + std::to_string(std::get<2>(sides[j]));
-    const std::string edge = "edge between " + vertex_text(m, lo) + " and " + vertex_text(m, hi);
-    if (j - i == 1) throw InputError(where + ": not closed: " + edge + " belongs to triangle " + tris + " only");
-    if (j - i > 2)
-      throw InputError(where + ": non-manifold " + edge + ": shared by " + std::to_string(j - i) + " triangles (" +
-                       tris + ")");
-    if (std::get<3>(sides[i + 1]) == up0)
-      throw InputError(where + ": inconsistent orientation: triangles " + tris + " run the " + edge +
-                       " the same way");
-    i = j;
-  }
-}
-
-// Every triangle of the assimp scene below `node` (positions through the node transforms), vertices at identical
-// positions merged in order of first use.
-void collect_triangles(const aiScene& scene, const aiNode& node, const aiMatrix4x4& parent, const std::string& file,
-                       std::map<std::array<double, 3>, int>& ids, std::vector<std::array<double, 3>>& points,
-                       std::vector<std::array<int, 3>>& tris) {
-  const aiMatrix4x4 to_root = parent * node.mTransformation;
-  for (unsigned k = 0; k < node.mNumMeshes; ++k) {
-    const aiMesh& mesh = *scene.mMeshes[node.mMeshes[k]];
-    for (unsigned f = 0; f < mesh.mNumFaces; ++f) {
-      const aiFace& face = mesh.mFaces[f];
-      if (face.mNumIndices != 3)
-        throw InputError(file + ": mesh " + std::to_string(node.mMeshes[k]) + " face " + std::to_string(f) + " has " +
-                         std::to_string(face.mNumIndices) + " vertices: not a triangle (points and lines enclose nothing)");
-      std::array<int, 3> tri;
-      for (int c = 0; c < 3; ++c) {
-        const aiVector3D p = to_root * mesh.mVertices[face.mIndices[c]];
-        const std::array<double, 3> key = {p.x, p.y, p.z};
-        const auto [it, added] = ids.emplace(key, static_cast<int>(points.size()));
-        if (added) points.push_back(key);
-        tri[static_cast<size_t>(c)] = it->second;
-      }
-      tris.push_back(tri);
-    }
-  }
-  for (unsigned c = 0; c < node.mNumChildren; ++c)
-    collect_triangles(scene, *node.mChildren[c], to_root, file, ids, points, tris);
-}
-
 }  // namespace
 
 Instrument make_sphere_probe(const SphereProbeSpec& s, const std::string& where) {
@@ -277,28 +195,10 @@ Instrument make_grasper(const GrasperSpec& s, const std::string& where) {
 }
 
 Instrument load_mesh_instrument(const MeshFileSpec& spec) {
-  // Read through assimp (faces triangulated, nothing else changed).
-  const std::string& file = spec.file;
-  require_file(file, "mesh file");
-  Assimp::Importer importer;
-  const aiScene* scene = importer.ReadFile(file, aiProcess_Triangulate);
-  if (!scene || !scene->mRootNode)
-    throw InputError(file + ": cannot read instrument mesh (" + importer.GetErrorString() + ")");
-  // Merge vertices at identical positions, scale to metres, check the surface.
-  std::map<std::array<double, 3>, int> ids;
-  std::vector<std::array<double, 3>> points;
-  std::vector<std::array<int, 3>> tris;
-  collect_triangles(*scene, *scene->mRootNode, aiMatrix4x4(), file, ids, points, tris);
-  if (tris.empty()) throw InputError(file + ": no triangles in instrument mesh");
-  RigidMesh m;
-  m.points.resize(static_cast<Eigen::Index>(points.size()), 3);
-  m.tris.resize(static_cast<Eigen::Index>(tris.size()), 3);
-  const double scale = kMetresPerUnit[static_cast<int>(spec.units)];
-  for (size_t i = 0; i < points.size(); ++i)
-    for (int j = 0; j < 3; ++j) m.points(static_cast<Eigen::Index>(i), j) = scale * points[i][static_cast<size_t>(j)];
-  for (size_t t = 0; t < tris.size(); ++t)
-    for (int j = 0; j < 3; ++j) m.tris(static_cast<Eigen::Index>(t), j) = tris[t][static_cast<size_t>(j)];
-  require_closed_manifold(m, file);
+  // Read through assimp, vertices at identical positions merged, scaled to metres; then the surface checked.
+  require_file(spec.file, "mesh file");
+  RigidMesh m = read_surface_file(spec.file, kMetresPerUnit[static_cast<int>(spec.units)], "instrument mesh");
+  require_closed_manifold(m, spec.file);
   return single_part(std::move(m));
 }
 
@@ -307,29 +207,6 @@ Instrument make_instrument(const ShapeSpec& shape, const std::string& where) {
   if (const auto* s = std::get_if<RodSpec>(&shape)) return make_rod(*s, where);
   if (const auto* s = std::get_if<GrasperSpec>(&shape)) return make_grasper(*s, where);
   return load_mesh_instrument(std::get<MeshFileSpec>(shape));
-}
-
-void require_closed_manifold(const RigidMesh& mesh, const std::string& where) {
-  // Triangles with area, every edge paired the opposite way, then a positive enclosed volume.
-  if (mesh.tris.rows() == 0) throw InputError(where + ": no triangles");
-  assert(mesh.tris.minCoeff() >= 0 && mesh.tris.maxCoeff() < mesh.points.rows());
-  require_nondegenerate(mesh, where);
-  require_paired_edges(mesh, where);
-  const double volume = enclosed_volume(mesh);
-  if (!(volume > 0.0))
-    throw InputError(where + ": triangles face inwards: enclosed volume " + value_text(volume) +
-                     " m^3 (must be > 0, triangles counter-clockwise seen from outside)");
-}
-
-double enclosed_volume(const RigidMesh& mesh) {
-  // Sum of the signed tetrahedra from the origin to each triangle.
-  double six_v = 0.0;
-  for (int t = 0; t < mesh.tris.rows(); ++t) {
-    const Eigen::Vector3d a = mesh.points.row(mesh.tris(t, 0)), b = mesh.points.row(mesh.tris(t, 1)),
-                          c = mesh.points.row(mesh.tris(t, 2));
-    six_v += a.dot(b.cross(c));
-  }
-  return six_v / 6.0;
 }
 
 Eigen::Isometry3d part_transform(const Instrument& instrument, const InstrumentPart& part, double opening_angle) {

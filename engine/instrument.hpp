@@ -14,6 +14,7 @@
 #include <Eigen/Geometry>
 
 #include "engine/pose_track.hpp"
+#include "engine/surface_file.hpp"
 #include "physics/types.hpp"
 
 namespace lumen::engine {
@@ -29,17 +30,12 @@ inline constexpr int kDefaultShaftSegments = 8;
 // Fewest sides around and rings over a sphere that still enclose a volume.
 inline constexpr int kMinSegmentsAround = 3;
 inline constexpr int kMinRings = 2;
-// A triangle of a mesh file whose area is at most this fraction of the squared bounding-box diagonal is
-// degenerate (collinear or coincident vertices, up to rounding).
-inline constexpr double kDegenerateAreaRatio = 1e-12;
 // The grasper's widest opening between its jaws, radians (each jaw turned a right angle off the axis).
 inline constexpr double kMaxOpeningAngle = static_cast<double>(EIGEN_PI);
 
-// One rigid part's closed surface in the instrument frame (at zero opening for a grasper's jaws).
-struct RigidMesh {
-  Points points;  // n x 3, metres
-  Tris tris;      // m x 3, counter-clockwise seen from outside
-};
+// One rigid part's closed surface in the instrument frame (at zero opening for a grasper's jaws): points in
+// metres, triangles counter-clockwise seen from outside.
+using RigidMesh = SurfaceMesh;
 
 // A sphere at the tip (tip at its lowest point, the origin; centre at y = tip_radius) joined to a cylinder
 // shaft of shaft_radius <= tip_radius from the sphere's centre up to y = tip_radius + shaft_length, closed by a
@@ -122,12 +118,6 @@ Instrument make_grasper(const GrasperSpec& spec, const std::string& where = "gra
 Instrument load_mesh_instrument(const MeshFileSpec& spec);
 // Any of them; `where` prefixes a built-in shape's field names (a mesh file's errors name the file).
 Instrument make_instrument(const ShapeSpec& shape, const std::string& where);
-
-// Refuse a mesh that is not a closed, consistently outward-oriented, edge-manifold surface without degenerate
-// triangles, naming `where`, the triangle or the edge's vertex ids and positions.
-void require_closed_manifold(const RigidMesh& mesh, const std::string& where);
-// The volume the surface encloses by the divergence theorem (positive when its triangles face outwards), m^3.
-double enclosed_volume(const RigidMesh& mesh);
 
 // A grasper's jaws' transforms within the instrument frame at an opening (radians, [0, kMaxOpeningAngle]), for
 // the grasp logic and posing: {jaw_positive, jaw_negative} (identities for an instrument without jaws).

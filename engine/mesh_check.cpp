@@ -39,11 +39,18 @@ std::string mesh_quality_line(const Model& model, const physics::MeshQuality& q)
   // A tet10 model's quality is measured on the linear tets its elements split into (the mesh the state holds).
   const std::string measured =
       q.tets == model.n_elements ? std::string() : " (quality over their " + std::to_string(q.tets) + " linear sub-tets)";
-  // A swept tube also says how many of its rings the bend clamp reduced; a volume mesh names its file.
-  const std::string suffix = model.mesh_type == MeshType::kSweptTube
-                                  ? ", " + std::to_string(model.clamped_rings) + " rings clamped at bends"
-                              : model.mesh_type == MeshType::kVolume ? " from " + model.mesh_file
-                                                                     : std::string();
+  // A swept tube also says how many of its rings the bend clamp reduced (and the surface its radius came from); a
+  // volume mesh or a surface wall names its file, a surface wall how many vertices' offsets were clamped and how
+  // many of its surface's vertices were moved to untangle fold-overs.
+  const std::string from = model.mesh_file.empty() ? std::string() : " from " + model.mesh_file;
+  const std::string suffix =
+      model.mesh_type == MeshType::kSweptTube
+          ? ", " + std::to_string(model.clamped_rings) + " rings clamped at bends" +
+                (from.empty() ? std::string() : ", radius sampled" + from)
+      : model.mesh_type == MeshType::kSurfaceWall
+          ? from + ", " + std::to_string(model.clamped_vertices) + " vertices' offsets clamped below the thickness, " +
+                std::to_string(model.untangled_vertices) + " vertices moved to untangle fold-overs"
+          : from;
   char line[400];
   std::snprintf(line, sizeof line,
                 "mesh: %d nodes, %d tets%s, %ld inner + %ld outer wall triangles; min dihedral angle %.1f deg (p1 %.1f, "

@@ -12,6 +12,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "engine/surface_radius.hpp"
+
 namespace lumen::engine {
 namespace {
 
@@ -30,7 +32,7 @@ constexpr const char* kMethodNames[] = {"pcg", "chord"};
 constexpr const char* kTwistEndNames[] = {"", "start", "stop"};
 constexpr const char* kNodeSetNames[] = {"ends", "start", "stop"};
 constexpr const char* kCameraNames[] = {"side", "diagonal", "endoscope"};
-constexpr const char* kMeshTypeNames[] = {"hollow_cylinder", "swept_tube", "volume"};
+constexpr const char* kMeshTypeNames[] = {"hollow_cylinder", "swept_tube", "volume", "surface_wall"};
 // Names of MeshUnits (mesh.units of a swept tube, an instrument mesh's units).
 constexpr const char* kLengthUnitNames[] = {"m", "mm"};
 // A range end within this fraction of the centreline's arc length past it is its end (decimal rounding).
@@ -228,13 +230,24 @@ physics::Centreline read_centreline(const std::string& file, double metres_per_u
   return c;
 }
 
-// mesh.radius of a swept tube: a number, or a profile [[s, r], ...] along the arc length (file units).
-void read_radius(const Reader& r, const json& v, double unit, physics::SweptTubeSpec& spec) {
-  if (v.is_object() && v.contains("from_surface"))
-    r.fail("mesh.radius", "\"from_surface\" is not supported yet: give a number or a profile [[s, r], ...]", &v);
+// A file named by a scene key, relative to the scene file's folder: its absolute, normalised path.
+std::string scene_relative(const Reader& r, const json& v, const std::string& path, const std::filesystem::path& dir) {
+  std::filesystem::path file = r.string(v, path);
+  if (file.is_relative()) file = dir / file;
+  return file.lexically_normal().string();
+}
+
+// mesh.radius of a swept tube: a number, a profile [[s, r], ...] along the arc length (file units), or
+// {"from_surface": FILE} (the file's path returned; the profile is sampled once the other keys are read).
+std::string read_radius(const Reader& r, const json& v, double unit, const std::filesystem::path& dir,
+                        physics::SweptTubeSpec& spec) {
+  if (v.is_object()) {
+    r.only_keys(v, "mesh.radius", {"from_surface"});
+    return scene_relative(r, r.require(v, "mesh.radius", "from_surface"), "mesh.radius.from_surface", dir);
+  }
   if (!v.is_array()) {
     spec.radius = unit * r.positive(v, "mesh.radius");
-    return;
+    return "";
   }
   if (v.size() < 2) r.fail("mesh.radius", "a profile needs at least 2 [s, r] pairs", &v);
   for (size_t k = 0; k < v.size(); ++k) {
@@ -245,6 +258,7 @@ void read_radius(const Reader& r, const json& v, double unit, physics::SweptTube
       r.fail(at + "[0]", "arc lengths must be strictly increasing", &v[k][0]);
     spec.radius_profile.push_back(knot);
   }
+  return "";
 }
 
 // mesh.range: [s0, s1] within the centreline's arc length (file units); the whole centreline when absent.
@@ -280,19 +294,18 @@ void check_swept_tube(const Reader& r, const json& m, const physics::SweptTubeSp
            &m.at("segment_length"));
 }
 
-void read_swept_tube(const Reader& r, const json& m, const std::filesystem::path& dir, physics::SweptTubeSpec& spec) {
+void read_swept_tube(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& scene) {
+  physics::SweptTubeSpec& spec = scene.swept_tube;
   r.only_keys(m, "mesh", {"type", "element", "centreline", "units", "range", "radius", "wall_thickness",
                           "segments_around", "segment_length", "layers", "haustra"});
   const MeshUnits units = m.contains("units") ? r.choice<MeshUnits>(m.at("units"), "mesh.units", kLengthUnitNames)
                                               : MeshUnits::kMetres;
   const double unit = kMetresPerUnit[static_cast<int>(units)];
   // The centreline file, relative to the scene file.
-  std::filesystem::path file = r.string(r.require(m, "mesh", "centreline"), "mesh.centreline");
-  if (file.is_relative()) file = dir / file;
-  spec.source = file.lexically_normal().string();
+  spec.source = scene_relative(r, r.require(m, "mesh", "centreline"), "mesh.centreline", dir);
   spec.centreline = read_centreline(spec.source, unit);
   read_range(r, m, unit, spec);
-  read_radius(r, r.require(m, "mesh", "radius"), unit, spec);
+  scene.radius_surface = read_radius(r, r.require(m, "mesh", "radius"), unit, dir, spec);
   spec.wall_thickness = unit * r.positive(r.require(m, "mesh", "wall_thickness"), "mesh.wall_thickness");
   spec.segments_around = r.integer_in(r.require(m, "mesh", "segments_around"), "mesh.segments_around", 3, 4096);
   spec.segment_length = unit * r.positive(r.require(m, "mesh", "segment_length"), "mesh.segment_length");
@@ -304,6 +317,27 @@ void read_swept_tube(const Reader& r, const json& m, const std::filesystem::path
     spec.haustra.pitch = unit * r.positive(r.require(h, "mesh.haustra", "pitch"), "mesh.haustra.pitch");
   }
   check_swept_tube(r, m, spec);
+  // The radius sampled from the organ's surface at the rings (now that the range and ring spacing are known).
+  if (scene.radius_surface.empty()) return;
+  const auto t0 = std::chrono::steady_clock::now();
+  spec.radius_profile = sample_lumen_radius(spec, read_closed_surface(scene.radius_surface, unit), scene.radius_surface);
+  scene.mesh_load_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// A wall grown from a closed surface file (mesh.type "surface_wall"), relative to the scene file, grown at load.
+void read_surface_wall(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& scene) {
+  r.only_keys(m, "mesh", {"type", "element", "surface", "units", "thickness", "direction", "layers"});
+  SurfaceWallSpec& spec = scene.surface_wall.spec;
+  const MeshUnits units = m.contains("units") ? r.choice<MeshUnits>(m.at("units"), "mesh.units", kLengthUnitNames)
+                                              : MeshUnits::kMetres;
+  spec.metres_per_unit = kMetresPerUnit[static_cast<int>(units)];
+  spec.file = scene_relative(r, r.require(m, "mesh", "surface"), "mesh.surface", dir);
+  spec.thickness = spec.metres_per_unit * r.positive(r.require(m, "mesh", "thickness"), "mesh.thickness");
+  spec.direction = r.choice<WallDirection>(r.require(m, "mesh", "direction"), "mesh.direction", kWallDirectionNames);
+  if (m.contains("layers")) spec.layers = r.integer_in(m.at("layers"), "mesh.layers", 1, 256);
+  const auto t0 = std::chrono::steady_clock::now();
+  scene.surface_wall.wall = grow_surface_wall(spec);
+  scene.mesh_load_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 // mesh.inner_tag / outer_tag of a volume mesh: a tag number, or (gmsh) a physical surface's name.
@@ -320,14 +354,13 @@ int read_wall_tag(const Reader& r, const json& v, const std::string& path, const
 }
 
 // A volume mesh file (mesh.type "volume"), relative to the scene file: read, its walls found and built at load.
-void read_volume(const Reader& r, const json& m, const std::filesystem::path& dir, VolumeSourceSpec& spec) {
+void read_volume(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& scene) {
+  VolumeSourceSpec& spec = scene.volume;
   r.only_keys(m, "mesh", {"type", "element", "file", "units", "inner_tag", "outer_tag"});
   const auto t0 = std::chrono::steady_clock::now();
   const MeshUnits units = m.contains("units") ? r.choice<MeshUnits>(m.at("units"), "mesh.units", kLengthUnitNames)
                                               : MeshUnits::kMetres;
-  std::filesystem::path file = r.string(r.require(m, "mesh", "file"), "mesh.file");
-  if (file.is_relative()) file = dir / file;
-  spec.file = file.lexically_normal().string();
+  spec.file = scene_relative(r, r.require(m, "mesh", "file"), "mesh.file", dir);
   if (m.contains("inner_tag") != m.contains("outer_tag"))
     r.fail(m.contains("inner_tag") ? "mesh.inner_tag" : "mesh.outer_tag",
            "give both mesh.inner_tag and mesh.outer_tag, or neither (the walls are then found on the boundary)", nullptr);
@@ -343,7 +376,7 @@ void read_volume(const Reader& r, const json& m, const std::filesystem::path& di
   } catch (const std::invalid_argument& e) {
     throw InputError(e.what());
   }
-  spec.build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  scene.mesh_load_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 void read_mesh(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& s) {
@@ -351,9 +384,11 @@ void read_mesh(const Reader& r, const json& m, const std::filesystem::path& dir,
   s.mesh_type = r.choice<MeshType>(r.require(m, "mesh", "type"), "mesh.type", kMeshTypeNames);
   if (m.contains("element")) s.element = r.choice<ElementType>(m.at("element"), "mesh.element", kElementNames);
   if (s.mesh_type == MeshType::kSweptTube)
-    read_swept_tube(r, m, dir, s.swept_tube);
+    read_swept_tube(r, m, dir, s);
   else if (s.mesh_type == MeshType::kVolume)
-    read_volume(r, m, dir, s.volume);
+    read_volume(r, m, dir, s);
+  else if (s.mesh_type == MeshType::kSurfaceWall)
+    read_surface_wall(r, m, dir, s);
   else
     read_hollow_cylinder(r, m, s.mesh);
 }
@@ -748,6 +783,16 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
       if (s.fixed[i].kind == FixedKind::kNamed && !s.volume.mesh.has_node_set(physics::kStartEnd))
         r.fail(Reader::index("fixed", i), "the volume mesh " + s.volume.file + " has no end node sets (its end caps "
                "are not two separate pieces): hold nodes by {\"box\": ...} or {\"plane\": ...}", &root.at("fixed")[i]);
+  }
+  // A wall grown from a closed surface has no ends: no twist, no end sets.
+  if (s.mesh_type == MeshType::kSurfaceWall) {
+    if (s.twist.enabled())
+      r.fail("twist", "needs a generated tube (mesh.type \"hollow_cylinder\" or \"swept_tube\"; got \"surface_wall\")",
+             nullptr);
+    for (size_t i = 0; i < s.fixed.size(); ++i)
+      if (s.fixed[i].kind == FixedKind::kNamed)
+        r.fail(Reader::index("fixed", i), "the wall grown from " + s.surface_wall.spec.file + " is closed and has no "
+               "end node sets: hold nodes by {\"box\": ...} or {\"plane\": ...}", &root.at("fixed")[i]);
   }
   // Quadratic elements come with the quasi-static models only (linear prefactorised, or corotational).
   if (s.element == ElementType::kTet10 && s.solver.type != SolverType::kQuasiStatic)

@@ -8,6 +8,7 @@
 
 #include "engine/instrument.hpp"
 #include "engine/pose_track.hpp"
+#include "engine/wall_growth.hpp"
 #include "physics/mesh.hpp"
 #include "physics/swept_tube.hpp"
 #include "physics/volume_mesh.hpp"
@@ -54,7 +55,8 @@ enum class Tangent { kWarped, kProjected, kExact };  // "warped" | "projected" |
 enum class SolveMethod { kPcg, kChord };              // "pcg" | "chord"
 enum class TwistEnd { kNone, kStart, kStop };         // (no twist) | "start" | "stop"
 enum class NodeSetName { kEnds, kStart, kStop };      // "ends" | "start" | "stop"
-enum class MeshType { kHollowCylinder, kSweptTube, kVolume };  // "hollow_cylinder" | "swept_tube" | "volume"
+// "hollow_cylinder" | "swept_tube" | "volume" | "surface_wall"
+enum class MeshType { kHollowCylinder, kSweptTube, kVolume, kSurfaceWall };
 // The JSON name of a choice (what the scene file says and report.json repeats).
 const char* name_of(MaterialModel v);
 const char* name_of(ElementType v);
@@ -221,7 +223,11 @@ struct VolumeSourceSpec {
   std::string file;                 // absolute path
   physics::WallTags tags;           // mesh.inner_tag / outer_tag (gmsh physical names resolved), or none
   physics::TetMesh mesh;            // physics::make_volume_mesh of the file
-  double build_ms = 0.0;            // reading and building it at load, milliseconds
+};
+// A wall grown from a closed surface file (mesh.type "surface_wall", engine/wall_growth.hpp), grown at load.
+struct SurfaceWallSource {
+  SurfaceWallSpec spec;
+  SurfaceWall wall;
 };
 // Where an instrument starts a session (and, driven by a device, waits for its first reading): its track's or
 // replay's first pose, or for a device-only instrument the device origin mapped by to_organ.
@@ -243,12 +249,19 @@ struct Scene {
   std::string path;  // the file it was read from
   std::string name;
   // The volume mesh's source (key mesh.type): the generated hollow cylinder (`mesh`) or a tube swept along a
-  // centreline file (`swept_tube`, its centreline read, validated and converted to metres at load), or a tet mesh
-  // file (`volume`: gmsh .msh, VTK .vtu / .vtk).
+  // centreline file (`swept_tube`, its centreline read, validated and converted to metres at load), a tet mesh
+  // file (`volume`: gmsh .msh, VTK .vtu / .vtk), or a wall grown from a closed surface file (`surface_wall`).
   MeshType mesh_type = MeshType::kHollowCylinder;
   physics::HollowCylinderSpec mesh;
   physics::SweptTubeSpec swept_tube;
+  // A swept tube's mesh.radius {"from_surface": FILE}: the surface file (absolute path) its radius profile was
+  // sampled from at load (engine/surface_radius.hpp), "" otherwise.
+  std::string radius_surface;
   VolumeSourceSpec volume;
+  SurfaceWallSource surface_wall;
+  // The mesh source's work at load, milliseconds: a volume file read and built, a surface read and sampled or
+  // grown into a wall (0 for the generators, which run when the scene compiles).
+  double mesh_load_ms = 0.0;
   // Element of the volume mesh (key mesh.element): "tet4" (linear, the paper's) or "tet10" (quadratic,
   // isoparametric; its walls are drawn and collide as each face split into 4 triangles over the edge nodes).
   ElementType element = ElementType::kTet4;

@@ -261,7 +261,11 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
   r["mesh"]["source"] = name_of(model.mesh_type);
   r["mesh"]["build_ms"] = model.mesh_build_ms;
   if (model.mesh_type == MeshType::kSweptTube) r["mesh"]["clamped_rings"] = model.clamped_rings;
-  if (model.mesh_type == MeshType::kVolume) r["mesh"]["file"] = model.mesh_file;
+  if (!model.mesh_file.empty()) r["mesh"]["file"] = model.mesh_file;
+  if (model.mesh_type == MeshType::kSurfaceWall) {
+    r["mesh"]["clamped_vertices"] = model.clamped_vertices;
+    r["mesh"]["untangled_vertices"] = model.untangled_vertices;
+  }
   r["model"] = {{"material", name_of(model.material)}, {"element", name_of(model.element)},
                 {"solver", name_of(model.solver)},
                 {"tangent", name_of(model.tangent)},

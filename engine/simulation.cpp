@@ -80,13 +80,20 @@ physics::TetMesh generate_mesh(const Scene& scene, Model& m) {
   if (scene.mesh_type == MeshType::kSweptTube) {
     physics::SweptTube tube = physics::make_swept_tube(scene.swept_tube);
     m.clamped_rings = tube.clamped_rings;
+    m.mesh_file = scene.radius_surface;
     m.end_rings = {tube.rings.front(), tube.rings.back()};
     return std::move(tube.mesh);
   }
-  // A volume mesh was built at load (no end rings: it has no twist).
+  // A volume mesh or a surface wall was built at load (no end rings: it has no twist).
   if (scene.mesh_type == MeshType::kVolume) {
     m.mesh_file = scene.volume.file;
     return scene.volume.mesh;
+  }
+  if (scene.mesh_type == MeshType::kSurfaceWall) {
+    m.mesh_file = scene.surface_wall.spec.file;
+    m.clamped_vertices = scene.surface_wall.wall.clamped_vertices;
+    m.untangled_vertices = scene.surface_wall.wall.untangled_vertices;
+    return scene.surface_wall.wall.mesh;
   }
   const physics::HollowCylinderSpec& c = scene.mesh;
   m.end_rings = {physics::TubeRing{physics::hollow_cylinder_frame(c, 0.0), c.inner_radius, c.outer_radius},
@@ -103,7 +110,7 @@ physics::TetMesh build_mesh(const Scene& scene, std::unique_ptr<physics::Quadrat
   m.mesh_type = scene.mesh_type;
   physics::TetMesh linear = generate_mesh(scene, m);
   m.n_elements = static_cast<int>(linear.tets.rows());
-  m.mesh_build_ms = ms_since(t0) + scene.volume.build_ms;
+  m.mesh_build_ms = ms_since(t0) + scene.mesh_load_ms;
   require_valid_tets(linear, scene.path);
   if (scene.element != ElementType::kTet10) return linear;
   const auto t1 = Clock::now();

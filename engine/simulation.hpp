@@ -83,7 +83,10 @@ struct Model {
   MeshType mesh_type = MeshType::kHollowCylinder;
   double mesh_build_ms = 0.0;
   int clamped_rings = 0;
-  std::string mesh_file;  // a volume mesh's file (mesh.type "volume"), "" otherwise
+  int clamped_vertices = 0;    // a surface wall's vertices whose offset is less than the thickness
+  int untangled_vertices = 0;  // a surface wall's surface vertices moved to untangle planar fold-overs
+  // The mesh source's file: a volume mesh's, a surface wall's surface, a swept tube's radius surface; "" otherwise.
+  std::string mesh_file;
   std::array<physics::TubeRing, 2> end_rings;
   // The organ's walls as indices into mesh.surfaces, resolved from their names when the scene compiles.
   int inner_surface = -1;                          // the lumen wall: self-collision, framing, surface export

@@ -316,21 +316,46 @@ double swept_tube_lumen_radius(const SweptTubeSpec& spec, double s) {
   return r;
 }
 
-SweptTube make_swept_tube(const SweptTubeSpec& spec) {
-  validate_wall(spec);
-  validate_centreline(spec.centreline, spec.source);
+RingFrames swept_tube_ring_frames(const SweptTubeSpec& spec) {
   const std::vector<double> arc = arc_lengths(spec.centreline.points);
-  validate_range(spec, arc.back());
   const std::vector<CentrelineFrame> frames = centreline_frames(spec.centreline);
-
-  // Rings at equal arc-length steps over the range, with the spec's radii, then clamped at tight bends.
-  SweptTube tube;
+  RingFrames rings;
   const int nl = segments_along(spec);
   for (int j = 0; j <= nl; ++j) {
     const double s = spec.range_start + (spec.range_stop - spec.range_start) * j / nl;
-    const double inner = swept_tube_lumen_radius(spec, s);
-    tube.ring_s.push_back(s);
-    tube.rings.push_back({frame_at_arc_length(frames, arc, s), inner, inner + spec.wall_thickness});
+    rings.s.push_back(s);
+    rings.frames.push_back(frame_at_arc_length(frames, arc, s));
+  }
+  return rings;
+}
+
+std::vector<double> smooth_profile(const std::vector<double>& values, double step, double half_window) {
+  if (!(step > 0.0)) fail_spec("smooth_profile step", "must be > 0", step);
+  if (!(half_window >= 0.0)) fail_spec("smooth_profile half_window", "must be >= 0", half_window);
+  const long n = static_cast<long>(values.size());
+  const long reach = static_cast<long>(std::floor(half_window / step * (1.0 + kRingCountTolerance)));
+  std::vector<double> out(values.size());
+  for (long j = 0; j < n; ++j) {
+    const long k = std::min({reach, j, n - 1 - j});
+    double sum = 0.0;
+    for (long i = j - k; i <= j + k; ++i) sum += values[static_cast<size_t>(i)];
+    out[static_cast<size_t>(j)] = sum / static_cast<double>(2 * k + 1);
+  }
+  return out;
+}
+
+SweptTube make_swept_tube(const SweptTubeSpec& spec) {
+  validate_wall(spec);
+  validate_centreline(spec.centreline, spec.source);
+  validate_range(spec, arc_lengths(spec.centreline.points).back());
+
+  // Rings at equal arc-length steps over the range, with the spec's radii, then clamped at tight bends.
+  SweptTube tube;
+  RingFrames frames = swept_tube_ring_frames(spec);
+  tube.ring_s = std::move(frames.s);
+  for (size_t j = 0; j < tube.ring_s.size(); ++j) {
+    const double inner = swept_tube_lumen_radius(spec, tube.ring_s[j]);
+    tube.rings.push_back({frames.frames[j], inner, inner + spec.wall_thickness});
   }
   tube.clamped_rings = clamp_to_bends(tube.rings);
   tube.mesh = make_structured_tube(tube.rings, spec.segments_around, spec.layers);

@@ -87,6 +87,21 @@ std::vector<CentrelineFrame> centreline_frames(const Centreline& c);
 CentrelineFrame frame_at_arc_length(const std::vector<CentrelineFrame>& frames, const std::vector<double>& arc,
                                     double s);
 
+// The rings of a swept tube before their radii: arc lengths at equal steps of at most segment_length over the
+// range (first range_start, last range_stop) and the frame of frame_at_arc_length at each. The spec's centreline
+// and range must be valid (make_swept_tube checks them first).
+struct RingFrames {
+  std::vector<double> s;                  // metres of arc length
+  std::vector<CentrelineFrame> frames;    // one per ring
+};
+RingFrames swept_tube_ring_frames(const SweptTubeSpec& spec);
+
+// A sampled profile smoothed along the arc length: each value the mean of the values within half_window of it
+// on both sides, the window shrunk near the ends to stay symmetric (values at equal spacing `step`; so a profile
+// linear in the arc length passes unchanged). Throws std::invalid_argument for a non-positive step or a negative
+// half_window.
+std::vector<double> smooth_profile(const std::vector<double>& values, double step, double half_window);
+
 // Lumen radius of the spec at arc length s before the bend clamp: the constant radius or the profile
 // (linear between knots), plus the haustra.
 double swept_tube_lumen_radius(const SweptTubeSpec& spec, double s);

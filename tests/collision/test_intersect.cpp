@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "collision/intersect.hpp"
+#include "support/soup.hpp"
 #include "support/tube.hpp"
 
 namespace lumen::collision {
@@ -374,15 +375,10 @@ bool seg_tri_float(const P3& p, const P3& q, const P3& a, const P3& b, const P3&
 
 TEST(CountIntersecting, RandomSoupMatchesFloatingPointTwinAwayFromDegeneracy) {
   std::mt19937 rng(21);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
   const int nt = 200;
-  Points x(3 * nt, 3);
-  Tris tris(nt, 3);
-  for (int t = 0; t < nt; ++t) {
-    const double c[3] = {u(rng), u(rng), u(rng)};
-    for (int k = 0; k < 3; ++k) x.row(3 * t + k) << c[0] + 0.4 * (u(rng) - 0.5), c[1] + 0.4 * (u(rng) - 0.5), c[2] + 0.4 * (u(rng) - 0.5);
-    tris.row(t) << 3 * t, 3 * t + 1, 3 * t + 2;
-  }
+  Points x;
+  Tris tris;
+  test::make_triangle_soup(rng, nt, 0.4, x, tris);
   long expected = 0, checked = 0;
   for (int i = 0; i < nt; ++i) {
     for (int j = i + 1; j < nt; ++j) {

@@ -145,8 +145,7 @@ TEST(SweptTubeScene, RefusesBadInputNamingFileKeyAndSample) {
   EXPECT_EQ(error_of(scene_with("wall_thickness", -1.0), line),
             scene_file + ": mesh.wall_thickness: must be > 0 (value -1.0)");
   EXPECT_EQ(error_of(scene_with("radius", json::parse(R"({"from_surface": "colon.ply"})")), line),
-            scene_file + ": mesh.radius: \"from_surface\" is not supported yet: give a number or a profile [[s, r], "
-                         "...] (value {\"from_surface\":\"colon.ply\"})");
+            (fs::path(scene_file).parent_path() / "colon.ply").string() + ": no such surface file");
   EXPECT_EQ(error_of(scene_with("radius", json::parse("[[30, 8], [100, 9]]")), line),
             scene_file + ": mesh.radius: the profile must cover mesh.range (first s <= range start, last s >= range "
                          "stop) (value [[30,8],[100,9]])");

@@ -1,0 +1,50 @@
+#pragma once
+// Closed triangle surfaces read from files through assimp (an instrument's mesh; an organ's surface for
+// engine/wall_growth.hpp and engine/surface_radius.hpp) and their checks: closed, edge-manifold, consistently
+// oriented, no degenerate triangle.
+// Messages name the file (`where`), the triangle index and the edge's vertices with their positions.
+#include <string>
+
+#include "physics/types.hpp"
+
+namespace lumen::engine {
+
+// A triangle of a surface file whose area is at most this fraction of the squared bounding-box diagonal is
+// degenerate (collinear or coincident vertices, up to rounding).
+inline constexpr double kDegenerateAreaRatio = 1e-12;
+
+// A triangle surface: points (metres) and triangles, counter-clockwise seen from outside when oriented.
+struct SurfaceMesh {
+  Points points;  // n x 3, metres
+  Tris tris;      // m x 3
+};
+
+// Read a surface file through assimp (faces triangulated, nothing else changed): every triangle in file order
+// (through the node transforms), vertices at identical positions merged (ids in order of first use by the faces),
+// positions times metres_per_unit. Refuses (InputError "FILE: ...", naming `what`) an unreadable or empty file and
+// a face that is not a triangle.
+SurfaceMesh read_surface_file(const std::string& file, double metres_per_unit, const std::string& what);
+
+// The formats the organ's surface sources read (mesh.type "surface_wall", a swept tube's radius from_surface):
+// refuses another file extension, InputError "FILE: unsupported surface format \".EXT\" (OBJ, STL, PLY or OFF)".
+void require_surface_format(const std::string& file);
+
+// Refuse a surface that is not closed, edge-manifold and consistently oriented, or has a degenerate triangle:
+// InputError "WHERE: triangle T is degenerate ...", "WHERE: not closed: edge between vertex A at [..] and vertex
+// B at [..] belongs to triangle T only", "WHERE: non-manifold edge ...: shared by K triangles (...)",
+// "WHERE: inconsistent orientation: triangles T, U run the edge ... the same way".
+void require_closed_surface(const SurfaceMesh& mesh, const std::string& where);
+// The same, and facing outwards (a positive enclosed volume; else "WHERE: triangles face inwards ...").
+void require_closed_manifold(const SurfaceMesh& mesh, const std::string& where);
+// The volume the surface encloses by the divergence theorem (positive when its triangles face outwards), m^3.
+double enclosed_volume(const SurfaceMesh& mesh);
+// An organ's closed surface file (mesh.type "surface_wall", a swept tube's radius from_surface): refuses a missing
+// file ("FILE: no such surface file"), another format (require_surface_format), what read_surface_file and
+// require_closed_surface refuse (naming the file); a consistently inward-facing surface is reversed so that it
+// faces outwards. Positions times metres_per_unit.
+SurfaceMesh read_closed_surface(const std::string& file, double metres_per_unit);
+
+// The surface with every triangle's orientation reversed (its last two vertices swapped).
+SurfaceMesh reversed(const SurfaceMesh& mesh);
+
+}  // namespace lumen::engine
