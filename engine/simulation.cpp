@@ -497,10 +497,10 @@ bool usable(const Model& model, const physics::Prediction& pred, const Eigen::Ve
   return d.size() == 0 || d.rowwise().norm().maxCoeff() <= model.max_displacement;
 }
 
-// Commit the frame's end displacement u (finite and solved), or keep the last good state.
+// Commit the frame's end displacement u (solved: usable()), or keep the last good state.
 void commit_frame(const Model& model, State& state, const Eigen::VectorXd& u, bool solved, bool bad_input,
                   FrameRecord& rec) {
-  const bool finite = solved && u.allFinite();
+  const bool finite = solved;  // (usable() has checked u)
   Points x1;
   if (finite) {
     x1 = positions_of(model, u);
