@@ -301,6 +301,7 @@ void read_swept_tube(const Reader& r, const json& m, const std::filesystem::path
   const MeshUnits units = m.contains("units") ? r.choice<MeshUnits>(m.at("units"), "mesh.units", kLengthUnitNames)
                                               : MeshUnits::kMetres;
   const double unit = kMetresPerUnit[static_cast<int>(units)];
+  scene.swept_tube_unit = unit;
   // The centreline file, relative to the scene file.
   spec.source = scene_relative(r, r.require(m, "mesh", "centreline"), "mesh.centreline", dir);
   spec.centreline = read_centreline(spec.source, unit);
@@ -393,12 +394,48 @@ void read_mesh(const Reader& r, const json& m, const std::filesystem::path& dir,
     read_hollow_cylinder(r, m, s.mesh);
 }
 
-// One entry of "fixed": a node-set name, {"box": [low, high]} or {"plane": {"point", "normal"}}.
-FixedSpec read_fixed(const Reader& r, const json& v, const std::string& path) {
+// A swept tube's arc length given in a key (mesh.units): within [lo, hi] (metres, the centreline's or the range's),
+// refused naming the key, the interval (in mesh.units) and what it is of; metres.
+double arc_length_within(const Reader& r, const json& v, const std::string& path, const Scene& s, double lo, double hi,
+                         const char* of) {
+  const double unit = s.swept_tube_unit;
+  const double x = unit * r.number(v, path);
+  // A value within kRangeEndTolerance of an end past it is that end (decimal rounding of the file's units).
+  const double slack = kRangeEndTolerance * hi;
+  if (!(x >= lo - slack && x <= hi + slack)) {
+    std::ostringstream within;
+    within << "must lie within " << of << " [" << lo / unit << ", " << hi / unit << "]";
+    r.fail(path, within.str(), &v);
+  }
+  return std::clamp(x, lo, hi);
+}
+
+// {"near_centreline": [s0, s1]} of "fixed" (a swept tube only): an arc-length interval in mesh.units along the whole
+// centreline file, s0 < s1, within its arc length.
+FixedSpec read_near_centreline(const Reader& r, const json& v, const std::string& path, const Scene& s) {
+  if (s.mesh_type != MeshType::kSweptTube)
+    r.fail(path, std::string("needs mesh.type \"swept_tube\" (got \"") + name_of(s.mesh_type) + "\")", &v);
+  if (!v.is_array() || v.size() != 2) r.fail(path, "must be [s0, s1] (arc lengths along the centreline)", &v);
+  const double length = physics::arc_lengths(s.swept_tube.centreline.points).back();
+  const std::string of = "the centreline's arc length of " + s.swept_tube.source;
+  FixedSpec f;
+  f.kind = FixedKind::kNearCentreline;
+  f.s0 = arc_length_within(r, v[0], Reader::index(path, 0), s, 0.0, length, of.c_str());
+  f.s1 = arc_length_within(r, v[1], Reader::index(path, 1), s, 0.0, length, of.c_str());
+  if (!(f.s0 < f.s1)) r.fail(path, "must be [s0, s1] with s0 < s1", &v);
+  f.given = v.dump();
+  return f;
+}
+
+// One entry of "fixed": a node-set name, {"box": [low, high]}, {"plane": {"point", "normal"}} or (a swept tube)
+// {"near_centreline": [s0, s1]}.
+FixedSpec read_fixed(const Reader& r, const json& v, const std::string& path, const Scene& s) {
   if (v.is_string()) return r.choice<NodeSetName>(v, path, kNodeSetNames);
-  if (!v.is_object() || v.size() != 1 || !(v.contains("box") || v.contains("plane")))
-    r.fail(path, "must be a node-set name (ends, start, stop), {\"box\": [[x0, y0, z0], [x1, y1, z1]]} or "
-                 "{\"plane\": {\"point\": [x, y, z], \"normal\": [x, y, z]}}", &v);
+  if (!v.is_object() || v.size() != 1 || !(v.contains("box") || v.contains("plane") || v.contains("near_centreline")))
+    r.fail(path, "must be a node-set name (ends, start, stop), {\"box\": [[x0, y0, z0], [x1, y1, z1]]}, "
+                 "{\"plane\": {\"point\": [x, y, z], \"normal\": [x, y, z]}} or {\"near_centreline\": [s0, s1]}", &v);
+  if (v.contains("near_centreline"))
+    return read_near_centreline(r, v.at("near_centreline"), Reader::join(path, "near_centreline"), s);
   FixedSpec f;
   if (v.contains("box")) {
     const json& box = v.at("box");
@@ -469,18 +506,41 @@ ProbeSpec read_probe(const Reader& r, const json& p, const std::string& path, si
   return probe;
 }
 
-void read_render(const Reader& r, const json& m, RenderSpec& spec) {
+// render.camera {"centreline": {"from": s0, "to": s1}} (a swept tube only): the flight's arc lengths in mesh.units,
+// both within mesh.range (where the lumen is), s0 != s1.
+void read_centreline_flight(const Reader& r, const json& c, const Scene& s, RenderSpec& spec) {
+  const std::string path = "render.camera.centreline";
+  if (s.mesh_type != MeshType::kSweptTube)
+    r.fail(path, std::string("needs mesh.type \"swept_tube\" (got \"") + name_of(s.mesh_type) + "\")", &c);
+  if (!c.is_object()) r.fail(path, "must be an object {\"from\", \"to\"}", &c);
+  r.only_keys(c, path, {"from", "to"});
+  const physics::SweptTubeSpec& tube = s.swept_tube;
+  spec.centreline_flight = true;
+  spec.flight_from = arc_length_within(r, r.require(c, path, "from"), Reader::join(path, "from"), s, tube.range_start,
+                                       tube.range_stop, "mesh.range");
+  spec.flight_to = arc_length_within(r, r.require(c, path, "to"), Reader::join(path, "to"), s, tube.range_start,
+                                     tube.range_stop, "mesh.range");
+  if (spec.flight_to == spec.flight_from)
+    r.fail(Reader::join(path, "to"), "must differ from render.camera.centreline.from", &c.at("to"));
+}
+
+void read_render(const Reader& r, const json& m, const Scene& s, RenderSpec& spec) {
   r.only_keys(m, "render", {"width", "height", "camera", "video", "force_scale"});
   if (m.contains("width")) spec.width = r.integer_in(m.at("width"), "render.width", 16, 8192);
   if (m.contains("height")) spec.height = r.integer_in(m.at("height"), "render.height", 16, 8192);
   if (spec.width % 2) r.fail("render.width", "must be even (video encoding)", &m.at("width"));
   if (spec.height % 2) r.fail("render.height", "must be even (video encoding)", &m.at("height"));
-  // A preset by name, or {"endoscope": NAME}: the endoscope on an instrument (the name is checked with them).
+  // A preset by name, {"endoscope": NAME}: the endoscope on an instrument (the name is checked with them), or
+  // {"centreline": {"from", "to"}}: the endoscope flying along a swept tube's centreline.
   if (m.contains("camera") && m.at("camera").is_object()) {
     const json& c = m.at("camera");
-    r.only_keys(c, "render.camera", {"endoscope"});
+    r.only_keys(c, "render.camera", {"endoscope", "centreline"});
+    if (c.size() != 1) r.fail("render.camera", "needs exactly one of \"endoscope\" or \"centreline\"", &c);
     spec.camera = render::CameraPreset::Endoscope;
-    spec.scope_instrument = r.string(r.require(c, "render.camera", "endoscope"), "render.camera.endoscope");
+    if (c.contains("centreline"))
+      read_centreline_flight(r, c.at("centreline"), s, spec);
+    else
+      spec.scope_instrument = r.string(c.at("endoscope"), "render.camera.endoscope");
   } else if (m.contains("camera")) {
     spec.camera = r.choice<render::CameraPreset>(m.at("camera"), "render.camera", kCameraNames);
   }
@@ -909,7 +969,7 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   // Node sets held still: names, boxes, plane sides.
   const json& fixed = r.require(root, "", "fixed");
   if (!fixed.is_array() || fixed.empty()) r.fail("fixed", "must be a non-empty array of node sets", &fixed);
-  for (size_t i = 0; i < fixed.size(); ++i) s.fixed.push_back(read_fixed(r, fixed[i], Reader::index("fixed", i)));
+  for (size_t i = 0; i < fixed.size(); ++i) s.fixed.push_back(read_fixed(r, fixed[i], Reader::index("fixed", i), s));
 
   const json& probes = r.require(root, "", "probes");
   if (!probes.is_array()) r.fail("probes", "must be an array", &probes);
@@ -918,7 +978,7 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   s.frames = r.integer_in(r.require(root, "", "frames"), "frames", 1, 10000000);
   s.fps = r.number(r.require(root, "", "fps"), "fps");
   if (!(s.fps > 0) || s.fps > 10000) r.fail("fps", "out of range (0, 10000]", &root.at("fps"));
-  if (root.contains("render")) read_render(r, root.at("render"), s.render);
+  if (root.contains("render")) read_render(r, root.at("render"), s, s.render);
   if (root.contains("collision")) read_collision(r, root.at("collision"), s.collision);
   if (root.contains("solver")) read_solver(r, root.at("solver"), s.solver);
   if (root.contains("twist")) read_twist(r, root.at("twist"), s.twist);

@@ -72,14 +72,18 @@ const char* name_of(MeshType v);
 const char* name_of(render::CameraPreset v);
 
 // A set of nodes held still (key "fixed"): a named node set ("ends", "start", "stop"), the nodes inside a box
-// ({"box": [[x0, y0, z0], [x1, y1, z1]]}, corners in metres, inclusive), or the nodes on the normal's side of a
-// plane ({"plane": {"point": [...], "normal": [...]}}, inclusive).
-enum class FixedKind { kNamed, kBox, kPlane };
+// ({"box": [[x0, y0, z0], [x1, y1, z1]]}, corners in metres, inclusive), the nodes on the normal's side of a
+// plane ({"plane": {"point": [...], "normal": [...]}}, inclusive), or (a swept tube only) the outer-wall nodes whose
+// nearest centreline point lies in an arc-length interval ({"near_centreline": [s0, s1]}, in mesh.units along the
+// whole centreline file, inclusive).
+enum class FixedKind { kNamed, kBox, kPlane, kNearCentreline };
 struct FixedSpec {
   FixedKind kind = FixedKind::kNamed;
   NodeSetName name = NodeSetName::kEnds;          // kNamed
   Eigen::Vector3d a = Eigen::Vector3d::Zero();    // kBox: the low corner; kPlane: a point on the plane (metres)
   Eigen::Vector3d b = Eigen::Vector3d::Zero();    // kBox: the high corner; kPlane: the unit normal
+  double s0 = 0.0, s1 = 0.0;                      // kNearCentreline: the interval, metres of arc length, s0 < s1
+  std::string given;                              // kNearCentreline: the interval as the scene gives it (JSON)
   FixedSpec() = default;
   FixedSpec(NodeSetName n) : name(n) {}  // a named set (implicit, so a list of names reads as before)
 };
@@ -97,6 +101,11 @@ struct RenderSpec {
   // render.camera {"endoscope": NAME}: the endoscope rides on that instrument, its eye at the tip looking out of
   // it (along the instrument's -y), the instrument itself not drawn ("": on the lumen axis).
   std::string scope_instrument;
+  // render.camera {"centreline": {"from": s0, "to": s1}} (a swept tube only): the endoscope flies along the tube's
+  // centreline from arc length s0 to s1 (metres along the whole centreline file, within mesh.range) over the
+  // session's frames, looking along the direction of travel (engine/session.hpp, centreline_camera).
+  bool centreline_flight = false;
+  double flight_from = 0.0, flight_to = 0.0;  // metres of arc length, from != to
   bool video = false;               // write DIR/video.mp4 by default
   double force_scale = 1.0;         // arrow length per newton, metres / N
 };
@@ -254,6 +263,9 @@ struct Scene {
   MeshType mesh_type = MeshType::kHollowCylinder;
   physics::HollowCylinderSpec mesh;
   physics::SweptTubeSpec swept_tube;
+  // Metres per unit of a swept tube's mesh.units: arc lengths given in other keys (fixed near_centreline,
+  // render.camera centreline) are in those units too.
+  double swept_tube_unit = 1.0;
   // A swept tube's mesh.radius {"from_surface": FILE}: the surface file (absolute path) its radius profile was
   // sampled from at load (engine/surface_radius.hpp), "" otherwise.
   std::string radius_surface;

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -17,6 +18,7 @@
 #include "collision/self_collision.hpp"
 #include "engine/mesh_check.hpp"
 #include "engine/volume_export.hpp"
+#include "physics/swept_tube.hpp"
 #include "render/renderer.hpp"
 
 namespace lumen::engine {
@@ -24,14 +26,6 @@ namespace fs = std::filesystem;
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-// Camera framing from the rest geometry: the mesh's bounding box, and the lumen's axis, radius and length from
-// the inner-wall nodes (no scene fields: the same for generated tubes and imported organs).
-render::Framing framing_of(const Model& model) {
-  const auto& rest = model.mesh.rest;
-  return render::frame_organ(rest.data(), static_cast<int>(rest.rows()), model.inner_wall().data(),
-                             static_cast<int>(model.inner_wall().rows()));
-}
 
 // Remove outputs of an earlier run that this run would not overwrite (stale frames).
 void clear_stale(const fs::path& dir, const std::string& prefix) {
@@ -41,8 +35,40 @@ void clear_stale(const fs::path& dir, const std::string& prefix) {
     if (e.path().filename().string().rfind(prefix, 0) == 0) fs::remove(e.path(), ec);
 }
 
+std::string numbered(const fs::path& dir, const char* prefix, int i, const char* ext) {
+  char name[64];
+  std::snprintf(name, sizeof name, "%s%06d%s", prefix, i, ext);
+  return (dir / name).string();
+}
+
+}  // namespace
+
+render::CameraPose centreline_camera(const Model& model, int frame, int frames) {
+  const RenderSpec& rs = model.render;
+  if (!rs.centreline_flight || model.flight_frames.empty() || frames < 1)
+    throw std::logic_error("centreline_camera: the model has no centreline flight, or frames < 1");
+  // Constant speed along the arc length over the session; the eye looks the way it travels.
+  const double progress = static_cast<double>(std::clamp(frame, 0, frames)) / frames;
+  const double s = rs.flight_from + (rs.flight_to - rs.flight_from) * progress;
+  const physics::CentrelineFrame f = physics::frame_at_arc_length(model.flight_frames, model.flight_arc, s);
+  const double travel = rs.flight_to > rs.flight_from ? 1.0 : -1.0;
+  return render::CameraPose{f.point, travel * f.tangent, f.normal};
+}
+
+// Camera framing from the rest geometry: the mesh's bounding box, and the lumen's axis, radius and length from
+// the inner-wall nodes (no scene fields: the same for generated tubes and imported organs); a centreline flight
+// sees the lumen of the tube's own radius (the principal axis of a bent tube is not its lumen's).
+render::Framing session_framing(const Model& model) {
+  const auto& rest = model.mesh.rest;
+  render::Framing f = render::frame_organ(rest.data(), static_cast<int>(rest.rows()), model.inner_wall().data(),
+                                          static_cast<int>(model.inner_wall().rows()));
+  if (model.render.centreline_flight && model.flight_lumen_radius > 0.0 && model.flight_lumen_radius < f.radius)
+    f.lumen_radius = model.flight_lumen_radius;
+  return f;
+}
+
 // What the renderer draws of the current state: walls, contact flags, probes at their attachment points.
-render::FrameView frame_view(const Model& model, const State& state) {
+render::FrameView session_frame_view(const Model& model, const State& state, int frames) {
   render::FrameView view;
   view.positions = state.x.data();
   view.n_points = static_cast<int>(state.x.rows());
@@ -74,6 +100,8 @@ render::FrameView frame_view(const Model& model, const State& state) {
     view.camera = render::CameraPose{pose.position, pose.rotation * -Eigen::Vector3d::UnitY(),
                                      pose.rotation * Eigen::Vector3d::UnitZ()};
   }
+  // The colonoscopy view: the endoscope on the centreline, where the flight is after the frames done.
+  if (model.render.centreline_flight) view.camera = centreline_camera(model, state.frame, frames);
   view.contact = state.in_contact.data();
   view.force_scale = model.render.force_scale;
   for (size_t p = 0; p < state.samples.size(); ++p) {
@@ -84,14 +112,6 @@ render::FrameView frame_view(const Model& model, const State& state) {
   }
   return view;
 }
-
-std::string numbered(const fs::path& dir, const char* prefix, int i, const char* ext) {
-  char name[64];
-  std::snprintf(name, sizeof name, "%s%06d%s", prefix, i, ext);
-  return (dir / name).string();
-}
-
-}  // namespace
 
 void export_surface_obj(const std::string& path, const Points& x, const Tris& tris) {
   // Compact the surface's vertices (the index map onto the mesh) into one assimp mesh.
@@ -148,6 +168,7 @@ struct SessionOutputs {
   std::vector<std::pair<double, std::string>> volume_frames;  // exported frames: time, file relative to `out`
   std::unique_ptr<render::Renderer> renderer;
   std::unique_ptr<render::FrameWriter> writer;
+  int frames = 1;  // the session's frame count (a centreline flight spans it)
 };
 
 // Output folders (validated by the caller; stale numbered outputs of earlier runs are removed), renderer, writers.
@@ -171,7 +192,7 @@ SessionOutputs open_outputs(const Model& model, const SessionOptions& opt) {
     clear_stale(o.out / "volume", "volume_");
   }
   if (!opt.render) return o;
-  o.renderer = std::make_unique<render::Renderer>(rs.width, rs.height, rs.camera, framing_of(model));
+  o.renderer = std::make_unique<render::Renderer>(rs.width, rs.height, rs.camera, session_framing(model));
   if (o.write_frames || !opt.video_path.empty())
     o.writer = std::make_unique<render::FrameWriter>(o.write_frames ? (o.out / "frames").string() : std::string(),
                                                      opt.video_path, rs.width, rs.height,
@@ -199,7 +220,7 @@ FrameRecord run_frame(const Model& model, const SessionOptions& opt, SessionOutp
   if (io.renderer) {
     const auto r0 = Clock::now();
     render::Image image;
-    io.renderer->draw(frame_view(model, state), image);
+    io.renderer->draw(session_frame_view(model, state, io.frames), image);
     rec.ms[kRender] = std::chrono::duration<double, std::milli>(Clock::now() - r0).count();
     if (io.writer) io.writer->push(std::move(image));
   }
@@ -277,6 +298,9 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
                     {"surfaces", model.collision.outer_wall ? nlohmann::json{"inner", "outer"} : nlohmann::json{"inner"}}};
   r["render"] = {{"enabled", opt.render}, {"width", rs.width}, {"height", rs.height}, {"camera", name_of(rs.camera)}};
   if (!rs.scope_instrument.empty()) r["render"]["endoscope_on"] = rs.scope_instrument;
+  if (rs.centreline_flight)
+    r["render"]["centreline_flight_m"] = {{"from", rs.flight_from}, {"to", rs.flight_to},
+                                          {"lumen_radius", model.flight_lumen_radius}};
   r["stages"] = stages_json(result.frames);
   r["writer"] = {{"frames", result.writer.frames}, {"busy_seconds", result.writer.busy_seconds},
                  {"frames_per_second", result.writer.frames_per_second()},
@@ -314,12 +338,13 @@ SessionResult run_session_on(const Model& model, Inputs& inputs, const SessionOp
   SessionResult result;
   const int frames = opt.frames > 0 ? opt.frames : model.frames;
   SessionOutputs io = open_outputs(model, opt);
+  io.frames = std::max(frames, 1);
   State state = make_state(model);
   // Warm-up draw of the rest state: the GL driver's one-time set-up (shader compilation) happens at load time,
   // not in the first frame's budget.
   if (io.renderer) {
     render::Image warm;
-    io.renderer->draw(frame_view(model, state), warm);
+    io.renderer->draw(session_frame_view(model, state, io.frames), warm);
   }
   if (opt.classify_overlaps && state.detector) state.detector->set_classify_overlaps(true);
 

@@ -45,6 +45,21 @@ SessionResult run_session(const Model& model, Inputs inputs, const SessionOption
 // The same on inputs the caller keeps (to read its sources after the session).
 SessionResult run_session_on(const Model& model, Inputs& inputs, const SessionOptions& options);
 
+// The camera of render.camera {"centreline": {"from", "to"}} when `frame` frames of a session of `frames` are done
+// (0: the rest view before the first frame): the eye on the centreline at arc length from + (to - from) frame / frames,
+// looking along the centreline's tangent there in the direction of travel, up along its normal (the frame the tube's
+// rings are swept with). The model must have a centreline flight (render.centreline_flight); frames >= 1.
+render::CameraPose centreline_camera(const Model& model, int frame, int frames);
+
+// The renderer's framing of the model: from its rest geometry (render::frame_organ over the inner wall), with a
+// centreline flight's lumen radius the narrowest ring's along the flight.
+render::Framing session_framing(const Model& model);
+
+// What the renderer draws of the state after state.frame frames of a session of `frames`: the organ's walls, the
+// instruments, contact flags, probe arrows, and the endoscope's placed camera (on its instrument, or on the
+// centreline flight).
+render::FrameView session_frame_view(const Model& model, const State& state, int frames);
+
 // Writes the inner wall at positions x as a Wavefront OBJ through assimp, atomically.
 void export_surface_obj(const std::string& path, const Points& x, const Tris& tris);
 

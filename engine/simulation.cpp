@@ -74,6 +74,24 @@ namespace {
 // ---------------------------------------------------------------------------------------------------------------
 // Compile stages
 
+// The centreline camera's path (render.camera {"centreline"}): the tube's centreline frames and arc lengths, and the
+// narrowest lumen radius of the rings along the flight (and of the rings on either side of it).
+void set_flight(const Scene& scene, const physics::SweptTube& tube, Model& m) {
+  const physics::Centreline& c = scene.swept_tube.centreline;
+  m.flight_frames = physics::centreline_frames(c);
+  m.flight_arc = physics::arc_lengths(c.points);
+  const double lo = std::min(scene.render.flight_from, scene.render.flight_to);
+  const double hi = std::max(scene.render.flight_from, scene.render.flight_to);
+  const std::vector<double>& s = tube.ring_s;
+  // The rings from the last at or before lo to the first at or after hi, and every ring between.
+  const size_t first = static_cast<size_t>(std::upper_bound(s.begin(), s.end(), lo) - s.begin());
+  const size_t last = static_cast<size_t>(std::lower_bound(s.begin(), s.end(), hi) - s.begin());
+  double narrowest = std::numeric_limits<double>::infinity();
+  for (size_t j = first > 0 ? first - 1 : 0; j <= std::min(last, s.size() - 1); ++j)
+    narrowest = std::min(narrowest, tube.rings[j].inner_radius);
+  m.flight_lumen_radius = narrowest;
+}
+
 // The generated linear mesh of the scene's mesh source, with the build facts kept in the model (generator time,
 // clamped rings, end rings).
 physics::TetMesh generate_mesh(const Scene& scene, Model& m) {
@@ -82,6 +100,7 @@ physics::TetMesh generate_mesh(const Scene& scene, Model& m) {
     m.clamped_rings = tube.clamped_rings;
     m.mesh_file = scene.radius_surface;
     m.end_rings = {tube.rings.front(), tube.rings.back()};
+    if (scene.render.centreline_flight) set_flight(scene, tube, m);
     return std::move(tube.mesh);
   }
   // A volume mesh or a surface wall was built at load (no end rings: it has no twist).
@@ -154,7 +173,22 @@ std::vector<int> selected_nodes(const FixedSpec& f, const Points& rest) {
   return nodes;
 }
 
-// Node sets held still ("ends": both end sets; a box or a plane side: the nodes it selects, at least one).
+// The outer-wall nodes whose nearest point on the swept tube's centreline (the whole file's polyline) lies in the
+// entry's arc-length interval [s0, s1] (inclusive).
+std::vector<int> near_centreline_nodes(const FixedSpec& f, const physics::Centreline& c, const Model& m) {
+  const std::vector<double> arc = physics::arc_lengths(c.points);
+  std::vector<int> outer(m.outer_wall().data(), m.outer_wall().data() + m.outer_wall().size());
+  sort_unique(outer);
+  std::vector<int> nodes;
+  for (int v : outer) {
+    const double s = physics::nearest_arc_length(c.points, arc, m.mesh.rest.row(v).transpose());
+    if (s >= f.s0 && s <= f.s1) nodes.push_back(v);
+  }
+  return nodes;
+}
+
+// Node sets held still ("ends": both end sets; a box, a plane side or an arc-length interval of the centreline: the
+// nodes it selects, at least one).
 void add_fixed_sets(const Scene& scene, Model& m) {
   auto hold = [&](const std::vector<int>& nodes) {
     m.fixed_nodes.insert(m.fixed_nodes.end(), nodes.begin(), nodes.end());
@@ -164,6 +198,14 @@ void add_fixed_sets(const Scene& scene, Model& m) {
     if (f.kind == FixedKind::kNamed) {
       if (f.name == NodeSetName::kEnds || f.name == NodeSetName::kStart) hold(m.mesh.node_set(physics::kStartEnd));
       if (f.name == NodeSetName::kEnds || f.name == NodeSetName::kStop) hold(m.mesh.node_set(physics::kStopEnd));
+      continue;
+    }
+    if (f.kind == FixedKind::kNearCentreline) {
+      const std::vector<int> near = near_centreline_nodes(f, scene.swept_tube.centreline, m);
+      if (near.empty())
+        throw InputError(scene.path + ": fixed[" + std::to_string(i) + "].near_centreline: selects no outer-wall node "
+                         "(none has its nearest centreline point in the interval) (value " + f.given + ")");
+      hold(near);
       continue;
     }
     const std::vector<int> nodes = selected_nodes(f, m.mesh.rest);

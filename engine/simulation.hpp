@@ -106,6 +106,12 @@ struct Model {
   Tris tool_target_tris;
   std::shared_ptr<const collision::CollisionSurface> tool_target_surface;  // null without instruments
   int scope_instrument = -1;  // index into instruments of the one the endoscope camera rides on (-1: none)
+  // render.camera {"centreline": ...} (render.centreline_flight): the swept tube's centreline frames and their arc
+  // lengths (the ones its rings are swept with), which the camera flies along, and the narrowest lumen radius of
+  // the rings along the flight (metres; the renderer's lumen radius: its near plane and head light).
+  std::vector<physics::CentrelineFrame> flight_frames;
+  std::vector<double> flight_arc;
+  double flight_lumen_radius = 0.0;
   // collision.coupling "carried": the augmentation penalty of the contacts carried into the corotational solve,
   // kCouplingStiffnessScale times the mean diagonal of K over the colliding walls' free DOFs, N/m (0 otherwise).
   double coupling_stiffness = 0.0;

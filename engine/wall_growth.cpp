@@ -159,10 +159,16 @@ void shrink_around(const SurfaceMesh& s, const std::vector<int>& triangles, std:
     if (hit[v]) offset[v] *= kWallShrinkFactor;
 }
 
+// A length of the spec (metres) in the scene's mesh.units with the unit's name ("2.5 mm" or "0.0025 m").
+std::string length_text(const SurfaceWallSpec& spec, double metres) {
+  const bool millimetres = spec.metres_per_unit == kMetresPerMillimetre;
+  return value_text(metres / spec.metres_per_unit) + (millimetres ? " mm" : " m");
+}
+
 // The message refusing a wall whose offsets still make the walls intersect or a prism invert.
 std::string refusal(const SurfaceWallSpec& spec, const std::vector<std::array<int, 2>>& pairs,
                     const std::vector<int>& inverted, int triangles) {
-  const std::string grown = "a wall of " + value_text(spec.thickness) + " m grown " + direction_name(spec.direction);
+  const std::string grown = "a wall of " + length_text(spec, spec.thickness) + " grown " + direction_name(spec.direction);
   const std::string after = " after " + std::to_string(kWallShrinkRounds) + " rounds of shrinking the offset around them";
   if (pairs.empty())
     return spec.file + ": " + grown + " has an inverted or zero-volume prism over triangle " +
@@ -208,7 +214,7 @@ void require_valid_prisms(const SurfaceWallSpec& spec, const physics::TetMesh& m
 
 SurfaceWall grow_surface_wall(const SurfaceWallSpec& spec) {
   if (!(spec.thickness > 0.0) || !std::isfinite(spec.thickness))
-    throw InputError(spec.file + ": the wall thickness must be > 0 and finite (value " + value_text(spec.thickness) + ")");
+    throw InputError(spec.file + ": the wall thickness must be > 0 and finite (value " + length_text(spec, spec.thickness) + ")");
   if (spec.layers < 1) throw InputError(spec.file + ": the wall needs at least 1 layer (value " + std::to_string(spec.layers) + ")");
   SurfaceMesh s = read_closed_surface(spec.file, spec.metres_per_unit);
   SurfaceWall wall;

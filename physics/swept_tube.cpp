@@ -256,6 +256,23 @@ std::vector<double> arc_lengths(const Points& points) {
   return s;
 }
 
+double nearest_arc_length(const Points& points, const std::vector<double>& arc, const Eigen::Vector3d& x) {
+  // Every segment's nearest point (the clamped projection); strictly nearer replaces, so ties keep the least s.
+  double best_s = arc.empty() ? 0.0 : arc.front();
+  double best_d2 = points.rows() > 0 ? (x - row(points, 0)).squaredNorm() : std::numeric_limits<double>::infinity();
+  for (Eigen::Index i = 0; i + 1 < points.rows(); ++i) {
+    const Eigen::Vector3d a = row(points, i), d = row(points, i + 1) - a;
+    const double length2 = d.squaredNorm();
+    const double t = length2 > 0.0 ? std::clamp((x - a).dot(d) / length2, 0.0, 1.0) : 0.0;
+    const double d2 = (a + t * d - x).squaredNorm();
+    if (d2 < best_d2) {
+      best_d2 = d2;
+      best_s = arc[static_cast<size_t>(i)] + t * (arc[static_cast<size_t>(i) + 1] - arc[static_cast<size_t>(i)]);
+    }
+  }
+  return best_s;
+}
+
 void validate_centreline(const Centreline& c, const std::string& source) {
   const Eigen::Index n = c.points.rows();
   if (n < 2) detail::fail(source + ": points: needs at least 2 points, got " + std::to_string(n));

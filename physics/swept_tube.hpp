@@ -69,6 +69,11 @@ struct SweptTube {
 // Cumulative arc length of a polyline at each point (0 at the first), metres.
 std::vector<double> arc_lengths(const Points& points);
 
+// The arc length (metres from the first point, as arc_lengths) of the point of the polyline `points` nearest to x:
+// each segment's nearest point by the projection of x clamped to the segment, the nearest of those; of equally
+// near points the one of least arc length. `arc` is arc_lengths(points).
+double nearest_arc_length(const Points& points, const std::vector<double>& arc, const Eigen::Vector3d& x);
+
 // Refuses a centreline that cannot be swept, throwing std::invalid_argument "<source>: <field>[<sample>]:
 // <problem>": fewer than 2 points, a non-finite value, a point repeating the one before it, tangents or normals
 // whose row count is neither 0 nor the points', a zero tangent, a tangent against the direction of travel or

@@ -300,11 +300,20 @@ TEST(SurfaceWall, RefusesBadSurfacesNamingFileProblemAndWhere) {
   // its faces stay inverted however far the offsets shrink; inward, the offset wall crosses the surface.
   const std::string closed_tet = tet + "f 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\n";
   EXPECT_EQ(error("x.obj", closed_tet),
-            f + ": a wall of 0.0001 m grown outward has an inverted or zero-volume prism over triangle 0 after 8 rounds "
+            f + ": a wall of 0.1 mm grown outward has an inverted or zero-volume prism over triangle 0 after 8 rounds "
                 "of shrinking the offset around them (3 such triangles): the surface turns too sharply there for its "
                 "vertex normals");
+  // The thickness in the scene's units: the same tetrahedron a thousand times larger, in metres.
+  std::ofstream(d / "tet_m.obj") << closed_tet;
+  lumen::engine::SurfaceWallSpec in_metres;
+  in_metres.file = (d / "tet_m.obj").string();
+  in_metres.thickness = 0.1;
+  EXPECT_EQ(lumen::test::message_of<InputError>([&] { lumen::engine::grow_surface_wall(in_metres); }),
+            in_metres.file + ": a wall of 0.1 m grown outward has an inverted or zero-volume prism over triangle 0 "
+                             "after 8 rounds of shrinking the offset around them (3 such triangles): the surface turns "
+                             "too sharply there for its vertex normals");
   EXPECT_EQ(load_error(write_scene(d, wall_scene("x.obj", 0.1, "inward"))),
-            f + ": a wall of 0.0001 m grown inward cannot be made intersection-free: triangle 0 of the surface and "
+            f + ": a wall of 0.1 mm grown inward cannot be made intersection-free: triangle 0 of the surface and "
                 "triangle 0 of the offset wall still intersect after 8 rounds of shrinking the offset around them (12 "
                 "intersecting pairs; offsetting along vertex normals fails where the surface folds more sharply than "
                 "the wall is thick: for a tubular organ, sweep a tube along its centreline with the radius from the "
@@ -434,6 +443,7 @@ TEST(SurfaceWall, CtColonIsRefusedSayingWhy) {
   spec.thickness = 0.0025;
   const std::string msg = lumen::test::message_of<InputError>([&] { lumen::engine::grow_surface_wall(spec); });
   std::printf("colon 2.5 mm outward: %s\n", msg.c_str());
-  EXPECT_NE(msg.find(spec.file + ": "), std::string::npos) << msg;
+  EXPECT_NE(msg.find(spec.file + ": a wall of 2.5 mm grown outward cannot be made intersection-free: "), std::string::npos)
+      << msg;
   EXPECT_NE(msg.find("mesh.type \"swept_tube\" with mesh.radius {\"from_surface\": ...}"), std::string::npos) << msg;
 }

@@ -2,9 +2,12 @@
 // frames, volumes against closed forms, the bend clamp, haustra and profiles, and refused input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <Eigen/Geometry>
 
@@ -338,4 +341,50 @@ TEST(SweptTube, RefusesBadCentrelinesAndSpecsNamingWhere) {
 }
 
 }  // namespace
+}  // namespace lumen::physics
+
+namespace lumen::physics {
+
+// The nearest point of a polyline by arc length, against dense sampling (every vertex and 2000 points a segment) on
+// a coarse helix (30 samples over two turns), for points scattered around it at up to twice its pitch; and of
+// equally near segments the first: the centre of a square's three sides is 0.5 from each, arc length 0.5.
+TEST(NearestArcLength, MatchesDenseSamplingOnAHelixAndTiesTakeTheLeastArcLength) {
+  constexpr int kSamples = 30, kPerSegment = 2000, kPoints = 400;
+  constexpr double kRadius = 0.03, kRise = 0.01, kTurns = 2.0;
+  const double pi = static_cast<double>(EIGEN_PI);
+  Points helix(kSamples, 3);
+  for (int k = 0; k < kSamples; ++k) {
+    const double a = 2.0 * pi * kTurns * k / (kSamples - 1);
+    helix.row(k) << kRadius * std::cos(a), kRadius * std::sin(a), kRise * a / (2.0 * pi);
+  }
+  const std::vector<double> arc = arc_lengths(helix);
+  // The twin: every sample's arc length walked along the segments, the nearest sample by brute force.
+  std::vector<Eigen::Vector3d> xs;
+  std::vector<double> ss;
+  double spacing = 0.0;
+  for (int i = 0; i + 1 < kSamples; ++i) {
+    const Eigen::Vector3d a = helix.row(i).transpose(), b = helix.row(i + 1).transpose();
+    spacing = std::max(spacing, (b - a).norm() / kPerSegment);
+    for (int k = 0; k < kPerSegment; ++k) {
+      xs.push_back(a + (static_cast<double>(k) / kPerSegment) * (b - a));
+      ss.push_back(arc[i] + (b - a).norm() * k / kPerSegment);
+    }
+  }
+  xs.push_back(helix.row(kSamples - 1).transpose());
+  ss.push_back(arc.back());
+  std::srand(7);
+  for (int p = 0; p < kPoints; ++p) {
+    const Eigen::Vector3d x = Eigen::Vector3d(0.0, 0.0, kRise) + 2.0 * kRise * Eigen::Vector3d::Random() +
+                              Eigen::Vector3d(kRadius * std::cos(p), kRadius * std::sin(p), 0.0);
+    size_t best = 0;
+    for (size_t k = 1; k < xs.size(); ++k)
+      if ((xs[k] - x).squaredNorm() < (xs[best] - x).squaredNorm()) best = k;
+    EXPECT_NEAR(nearest_arc_length(helix, arc, x), ss[best], spacing) << x.transpose();
+  }
+  Points square(4, 3);
+  square << 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0;
+  EXPECT_EQ(nearest_arc_length(square, arc_lengths(square), Eigen::Vector3d(0.5, 0.5, 0.0)), 0.5);
+  EXPECT_EQ(nearest_arc_length(square, arc_lengths(square), Eigen::Vector3d(2.0, 2.0, 0.0)), 2.0);
+}
+
 }  // namespace lumen::physics
