@@ -24,6 +24,8 @@ constexpr double kMinWidth = 0x1p-40;
 constexpr double kTiny = 1e-300;
 
 constexpr double kGridScale = 0x1p45, kGridStep = 0x1p-45;  // 2^kGridBits and its inverse (exact)
+static_assert(kGridScale == static_cast<double>(1ULL << kGridBits) && kGridScale * kGridStep == 1.0,
+              "the grid scale is 2^kGridBits and its step the exact inverse");
 double grid_down(double x) { return std::floor(x * kGridScale) * kGridStep; }
 double grid_up(double x) { return std::ceil(x * kGridScale) * kGridStep; }
 double grid_mid(double a, double b) { return grid_down(0.5 * (a + b)); }

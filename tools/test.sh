@@ -13,8 +13,14 @@ cmake -S "$root" -B "$root/build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLUMEN_WERR
 cmake --build "$root/build" -j"$(nproc)"
 (cd "$root/build" && ctest --output-on-failure -j"$(nproc)")
 # Same unit tests under AddressSanitizer + UndefinedBehaviorSanitizer (scene-level tests are long, run only in
-# Release): only the programs `ctest -L unit` runs (target lumen_unit_tests), no benchmarks.
-cmake -S "$root" -B "$root/build-asan" -DCMAKE_BUILD_TYPE=Debug -DLUMEN_SANITIZE=ON -DLUMEN_WERROR=ON \
+# Release): only the programs `ctest -L unit` runs (target lumen_unit_tests), no benchmarks. Compiled by clang: a
+# second compiler's warnings (also errors), and about 28 % less CPU than GCC for this build (measured from scratch:
+# 1092 s against 1510 s). A tree configured earlier with another compiler is configured afresh.
+if [ -f "$root/build-asan/CMakeCache.txt" ] && ! grep -q '^CMAKE_CXX_COMPILER:[A-Z]*=.*clang++' "$root/build-asan/CMakeCache.txt"; then
+  rm -rf "$root/build-asan"
+fi
+cmake -S "$root" -B "$root/build-asan" -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
+  -DCMAKE_BUILD_TYPE=Debug -DLUMEN_SANITIZE=ON -DLUMEN_WERROR=ON \
   -DLUMEN_BUILD_BENCHMARKS=OFF -DCMAKE_CXX_FLAGS_DEBUG="$line_tables" >/dev/null
 cmake --build "$root/build-asan" -j"$(nproc)" --target lumen_unit_tests
 (cd "$root/build-asan" && ctest --output-on-failure -j"$(nproc)" -L unit)
