@@ -163,10 +163,12 @@ PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const 
     nglib::Ng_AddSurfaceElement(ng.mesh(), nglib::NG_TRIG, v);
   }
   nglib::Ng_Meshing_Parameters mp;
-  // nglib's volume mesher takes its size from the mesh's global h (maxh alone is not passed on).
+  // nglib's volume mesher takes its size from its local size tree: maxh alone, or its global h, leave it unchanged
+  // (measured), so the size is restricted over the whole bounding box.
   if (size.max_edge > 0.0) {
     mp.maxh = size.max_edge * scale;
-    nglib::Ng_RestrictMeshSizeGlobal(ng.mesh(), mp.maxh);
+    Eigen::RowVector3d box_lo = (lo - centre) * scale, box_hi = (hi - centre) * scale;
+    nglib::Ng_RestrictMeshSizeBox(ng.mesh(), box_lo.data(), box_hi.data(), mp.maxh);
   }
   mp.optsteps_3d = size.optimise_steps;
   nglib::Ng_Result result = nglib::NG_ERROR;

@@ -214,11 +214,12 @@ TEST(SurfacePair, RefusesBadPairsNamingFileProblemAndWhere) {
             (d / "self.obj").string() + ": the inner surface intersects itself: triangles 0 and 5 intersect (3 intersecting pairs)");
   EXPECT_EQ(error("in.obj", "self.obj"),
             (d / "self.obj").string() + ": the outer surface intersects itself: triangles 0 and 5 intersect (3 intersecting pairs)");
-  // The outer sphere shifted 6 mm along x: through the inner one.
+  // The outer sphere shifted 6 mm along x: through the inner one (the spheres meet on the circle x = -5 mm), named by
+  // the first intersecting pair in the exact check's order and the count.
   write_spheres(d, "in.obj", "shifted.obj", kOuterMm, 6.0);
   EXPECT_EQ(error("in.obj", "shifted.obj"),
-            in + " and " + (d / "shifted.obj").string() + ": the surfaces intersect each other: triangle 14 of the inner "
-            "surface and triangle 98 of the outer surface intersect (42 intersecting pairs)");
+            in + " and " + (d / "shifted.obj").string() + ": the surfaces intersect each other: triangle 58 of the inner "
+            "surface and triangle 132 of the outer surface intersect (68 intersecting pairs)");
   // Apart (the outer sphere 30 mm along x), and swapped.
   write_spheres(d, "in.obj", "apart.obj", kOuterMm, 30.0);
   EXPECT_EQ(error("in.obj", "apart.obj"), (d / "apart.obj").string() + ": does not enclose the inner surface " + in +
