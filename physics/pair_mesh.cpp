@@ -207,8 +207,8 @@ PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const 
   // Its result checked: no flat tet, the boundary exactly the input triangles.
   const MeshQuality q = mesh_quality(out.mesh.rest, out.mesh.tets);
   if (q.first_degenerate >= 0)
-    not_kept("tet " + std::to_string(q.first_degenerate) + " has zero volume (" + std::to_string(q.degenerate_tets) +
-             " such tets)");
+    not_kept("tet " + std::to_string(q.first_degenerate) + " is inverted or has zero volume (" +
+             std::to_string(q.degenerate_tets) + " such tets)");
   require_kept_surface(out.mesh.tets, faces);
   out.added_nodes = np - ni - no;
   Tris in_tris = inner_tris;
