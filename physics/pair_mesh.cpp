@@ -143,7 +143,8 @@ PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const 
   Points x(ni + no, 3);
   x << inner, outer;
   std::vector<Face> faces;
-  for (Eigen::Index t = 0; t < inner_tris.rows(); ++t) faces.push_back({inner_tris(t, 0), inner_tris(t, 2), inner_tris(t, 1)});
+  for (Eigen::Index t = 0; t < inner_tris.rows(); ++t)
+    faces.push_back({inner_tris(t, 0), inner_tris(t, 2), inner_tris(t, 1)});
   for (Eigen::Index t = 0; t < outer_tris.rows(); ++t)
     faces.push_back({ni + outer_tris(t, 0), ni + outer_tris(t, 1), ni + outer_tris(t, 2)});
   // Netgen's frame: centred on the bounding box, scaled to kPairMesherFrameDiagonal.
@@ -176,12 +177,16 @@ PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const 
     result = nglib::Ng_GenerateVolumeMesh(ng.mesh(), &mp);
   } catch (const std::exception& e) {
     throw PairMesherError(std::string("Netgen failed: ") + e.what());
+  } catch (...) {
+    throw PairMesherError("Netgen failed: it threw an exception of an unknown type (its log ends: " +
+                          last_lines(ng.log(), kLogLinesInMessage) + ")");
   }
   const int np = nglib::Ng_GetNP(ng.mesh()), ne = nglib::Ng_GetNE(ng.mesh());
   if (result != nglib::NG_OK || ne == 0)
     throw PairMesherError("Netgen failed: " + result_name(result) + " with " + std::to_string(ne) +
                           " tets (its log ends: " + last_lines(ng.log(), kLogLinesInMessage) + ")");
-  if (np < ni + no) not_kept("it returned " + std::to_string(np) + " points for " + std::to_string(ni + no) + " input vertices");
+  if (np < ni + no)
+    not_kept("it returned " + std::to_string(np) + " points for " + std::to_string(ni + no) + " input vertices");
   // The nodes: the input vertices exactly where they were (checked), Netgen's added ones mapped back.
   out.mesh.rest.resize(np, 3);
   out.mesh.rest.topRows(ni + no) = x;
@@ -204,12 +209,13 @@ PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const 
     if (tet_volume(out.mesh.rest, out.mesh.tets, e) < 0.0) std::swap(out.mesh.tets(e, 0), out.mesh.tets(e, 1));
   }
   out.mesher_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-  // Its result checked: no flat tet, the boundary exactly the input triangles.
+  // Its result checked: no inverted or flat tet, the boundary exactly the input triangles.
   const MeshQuality q = mesh_quality(out.mesh.rest, out.mesh.tets);
   if (q.first_degenerate >= 0)
     not_kept("tet " + std::to_string(q.first_degenerate) + " is inverted or has zero volume (" +
              std::to_string(q.degenerate_tets) + " such tets)");
   require_kept_surface(out.mesh.tets, faces);
+  // The walls: the inner triangles reversed (facing the lumen, out of the volume), the outer ones as given.
   out.added_nodes = np - ni - no;
   Tris in_tris = inner_tris;
   in_tris.col(1).swap(in_tris.col(2));
