@@ -6,6 +6,7 @@
 
 #include "engine/scene.hpp"
 #include "engine/simulation.hpp"
+#include "physics/pair_mesh.hpp"
 
 namespace lumen::engine {
 
@@ -13,6 +14,13 @@ namespace {
 
 nlohmann::json percentiles_json(const physics::QualityPercentiles& p) {
   return {{"min", p.min}, {"p1", p.p1}, {"p50", p.p50}};
+}
+
+// Milliseconds to one decimal, for the mesh line.
+std::string value_ms(double ms) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f", ms);
+  return text;
 }
 
 }  // namespace
@@ -41,7 +49,8 @@ std::string mesh_quality_line(const Model& model, const physics::MeshQuality& q)
       q.tets == model.n_elements ? std::string() : " (quality over their " + std::to_string(q.tets) + " linear sub-tets)";
   // A swept tube also says how many of its rings the bend clamp reduced (and the surface its radius came from); a
   // volume mesh or a surface wall names its file, a surface wall how many vertices' offsets were clamped and how
-  // many of its surface's vertices were moved to untangle fold-overs.
+  // many of its surface's vertices were moved to untangle fold-overs, a surface pair names both files and its mesher's
+  // time and added nodes.
   const std::string from = model.mesh_file.empty() ? std::string() : " from " + model.mesh_file;
   const std::string suffix =
       model.mesh_type == MeshType::kSweptTube
@@ -50,6 +59,10 @@ std::string mesh_quality_line(const Model& model, const physics::MeshQuality& q)
       : model.mesh_type == MeshType::kSurfaceWall
           ? from + ", " + std::to_string(model.clamped_vertices) + " vertices' offsets clamped below the thickness, " +
                 std::to_string(model.untangled_vertices) + " vertices moved to untangle fold-overs"
+      : model.mesh_type == MeshType::kSurfacePair
+          ? from + " and " + model.mesh_outer_file + ", tetrahedralised by " + physics::kPairMesherName + " in " +
+                value_ms(model.mesher_ms) + " ms (" + std::to_string(model.mesher_added_nodes) +
+                " nodes added inside the wall)"
           : from;
   char line[400];
   std::snprintf(line, sizeof line,

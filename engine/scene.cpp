@@ -32,7 +32,7 @@ constexpr const char* kMethodNames[] = {"pcg", "chord"};
 constexpr const char* kTwistEndNames[] = {"", "start", "stop"};
 constexpr const char* kNodeSetNames[] = {"ends", "start", "stop"};
 constexpr const char* kCameraNames[] = {"side", "diagonal", "endoscope"};
-constexpr const char* kMeshTypeNames[] = {"hollow_cylinder", "swept_tube", "volume", "surface_wall"};
+constexpr const char* kMeshTypeNames[] = {"hollow_cylinder", "swept_tube", "volume", "surface_wall", "surface_pair"};
 // Names of MeshUnits (mesh.units of a swept tube, an instrument mesh's units).
 constexpr const char* kLengthUnitNames[] = {"m", "mm"};
 // A range end within this fraction of the centreline's arc length past it is its end (decimal rounding).
@@ -341,6 +341,25 @@ void read_surface_wall(const Reader& r, const json& m, const std::filesystem::pa
   scene.mesh_load_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// The wall between two closed surface files (mesh.type "surface_pair"), relative to the scene file, tetrahedralised
+// at load.
+void read_surface_pair(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& scene) {
+  r.only_keys(m, "mesh", {"type", "element", "inner", "outer", "units", "max_edge", "optimise_steps"});
+  SurfacePairSpec& spec = scene.surface_pair.spec;
+  const MeshUnits units = m.contains("units") ? r.choice<MeshUnits>(m.at("units"), "mesh.units", kLengthUnitNames)
+                                              : MeshUnits::kMetres;
+  spec.metres_per_unit = kMetresPerUnit[static_cast<int>(units)];
+  spec.inner_file = scene_relative(r, r.require(m, "mesh", "inner"), "mesh.inner", dir);
+  spec.outer_file = scene_relative(r, r.require(m, "mesh", "outer"), "mesh.outer", dir);
+  if (m.contains("max_edge")) spec.size.max_edge = spec.metres_per_unit * r.positive(m.at("max_edge"), "mesh.max_edge");
+  if (m.contains("optimise_steps"))
+    spec.size.optimise_steps =
+        r.integer_in(m.at("optimise_steps"), "mesh.optimise_steps", 0, physics::kPairMesherMaxOptimiseSteps);
+  const auto t0 = std::chrono::steady_clock::now();
+  scene.surface_pair.pair = mesh_surface_pair(spec);
+  scene.mesh_load_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
 // mesh.inner_tag / outer_tag of a volume mesh: a tag number, or (gmsh) a physical surface's name.
 int read_wall_tag(const Reader& r, const json& v, const std::string& path, const physics::VolumeMeshFile& f) {
   if (v.is_number_integer()) return r.integer_in(v, path, INT_MIN + 1, INT_MAX);
@@ -390,6 +409,8 @@ void read_mesh(const Reader& r, const json& m, const std::filesystem::path& dir,
     read_volume(r, m, dir, s);
   else if (s.mesh_type == MeshType::kSurfaceWall)
     read_surface_wall(r, m, dir, s);
+  else if (s.mesh_type == MeshType::kSurfacePair)
+    read_surface_pair(r, m, dir, s);
   else
     read_hollow_cylinder(r, m, s.mesh);
 }
@@ -844,15 +865,19 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
         r.fail(Reader::index("fixed", i), "the volume mesh " + s.volume.file + " has no end node sets (its end caps "
                "are not two separate pieces): hold nodes by {\"box\": ...} or {\"plane\": ...}", &root.at("fixed")[i]);
   }
-  // A wall grown from a closed surface has no ends: no twist, no end sets.
-  if (s.mesh_type == MeshType::kSurfaceWall) {
+  // A wall grown from a closed surface, or between two, has no ends: no twist, no end sets.
+  if (s.mesh_type == MeshType::kSurfaceWall || s.mesh_type == MeshType::kSurfacePair) {
+    const std::string from = s.mesh_type == MeshType::kSurfaceWall
+                                 ? "the wall grown from " + s.surface_wall.spec.file
+                                 : "the wall between " + s.surface_pair.spec.inner_file + " and " +
+                                       s.surface_pair.spec.outer_file;
     if (s.twist.enabled())
-      r.fail("twist", "needs a generated tube (mesh.type \"hollow_cylinder\" or \"swept_tube\"; got \"surface_wall\")",
-             nullptr);
+      r.fail("twist", std::string("needs a generated tube (mesh.type \"hollow_cylinder\" or \"swept_tube\"; got \"") +
+                          name_of(s.mesh_type) + "\")", nullptr);
     for (size_t i = 0; i < s.fixed.size(); ++i)
       if (s.fixed[i].kind == FixedKind::kNamed)
-        r.fail(Reader::index("fixed", i), "the wall grown from " + s.surface_wall.spec.file + " is closed and has no "
-               "end node sets: hold nodes by {\"box\": ...} or {\"plane\": ...}", &root.at("fixed")[i]);
+        r.fail(Reader::index("fixed", i), from + " is closed and has no end node sets: hold nodes by {\"box\": ...} "
+               "or {\"plane\": ...}", &root.at("fixed")[i]);
   }
   // Quadratic elements come with the quasi-static models only (linear prefactorised, or corotational).
   if (s.element == ElementType::kTet10 && s.solver.type != SolverType::kQuasiStatic)

@@ -8,6 +8,7 @@
 
 #include "engine/instrument.hpp"
 #include "engine/pose_track.hpp"
+#include "engine/surface_pair.hpp"
 #include "engine/wall_growth.hpp"
 #include "physics/mesh.hpp"
 #include "physics/swept_tube.hpp"
@@ -55,8 +56,8 @@ enum class Tangent { kWarped, kProjected, kExact };  // "warped" | "projected" |
 enum class SolveMethod { kPcg, kChord };              // "pcg" | "chord"
 enum class TwistEnd { kNone, kStart, kStop };         // (no twist) | "start" | "stop"
 enum class NodeSetName { kEnds, kStart, kStop };      // "ends" | "start" | "stop"
-// "hollow_cylinder" | "swept_tube" | "volume" | "surface_wall"
-enum class MeshType { kHollowCylinder, kSweptTube, kVolume, kSurfaceWall };
+// "hollow_cylinder" | "swept_tube" | "volume" | "surface_wall" | "surface_pair"
+enum class MeshType { kHollowCylinder, kSweptTube, kVolume, kSurfaceWall, kSurfacePair };
 // The JSON name of a choice (what the scene file says and report.json repeats).
 const char* name_of(MaterialModel v);
 const char* name_of(ElementType v);
@@ -238,6 +239,12 @@ struct SurfaceWallSource {
   SurfaceWallSpec spec;
   SurfaceWall wall;
 };
+// A wall between two closed surface files (mesh.type "surface_pair", engine/surface_pair.hpp), tetrahedralised
+// at load.
+struct SurfacePairSource {
+  SurfacePairSpec spec;
+  SurfacePair pair;
+};
 // Where an instrument starts a session (and, driven by a device, waits for its first reading): its track's or
 // replay's first pose, or for a device-only instrument the device origin mapped by to_organ.
 Pose home_pose(const InstrumentSpec& spec);
@@ -259,7 +266,8 @@ struct Scene {
   std::string name;
   // The volume mesh's source (key mesh.type): the generated hollow cylinder (`mesh`) or a tube swept along a
   // centreline file (`swept_tube`, its centreline read, validated and converted to metres at load), a tet mesh
-  // file (`volume`: gmsh .msh, VTK .vtu / .vtk), or a wall grown from a closed surface file (`surface_wall`).
+  // file (`volume`: gmsh .msh, VTK .vtu / .vtk), a wall grown from a closed surface file (`surface_wall`), or the
+  // volume between two closed surface files tetrahedralised (`surface_pair`).
   MeshType mesh_type = MeshType::kHollowCylinder;
   physics::HollowCylinderSpec mesh;
   physics::SweptTubeSpec swept_tube;
@@ -271,8 +279,10 @@ struct Scene {
   std::string radius_surface;
   VolumeSourceSpec volume;
   SurfaceWallSource surface_wall;
+  SurfacePairSource surface_pair;
   // The mesh source's work at load, milliseconds: a volume file read and built, a surface read and sampled or
-  // grown into a wall (0 for the generators, which run when the scene compiles).
+  // grown into a wall, a surface pair read, checked and tetrahedralised (0 for the generators, which run when the
+  // scene compiles).
   double mesh_load_ms = 0.0;
   // Element of the volume mesh (key mesh.element): "tet4" (linear, the paper's) or "tet10" (quadratic,
   // isoparametric; its walls are drawn and collide as each face split into 4 triangles over the edge nodes).

@@ -18,6 +18,7 @@
 #include "collision/self_collision.hpp"
 #include "engine/mesh_check.hpp"
 #include "engine/volume_export.hpp"
+#include "physics/pair_mesh.hpp"
 #include "physics/swept_tube.hpp"
 #include "render/renderer.hpp"
 
@@ -286,6 +287,13 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
   if (model.mesh_type == MeshType::kSurfaceWall) {
     r["mesh"]["clamped_vertices"] = model.clamped_vertices;
     r["mesh"]["untangled_vertices"] = model.untangled_vertices;
+  }
+  if (model.mesh_type == MeshType::kSurfacePair) {
+    r["mesh"]["outer_file"] = model.mesh_outer_file;
+    r["mesh"]["mesher"] = physics::kPairMesherName;
+    r["mesh"]["mesher_ms"] = model.mesher_ms;
+    r["mesh"]["surface_check_ms"] = model.surface_check_ms;
+    r["mesh"]["mesher_added_nodes"] = model.mesher_added_nodes;
   }
   r["model"] = {{"material", name_of(model.material)}, {"element", name_of(model.element)},
                 {"solver", name_of(model.solver)},

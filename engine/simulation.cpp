@@ -103,7 +103,7 @@ physics::TetMesh generate_mesh(const Scene& scene, Model& m) {
     if (scene.render.centreline_flight) set_flight(scene, tube, m);
     return std::move(tube.mesh);
   }
-  // A volume mesh or a surface wall was built at load (no end rings: it has no twist).
+  // A volume mesh, a surface wall or a surface pair was built at load (no end rings: it has no twist).
   if (scene.mesh_type == MeshType::kVolume) {
     m.mesh_file = scene.volume.file;
     return scene.volume.mesh;
@@ -113,6 +113,14 @@ physics::TetMesh generate_mesh(const Scene& scene, Model& m) {
     m.clamped_vertices = scene.surface_wall.wall.clamped_vertices;
     m.untangled_vertices = scene.surface_wall.wall.untangled_vertices;
     return scene.surface_wall.wall.mesh;
+  }
+  if (scene.mesh_type == MeshType::kSurfacePair) {
+    m.mesh_file = scene.surface_pair.spec.inner_file;
+    m.mesh_outer_file = scene.surface_pair.spec.outer_file;
+    m.mesher_ms = scene.surface_pair.pair.mesher_ms;
+    m.mesher_added_nodes = scene.surface_pair.pair.added_nodes;
+    m.surface_check_ms = scene.surface_pair.pair.check_ms;
+    return scene.surface_pair.pair.mesh;
   }
   const physics::HollowCylinderSpec& c = scene.mesh;
   m.end_rings = {physics::TubeRing{physics::hollow_cylinder_frame(c, 0.0), c.inner_radius, c.outer_radius},

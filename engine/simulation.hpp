@@ -85,8 +85,15 @@ struct Model {
   int clamped_rings = 0;
   int clamped_vertices = 0;    // a surface wall's vertices whose offset is less than the thickness
   int untangled_vertices = 0;  // a surface wall's surface vertices moved to untangle planar fold-overs
-  // The mesh source's file: a volume mesh's, a surface wall's surface, a swept tube's radius surface; "" otherwise.
+  // The mesh source's file: a volume mesh's, a surface wall's surface, a swept tube's radius surface, a surface
+  // pair's inner surface; "" otherwise.
   std::string mesh_file;
+  // A surface pair's outer surface file, its mesher's time (ms), the nodes it added inside the wall and the time
+  // reading and checking both surfaces took (ms).
+  std::string mesh_outer_file;
+  double mesher_ms = 0.0;
+  int mesher_added_nodes = 0;
+  double surface_check_ms = 0.0;
   std::array<physics::TubeRing, 2> end_rings;
   // The organ's walls as indices into mesh.surfaces, resolved from their names when the scene compiles.
   int inner_surface = -1;                          // the lumen wall: self-collision, framing, surface export

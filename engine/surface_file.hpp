@@ -25,8 +25,9 @@ struct SurfaceMesh {
 // a face that is not a triangle.
 SurfaceMesh read_surface_file(const std::string& file, double metres_per_unit, const std::string& what);
 
-// The formats the organ's surface sources read (mesh.type "surface_wall", a swept tube's radius from_surface):
-// refuses another file extension, InputError "FILE: unsupported surface format \".EXT\" (OBJ, STL, PLY or OFF)".
+// The formats the organ's surface sources read (mesh.type "surface_wall" and "surface_pair", a swept tube's radius
+// from_surface): refuses another file extension, InputError "FILE: unsupported surface format \".EXT\" (OBJ, STL,
+// PLY or OFF)".
 void require_surface_format(const std::string& file);
 
 // Refuse a surface that is not closed, edge-manifold and consistently oriented, or has a degenerate triangle:
@@ -38,10 +39,10 @@ void require_closed_surface(const SurfaceMesh& mesh, const std::string& where);
 void require_closed_manifold(const SurfaceMesh& mesh, const std::string& where);
 // The volume the surface encloses by the divergence theorem (positive when its triangles face outwards), m^3.
 double enclosed_volume(const SurfaceMesh& mesh);
-// An organ's closed surface file (mesh.type "surface_wall", a swept tube's radius from_surface): refuses a missing
-// file ("FILE: no such surface file"), another format (require_surface_format), what read_surface_file and
-// require_closed_surface refuse (naming the file); a consistently inward-facing surface is reversed so that it
-// faces outwards. Positions times metres_per_unit.
+// An organ's closed surface file (mesh.type "surface_wall" and "surface_pair", a swept tube's radius
+// from_surface): refuses a missing file ("FILE: no such surface file"), another format (require_surface_format),
+// what read_surface_file and require_closed_surface refuse (naming the file); a consistently inward-facing surface
+// is reversed so that it faces outwards. Positions times metres_per_unit.
 SurfaceMesh read_closed_surface(const std::string& file, double metres_per_unit);
 
 // The surface with every triangle's orientation reversed (its last two vertices swapped).

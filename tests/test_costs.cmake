@@ -21,6 +21,7 @@ set(lumen_test_costs
   "Quadratic.PaperMeshSizesAndTimings 8"
   "HardCases.ForceStepDynamicSettlesToTheQuasiStaticState 7"
   "HardCases.ModulusSweepScalesExactly 7"
+  "Scenes.AneurysmPairTetrahedralisedAtLoadKeepsItsSurfacesAndNeverIntersects 5"
   "Coupling.CarriedContactsStayInTheNonlinearEquilibrium 4")
 # A test is named only if this tree discovered it (test_scenes is not built in the sanitizer tree).
 set(lumen_discovered ${test_physics_TESTS} ${test_collision_TESTS} ${test_render_TESTS} ${test_engine_TESTS}

@@ -1,0 +1,305 @@
+// mesh.type "surface_pair": two closed surface files (inner, outer) tetrahedralised at load by Netgen. Every format
+// the surface reader takes, the tets against the files' own triangles and volumes, every refusal by its message,
+// the program's exit code, and report.json's mesh block from a short checked session.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "engine/scene.hpp"
+#include "engine/simulation.hpp"
+#include "engine/surface_pair.hpp"
+#include "physics/mesh_quality.hpp"
+#include "physics/pair_mesh.hpp"
+#include "physics/volume_mesh.hpp"
+#include "support/files.hpp"
+#include "support/sphere.hpp"
+
+namespace fs = std::filesystem;
+using lumen::engine::InputError;
+using nlohmann::json;
+
+namespace {
+
+// The sphere pair (millimetres): radii and tessellations, different on each sphere.
+constexpr double kInnerMm = 10.0, kOuterMm = 14.0;
+constexpr int kInnerRings = 7, kInnerAround = 14, kOuterRings = 9, kOuterAround = 18;
+// Round-off of the tets' summed volume against the surfaces' (relative).
+constexpr double kVolumeRoundOff = 1e-12;
+// The half-size of the unit cube, and the other cube's 2^-21 more (exact in a float: assimp's precision), too close
+// for any tet between their parallel faces.
+constexpr double kCubeGap = 1.0 / (1 << 21);
+
+using Vertices = std::vector<std::array<double, 3>>;
+using Faces = std::vector<std::array<int, 3>>;
+
+fs::path temp_dir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("lumen_pair_" + name);
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+// A latitude-longitude sphere of radius r about `centre` (tests/support/sphere.hpp).
+void sphere(double r, int rings, int around, Vertices& v, Faces& f, double centre_x = 0.0) {
+  lumen::test::TubePoints x;
+  lumen::test::TubeTris t;
+  lumen::test::make_uv_sphere(r, rings, around, x, t);
+  v.clear();
+  f.clear();
+  for (Eigen::Index i = 0; i < x.rows(); ++i) v.push_back({x(i, 0) + centre_x, x(i, 1), x(i, 2)});
+  for (Eigen::Index i = 0; i < t.rows(); ++i) f.push_back({t(i, 0), t(i, 1), t(i, 2)});
+}
+
+// A cube of half-size h about the origin, outward.
+void cube(double h, Vertices& v, Faces& f) {
+  v.clear();
+  for (int i = 0; i < 8; ++i) v.push_back({i & 1 ? h : -h, i & 2 ? h : -h, i & 4 ? h : -h});
+  f = {{0, 2, 3}, {0, 3, 1}, {4, 5, 7}, {4, 7, 6}, {0, 1, 5}, {0, 5, 4},
+       {2, 6, 7}, {2, 7, 3}, {0, 4, 6}, {0, 6, 2}, {1, 3, 7}, {1, 7, 5}};
+}
+
+// The surface as a file in the format its extension names (OBJ, OFF, ASCII STL, ASCII PLY).
+void write_surface(const fs::path& file, const Vertices& v, const Faces& f) {
+  std::ofstream out(file);
+  out.precision(17);
+  const std::string ext = file.extension().string();
+  if (ext == ".obj") {
+    for (const auto& p : v) out << "v " << p[0] << " " << p[1] << " " << p[2] << "\n";
+    for (const auto& t : f) out << "f " << t[0] + 1 << " " << t[1] + 1 << " " << t[2] + 1 << "\n";
+  } else if (ext == ".off") {
+    out << "OFF\n" << v.size() << " " << f.size() << " 0\n";
+    for (const auto& p : v) out << p[0] << " " << p[1] << " " << p[2] << "\n";
+    for (const auto& t : f) out << "3 " << t[0] << " " << t[1] << " " << t[2] << "\n";
+  } else if (ext == ".stl") {
+    out << "solid s\n";
+    for (const auto& t : f) {
+      out << "facet normal 0 0 0\nouter loop\n";
+      for (int k : t) out << "vertex " << v[k][0] << " " << v[k][1] << " " << v[k][2] << "\n";
+      out << "endloop\nendfacet\n";
+    }
+    out << "endsolid s\n";
+  } else {
+    out << "ply\nformat ascii 1.0\nelement vertex " << v.size()
+        << "\nproperty float x\nproperty float y\nproperty float z\nelement face " << f.size()
+        << "\nproperty list uchar int vertex_indices\nend_header\n";
+    for (const auto& p : v) out << p[0] << " " << p[1] << " " << p[2] << "\n";
+    for (const auto& t : f) out << "3 " << t[0] << " " << t[1] << " " << t[2] << "\n";
+  }
+}
+
+// The two spheres as d/<inner> and d/<outer> (the outer's centre shifted by outer_x mm).
+void write_spheres(const fs::path& d, const std::string& inner, const std::string& outer, double outer_r = kOuterMm,
+                   double outer_x = 0.0) {
+  Vertices v;
+  Faces f;
+  sphere(kInnerMm, kInnerRings, kInnerAround, v, f);
+  write_surface(d / inner, v, f);
+  sphere(outer_r, kOuterRings, kOuterAround, v, f, outer_x);
+  write_surface(d / outer, v, f);
+}
+
+// A surface pair scene in millimetres, held on its -x side, one probe pressing the outer wall at +x by 1 mm.
+json pair_scene(const std::string& inner, const std::string& outer) {
+  json s = json::parse(R"({
+    "name": "pair",
+    "mesh": {"type": "surface_pair", "units": "mm"},
+    "material": {"model": "linear", "young_modulus": 5000.0, "poisson_ratio": 0.45},
+    "fixed": [{"plane": {"point": [-0.012, 0, 0], "normal": [-1, 0, 0]}}],
+    "probes": [{"name": "press", "point": [0.014, 0, 0],
+                "track": [{"t": 0.0, "displacement": [0, 0, 0]}, {"t": 0.05, "displacement": [-0.001, 0, 0]}]}],
+    "frames": 3, "fps": 40, "collision": {"self": true}
+  })");
+  s["mesh"]["inner"] = inner;
+  s["mesh"]["outer"] = outer;
+  return s;
+}
+
+std::string write_scene(const fs::path& d, const json& scene) {
+  std::ofstream(d / "s.json") << scene.dump();
+  return (d / "s.json").string();
+}
+
+std::string load_error(const std::string& scene) {
+  return lumen::test::message_of<InputError>([&] { lumen::engine::load_scene(scene); });
+}
+
+// lumen run on a scene (with `options`): the exit code; the output in `text`.
+int run_lumen(const std::string& scene, const fs::path& out, std::string& text, const std::string& options) {
+  const std::string cmd = std::string(LUMEN_BINARY) + " run " + scene + options + " --out " + out.string() + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  char buf[4096];
+  size_t n;
+  while (p && (n = fread(buf, 1, sizeof buf, p)) > 0) text.append(buf, n);
+  const int status = p ? pclose(p) : -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+using Triangle = std::array<std::array<double, 3>, 3>;  // corner positions, sorted
+std::multiset<Triangle> triangles(const lumen::Points& x, const lumen::Tris& t) {
+  std::multiset<Triangle> s;
+  for (Eigen::Index i = 0; i < t.rows(); ++i) {
+    Triangle tri;
+    for (int k = 0; k < 3; ++k) tri[k] = {x(t(i, k), 0), x(t(i, k), 1), x(t(i, k), 2)};
+    std::sort(tri.begin(), tri.end());
+    s.insert(tri);
+  }
+  return s;
+}
+
+}  // namespace
+
+// The same sphere pair from every format the surface reader takes (OBJ, OFF, STL, PLY; inner and outer in different
+// ones): each loads into tets that fill exactly the volume between the files' surfaces as read (the divergence
+// theorem over their triangles), all positive, whose boundary faces are exactly the files' triangles (by corner
+// positions), the inner wall the inner file's and the outer wall the outer file's.
+TEST(SurfacePair, EveryFormatLoadsIntoTetsBoundedByTheFilesTriangles) {
+  const fs::path d = temp_dir("formats");
+  for (const auto& [in, out] : std::vector<std::array<std::string, 2>>{{"in.obj", "out.off"}, {"in.stl", "out.ply"}}) {
+    write_spheres(d, in, out);
+    const lumen::engine::Scene s = lumen::engine::load_scene(write_scene(d, pair_scene(in, out)));
+    ASSERT_EQ(s.mesh_type, lumen::engine::MeshType::kSurfacePair);
+    const lumen::physics::TetMesh& m = s.surface_pair.pair.mesh;
+    const lumen::engine::SurfaceMesh inner = lumen::engine::read_closed_surface((d / in).string(), 1e-3);
+    const lumen::engine::SurfaceMesh outer = lumen::engine::read_closed_surface((d / out).string(), 1e-3);
+    double volume = 0.0;
+    for (int e = 0; e < m.tets.rows(); ++e) {
+      EXPECT_GT(lumen::physics::tet_volume(m.rest, m.tets, e), 0.0) << in << " tet " << e;
+      volume += lumen::physics::tet_volume(m.rest, m.tets, e);
+    }
+    const double between = lumen::engine::enclosed_volume(outer) - lumen::engine::enclosed_volume(inner);
+    EXPECT_NEAR(volume, between, kVolumeRoundOff * between) << in;
+    std::multiset<Triangle> both = triangles(inner.points, inner.tris);
+    for (const Triangle& t : triangles(outer.points, outer.tris)) both.insert(t);
+    EXPECT_EQ(triangles(m.rest, lumen::physics::boundary_faces(m.tets)), both) << in;
+    EXPECT_EQ(triangles(m.rest, m.surface(lumen::physics::kInnerWall)), triangles(inner.points, inner.tris)) << in;
+    EXPECT_EQ(triangles(m.rest, m.surface(lumen::physics::kOuterWall)), triangles(outer.points, outer.tris)) << in;
+    EXPECT_EQ(s.surface_pair.pair.inner_triangles, 2 * kInnerRings * kInnerAround);
+    EXPECT_EQ(s.surface_pair.pair.outer_triangles, 2 * kOuterRings * kOuterAround);
+  }
+}
+
+// Every refusal names the file(s), the problem and where: missing file, unsupported format, an open surface, a
+// surface through itself, the surfaces through each other, an outer surface that does not enclose the inner one
+// (apart, or swapped), the mesher's failure in its own words; the keys; what a closed wall cannot combine with.
+TEST(SurfacePair, RefusesBadPairsNamingFileProblemAndWhere) {
+  const fs::path d = temp_dir("bad");
+  const std::string in = (d / "in.obj").string(), out = (d / "out.obj").string(), scene = (d / "s.json").string();
+  auto error = [&](const std::string& inner, const std::string& outer) {
+    return load_error(write_scene(d, pair_scene(inner, outer)));
+  };
+  write_spheres(d, "in.obj", "out.obj");
+  EXPECT_EQ(error("in.obj", "out.obj"), "");
+  // Files.
+  EXPECT_EQ(error("in.obj", "missing.obj"), (d / "missing.obj").string() + ": no such surface file");
+  std::ofstream(d / "out.dae") << "x";
+  EXPECT_EQ(error("in.obj", "out.dae"), (d / "out.dae").string() + ": unsupported surface format \".dae\" (OBJ, STL, PLY or OFF)");
+  std::ofstream(d / "open.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\n";
+  EXPECT_EQ(error("open.obj", "out.obj"), (d / "open.obj").string() + ": not closed: edge between vertex 0 at [0, 0, 0] "
+                                           "and vertex 1 at [0, 0.001, 0] belongs to triangle 0 only");
+  // Two closed tetrahedra, the second through the first, inside the outer sphere.
+  std::ofstream(d / "self.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 0.2 0.2 -0.5\nv 1.2 0.2 -0.5\nv 0.2 1.2 -0.5\n"
+                                   "v 0.2 0.2 0.5\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 1 4 3\nf 5 7 6\nf 5 6 8\nf 6 7 8\nf 5 8 7\n";
+  EXPECT_EQ(error("self.obj", "out.obj"),
+            (d / "self.obj").string() + ": the inner surface intersects itself: triangles 0 and 5 intersect (3 intersecting pairs)");
+  EXPECT_EQ(error("in.obj", "self.obj"),
+            (d / "self.obj").string() + ": the outer surface intersects itself: triangles 0 and 5 intersect (3 intersecting pairs)");
+  // The outer sphere shifted 6 mm along x: through the inner one (the spheres meet on the circle x = -5 mm), named by
+  // the first intersecting pair in the exact check's order and the count.
+  write_spheres(d, "in.obj", "shifted.obj", kOuterMm, 6.0);
+  EXPECT_EQ(error("in.obj", "shifted.obj"),
+            in + " and " + (d / "shifted.obj").string() + ": the surfaces intersect each other: triangle 58 of the inner "
+            "surface and triangle 132 of the outer surface intersect (68 intersecting pairs)");
+  // Apart (the outer sphere 30 mm along x), and swapped.
+  write_spheres(d, "in.obj", "apart.obj", kOuterMm, 30.0);
+  EXPECT_EQ(error("in.obj", "apart.obj"), (d / "apart.obj").string() + ": does not enclose the inner surface " + in +
+                                               ": its vertex 0 at [0, 0, -0.01] lies outside");
+  EXPECT_EQ(error("out.obj", "in.obj"), in + ": does not enclose the inner surface " + out +
+                                            ": its vertex 0 at [0, 0, -0.014] lies outside, and the outer surface lies "
+                                            "inside the inner one: inner and outer are swapped");
+  // Two cubes 2^-21 apart: Netgen gives up.
+  Vertices v;
+  Faces f;
+  cube(1.0, v, f);
+  write_surface(d / "cube.obj", v, f);
+  cube(1.0 + kCubeGap, v, f);
+  write_surface(d / "cube2.obj", v, f);
+  EXPECT_EQ(error("cube.obj", "cube2.obj"), (d / "cube.obj").string() + " and " + (d / "cube2.obj").string() +
+                                                ": Netgen failed: Stop meshing since too many attempts");
+  // Keys.
+  auto scene_error = [&](const std::function<void(json&)>& edit) {
+    json j = pair_scene("in.obj", "out.obj");
+    edit(j);
+    return load_error(write_scene(d, j));
+  };
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"].erase("inner"); }), scene + ": mesh.inner: missing key");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"].erase("outer"); }), scene + ": mesh.outer: missing key");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["outer"] = 3; }), scene + ": mesh.outer: must be a string (value 3)");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["max_edge"] = 0.0; }), scene + ": mesh.max_edge: must be > 0 (value 0.0)");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["optimise_steps"] = 11; }),
+            scene + ": mesh.optimise_steps: out of range [0, 10] (value 11)");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["optimise_steps"] = 1.5; }),
+            scene + ": mesh.optimise_steps: must be an integer (value 1.5)");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["thickness"] = 1.0; }), scene + ": mesh.thickness: unknown key");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["units"] = "cm"; }), scene + ": mesh.units: must be one of m, mm (value \"cm\")");
+  EXPECT_EQ(scene_error([](json& j) { j["fixed"] = {"ends"}; }),
+            scene + ": fixed[0]: the wall between " + in + " and " + out + " is closed and has no end node sets: hold "
+            "nodes by {\"box\": ...} or {\"plane\": ...} (value \"ends\")");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["element"] = "tet10"; }),
+            scene + ": mesh.element: \"tet10\" needs mesh.type \"hollow_cylinder\" (got \"surface_pair\") (value \"tet10\")");
+}
+
+// The program on surfaces through each other: exit 2, the message, nothing written.
+TEST(SurfacePair, LumenRunExitsTwoAndWritesNothing) {
+  const fs::path d = temp_dir("cli");
+  write_spheres(d, "in.obj", "shifted.obj", kOuterMm, 6.0);
+  std::string text;
+  EXPECT_EQ(run_lumen(write_scene(d, pair_scene("in.obj", "shifted.obj")), d / "out", text, " --no-render"), 2) << text;
+  EXPECT_NE(text.find("lumen: error: " + (d / "in.obj").string() + " and " + (d / "shifted.obj").string() +
+                      ": the surfaces intersect each other"), std::string::npos) << text;
+  EXPECT_TRUE(!fs::exists(d / "out") || fs::is_empty(d / "out"));
+}
+
+// A short checked session on the sphere pair (self-collision on, one probe pressing): exit 0, no intersecting
+// inner-wall pair, and report.json's mesh block says where the mesh came from, the mesher and its time (within the
+// build time), with the quality block over the same tets the scene loaded; the terminal's mesh line says so too.
+TEST(SurfacePair, ShortCheckedSessionReportsTheMesherAndItsTime) {
+  const fs::path d = temp_dir("run");
+  write_spheres(d, "in.off", "out.stl");
+  const std::string scene = write_scene(d, pair_scene("in.off", "out.stl"));
+  const lumen::engine::Scene s = lumen::engine::load_scene(scene);
+  std::string text;
+  ASSERT_EQ(run_lumen(scene, d / "out", text, " --no-render --check"), 0) << text;
+  EXPECT_NE(text.find(" from " + (d / "in.off").string() + " and " + (d / "out.stl").string() +
+                      ", tetrahedralised by netgen nglib 6.2 in "), std::string::npos) << text;
+  std::ifstream in(d / "out" / "report.json");
+  const json r = json::parse(in);
+  const json& m = r["mesh"];
+  EXPECT_EQ(m["source"], "surface_pair");
+  EXPECT_EQ(m["file"], (d / "in.off").string());
+  EXPECT_EQ(m["outer_file"], (d / "out.stl").string());
+  EXPECT_EQ(m["mesher"], "netgen nglib 6.2");
+  EXPECT_GT(m["mesher_ms"].get<double>(), 0.0);
+  EXPECT_LE(m["mesher_ms"].get<double>() + m["surface_check_ms"].get<double>(), m["build_ms"].get<double>());
+  EXPECT_EQ(m["tets"], s.surface_pair.pair.mesh.tets.rows());
+  EXPECT_EQ(m["mesher_added_nodes"], s.surface_pair.pair.added_nodes);
+  EXPECT_EQ(m["inner_triangles"], 2 * kInnerRings * kInnerAround);
+  EXPECT_EQ(m["outer_triangles"], 2 * kOuterRings * kOuterAround);
+  EXPECT_EQ(m["degenerate_tets"], 0);
+  EXPECT_GT(m["min_dihedral_deg"]["min"].get<double>(), 0.0);
+  EXPECT_EQ(r["frames"], 3);
+  EXPECT_EQ(r["frames_with_intersections"], 0);
+  EXPECT_EQ(r["numerical_failures"], 0);
+  ASSERT_EQ(r["per_frame"].size(), 3u);
+  for (const json& f : r["per_frame"]) EXPECT_EQ(f["intersecting_pairs"], 0) << f.dump();
+}
