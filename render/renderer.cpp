@@ -12,18 +12,6 @@
 
 #include <Eigen/Geometry>
 
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define LUMEN_RENDER_ASAN 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__) || defined(LUMEN_RENDER_ASAN)
-// Mesa's OSMesaDestroyContext never frees the context's framebuffer record (a few hundred bytes per
-// context, allocated in OSMesaMakeCurrent). Every program that draws links this file, so the LeakSanitizer
-// suppression for that third-party leak lives here; leaks in our own code are still reported.
-extern "C" const char* __lsan_default_suppressions() { return "leak:libOSMesa.so\n"; }
-#endif
-
 namespace lumen::render {
 
 namespace {
