@@ -285,6 +285,9 @@ bool stop_before_contact(const Model& model, State& state, Points& x1, Eigen::Ve
   return !hits.empty();
 }
 
+// Sum over nodes of |x - x0|, metres.
+double path_length(const Points& x, const Points& x0) { return (x - x0).rowwise().norm().sum(); }
+
 // Keep the correction and the contacts that carry force for the next frame; flag their nodes for rendering.
 void keep_for_next_frame(const Model& model, State& state, const ResponseRounds& rr, const Eigen::VectorXd& u,
                          const Eigen::VectorXd& u_free) {
@@ -365,11 +368,25 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   const bool predict = state.last_correction.size() == u.size() && !state.last_correction.isZero(0.0);
   Points x1 = predict ? positions(u_free + state.last_correction) : x_free;
 
-  // First detection on the predicted motion (the instruments sweep to their targets).
+  // Active constraints: last frame's held contacts (warm start, constraint response) plus every new one. The
+  // contacts that pushed last time are the active-set solver's first guess.
   auto clock = Clock::now();
+  ResponseRounds rr;
+  if (!paper) warm_start(model, state, rr);
+  rec.ms[kResponse] += ms_since(clock);
+
+  // First detection on the predicted motion (the instruments sweep to their targets). When it finds nothing to
+  // hold, the frame ends on the free motion, so that is the motion checked: a prediction carrying a correction
+  // whose contacts were not kept (a capped frame, or contacts that let go) differs from it.
+  clock = Clock::now();
   collision::CollisionStats stats;
   std::vector<HeldContact> found;
   detect_all(model, state, x1, cs.gap, found, &stats);
+  if (predict && found.empty() && rr.active.empty()) {
+    x1 = x_free;
+    stats = collision::CollisionStats{};
+    detect_all(model, state, x1, cs.gap, found, &stats);
+  }
   const RecheckReference reference = reference_of(model, x1, cs.gap, found);
   const RecheckReference* restrict_to = reference.gap > 0.0 ? &reference : nullptr;
   rec.bv_overlaps = stats.bv_overlaps;
@@ -377,11 +394,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   rec.contacts = stats.contacts;
   rec.ms[kCollision] += ms_since(clock);
 
-  // Active constraints: last frame's held contacts (warm start, constraint response) plus every new one. The
-  // contacts that pushed last time are the active-set solver's first guess.
   clock = Clock::now();
-  ResponseRounds rr;
-  if (!paper) warm_start(model, state, rr);
   bool resolved = found.empty() && rr.active.empty();
   while (!resolved && rr.iterations < cs.max_iterations) {
     ++rr.iterations;
@@ -434,7 +447,9 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   // Unresolved after the last round: the safe fallback.
   if (!resolved) {
     clock = Clock::now();
+    const double wanted = path_length(x1, state.x);
     rec.fallback = stop_before_contact(model, state, x1, u);
+    rec.fallback_kept = wanted > 0.0 ? path_length(x1, state.x) / wanted : 1.0;
     rec.ms[kCollision] += ms_since(clock);
   }
   keep_for_next_frame(model, state, rr, u, u_free);

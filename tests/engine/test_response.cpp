@@ -162,6 +162,30 @@ TEST(CollideAndRespond, PaperResponseKeepsTheSqueezedTubeIntersectionFree) {
   expect_session_intersection_free("paper", 14);
 }
 
+// A frame whose contacts exceed collision.max_contact_rows stops short (the safe fallback) and keeps no contact,
+// but its correction (the stop) is carried as the next frame's prediction. Under a force applied at once and held,
+// the first frame's motion crosses the closure and is capped; the second frame's prediction is where the first
+// stopped, meets nothing, and the frame ends on its free motion, which crosses the closure again: the check must
+// run on that motion, not on the prediction (it did not, and the walls passed through each other).
+TEST(CollideAndRespond, AFrameAfterACappedFallbackChecksTheMotionItCommits) {
+  Scene s = squeeze_scene("constraint", 6);
+  for (ProbeSpec& p : s.probes) {
+    const Eigen::Vector3d held = p.track.back().value;
+    p.track = {TrackKey{0.0, held}, TrackKey{1.0, held}};
+  }
+  s.collision.max_contact_rows = 4;
+  const auto model = compile_model(s);
+  SessionOptions opt;
+  opt.render = false;
+  opt.check = true;
+  const SessionResult r = run_session(*model, make_inputs(s), opt);
+  ASSERT_TRUE(r.frames.front().contact_rows_capped) << "the first frame should cross the closure with many contacts";
+  for (const FrameRecord& f : r.frames) {
+    EXPECT_EQ(f.intersecting_pairs, 0) << "frame " << f.frame;
+    EXPECT_TRUE(f.contact_rows_capped) << "frame " << f.frame << ": its free motion crosses the closure again";
+  }
+}
+
 // Without any response the same squeeze makes the walls pass through each other (the scene tests something).
 TEST(CollideAndRespond, TheSqueezeIntersectsWithoutResponse) {
   Scene s = squeeze_scene("constraint", 36);
