@@ -9,7 +9,10 @@ For each scene:
 Timings are measurements of this machine, not pass/fail thresholds (the tests in tests/scenes/test_hard.cpp
 assert the behaviour).
 
-Usage: tools/hard_cases.py [--lumen build/lumen] [--no-render] [--json OUT.json] [SCENE ...]
+With --model corotational (or linear), each scene runs as a copy with material.model set to it (written to a
+temporary folder; scenes already on that model run as they are): the hard cases on the other model.
+
+Usage: tools/hard_cases.py [--lumen build/lumen] [--no-render] [--model NAME] [--json OUT.json] [SCENE ...]
 """
 import argparse
 import glob
@@ -48,7 +51,22 @@ def health(lumen, scene):
         "numerical_failures": report["numerical_failures"],
         "frames_with_intersections": report["frames_with_intersections"],
         "physics_unconverged_frames": sum(1 for f in frames if not f["physics_converged"]),
+        "fallback_kept_min": min([f.get("fallback_kept", 1.0) for f in frames if f["fallback"]] or [1.0]),
     }
+
+
+def with_model(scene, model, folder):
+    """The scene file as it is when it already uses `model`, else a copy in `folder` with material.model set."""
+    with open(scene) as f:
+        data = json.load(f)
+    if data.get("material", {}).get("model", "linear") == model:
+        return scene
+    data.setdefault("material", {})["model"] = model
+    data["name"] = data.get("name", os.path.splitext(os.path.basename(scene))[0]) + "-" + model
+    copy = os.path.join(folder, os.path.basename(scene))
+    with open(copy, "w") as f:
+        json.dump(data, f, indent=1)
+    return copy
 
 
 def main():
@@ -57,6 +75,7 @@ def main():
     ap.add_argument("--lumen", default=os.path.join(ROOT, "build", "lumen"), help="the lumen binary")
     ap.add_argument("--no-render", action="store_true", help="skip the runs with rendering")
     ap.add_argument("--json", help="also write all numbers to this JSON file")
+    ap.add_argument("--model", choices=["linear", "corotational"], help="run every scene with this material model")
     args = ap.parse_args()
     if not os.access(args.lumen, os.X_OK):
         sys.exit("lumen binary not found or not executable: %s (build it, or pass --lumen)" % args.lumen)
@@ -66,8 +85,13 @@ def main():
 
     # Measure each scene: bench without and with rendering, then a checked run for the health numbers.
     results = []
+    copies = tempfile.TemporaryDirectory(prefix="lumen-hard-model-")
     for scene in scenes:
         name = os.path.splitext(os.path.basename(scene))[0]
+        if args.model:
+            copy = with_model(scene, args.model, copies.name)
+            name += "" if copy == scene else " (%s)" % args.model
+            scene = copy
         print("running %s ..." % name, file=sys.stderr, flush=True)
         row = {"scene": name, "sim": run_json([args.lumen, "bench", scene, "--json", "--no-render"])["stages"]}
         if not args.no_render:
@@ -79,14 +103,15 @@ def main():
     head = ["scene", "frames", "worst ms (sim)", "median ms (sim)"]
     if not args.no_render:
         head += ["worst ms (+render)", "median ms (+render)"]
-    head += ["inverted max", "contacts max", "fallback frames", "intersecting frames", "failures", "unconverged"]
+    head += ["inverted max", "contacts max", "fallback frames", "least motion kept", "intersecting frames", "failures",
+             "unconverged"]
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
     for r in results:
         cells = [r["scene"], str(r["frames"]), "%.2f" % r["sim"]["total"]["max_ms"], "%.2f" % r["sim"]["total"]["median_ms"]]
         if not args.no_render:
             cells += ["%.2f" % r["render"]["total"]["max_ms"], "%.2f" % r["render"]["total"]["median_ms"]]
-        cells += [str(r["inverted_max"]), str(r["contacts_max"]), str(r["fallback_frames"]),
+        cells += [str(r["inverted_max"]), str(r["contacts_max"]), str(r["fallback_frames"]), "%.3f" % r["fallback_kept_min"],
                   str(r["frames_with_intersections"]), str(r["numerical_failures"]), str(r["physics_unconverged_frames"])]
         print("| " + " | ".join(cells) + " |")
 
