@@ -42,8 +42,8 @@ struct FrameRecord {
   int response_iterations = 0;
   bool fallback = false;              // the safe fallback ended this frame's motion early
   bool contact_rows_capped = false;   // ... because its contacts exceeded collision.max_contact_rows
-  // Part of the frame's motion the fallback kept: sum over nodes of |x_end - x_start| over the same sum for the
-  // motion it ended (the stop's time fraction for "stop"); 1 when no fallback ran.
+  // Part of its last trial motion the fallback kept: sum over nodes of |x_end - x_start| over the same sum for the
+  // motion it ended (the stop's time fraction); 1 when no fallback ran.
   double fallback_kept = 1.0;
   long intersecting_pairs = -1;       // exact check (--check), -1 when not run
   long instrument_intersecting_pairs = -1;  // exact check (--check) of instrument-organ pairs, -1 when not run

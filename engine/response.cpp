@@ -384,8 +384,11 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   detect_all(model, state, x1, cs.gap, found, &stats);
   if (predict && found.empty() && rr.active.empty()) {
     x1 = x_free;
-    stats = collision::CollisionStats{};
-    detect_all(model, state, x1, cs.gap, found, &stats);
+    collision::CollisionStats again;
+    detect_all(model, state, x1, cs.gap, found, &again);
+    stats.bv_overlaps += again.bv_overlaps;  // the frame's counters cover both detections, as its time does
+    stats.feature_tests += again.feature_tests;
+    stats.contacts = again.contacts;
   }
   const RecheckReference reference = reference_of(model, x1, cs.gap, found);
   const RecheckReference* restrict_to = reference.gap > 0.0 ? &reference : nullptr;
