@@ -1,11 +1,11 @@
 #include "engine/response.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cstdint>
 #include <map>
 #include <set>
 
+#include "engine/clock.hpp"
 #include "engine/grasp.hpp"
 #include "engine/instrument_contact.hpp"
 #include "engine/simulation.hpp"
@@ -13,8 +13,6 @@
 namespace lumen::engine {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 // Position of node i at time tau along the linear motion x0 -> x1.
 Eigen::Vector3d at(const Points& x0, const Points& x1, int i, double tau) {

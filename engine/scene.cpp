@@ -1,7 +1,6 @@
 #include "engine/scene.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <climits>
 #include <cmath>
 #include <filesystem>
@@ -12,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "engine/clock.hpp"
 #include "engine/surface_radius.hpp"
 
 namespace lumen::engine {
@@ -294,13 +294,18 @@ void check_swept_tube(const Reader& r, const json& m, const physics::SweptTubeSp
            &m.at("segment_length"));
 }
 
+// mesh.units: metres per unit of the mesh's files and lengths ("m", the default, or "mm").
+double read_metres_per_unit(const Reader& r, const json& m) {
+  const MeshUnits units = m.contains("units") ? r.choice<MeshUnits>(m.at("units"), "mesh.units", kLengthUnitNames)
+                                              : MeshUnits::kMetres;
+  return kMetresPerUnit[static_cast<int>(units)];
+}
+
 void read_swept_tube(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& scene) {
   physics::SweptTubeSpec& spec = scene.swept_tube;
   r.only_keys(m, "mesh", {"type", "element", "centreline", "units", "range", "radius", "wall_thickness",
                           "segments_around", "segment_length", "layers", "haustra"});
-  const MeshUnits units = m.contains("units") ? r.choice<MeshUnits>(m.at("units"), "mesh.units", kLengthUnitNames)
-                                              : MeshUnits::kMetres;
-  const double unit = kMetresPerUnit[static_cast<int>(units)];
+  const double unit = read_metres_per_unit(r, m);
   scene.swept_tube_unit = unit;
   // The centreline file, relative to the scene file.
   spec.source = scene_relative(r, r.require(m, "mesh", "centreline"), "mesh.centreline", dir);
@@ -320,25 +325,23 @@ void read_swept_tube(const Reader& r, const json& m, const std::filesystem::path
   check_swept_tube(r, m, spec);
   // The radius sampled from the organ's surface at the rings (now that the range and ring spacing are known).
   if (scene.radius_surface.empty()) return;
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = Clock::now();
   spec.radius_profile = sample_lumen_radius(spec, read_closed_surface(scene.radius_surface, unit), scene.radius_surface);
-  scene.mesh_load_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  scene.mesh_load_ms = ms_since(t0);
 }
 
 // A wall grown from a closed surface file (mesh.type "surface_wall"), relative to the scene file, grown at load.
 void read_surface_wall(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& scene) {
   r.only_keys(m, "mesh", {"type", "element", "surface", "units", "thickness", "direction", "layers"});
   SurfaceWallSpec& spec = scene.surface_wall.spec;
-  const MeshUnits units = m.contains("units") ? r.choice<MeshUnits>(m.at("units"), "mesh.units", kLengthUnitNames)
-                                              : MeshUnits::kMetres;
-  spec.metres_per_unit = kMetresPerUnit[static_cast<int>(units)];
+  spec.metres_per_unit = read_metres_per_unit(r, m);
   spec.file = scene_relative(r, r.require(m, "mesh", "surface"), "mesh.surface", dir);
   spec.thickness = spec.metres_per_unit * r.positive(r.require(m, "mesh", "thickness"), "mesh.thickness");
   spec.direction = r.choice<WallDirection>(r.require(m, "mesh", "direction"), "mesh.direction", kWallDirectionNames);
   if (m.contains("layers")) spec.layers = r.integer_in(m.at("layers"), "mesh.layers", 1, 256);
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = Clock::now();
   scene.surface_wall.wall = grow_surface_wall(spec);
-  scene.mesh_load_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  scene.mesh_load_ms = ms_since(t0);
 }
 
 // The wall between two closed surface files (mesh.type "surface_pair"), relative to the scene file, tetrahedralised
@@ -346,18 +349,16 @@ void read_surface_wall(const Reader& r, const json& m, const std::filesystem::pa
 void read_surface_pair(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& scene) {
   r.only_keys(m, "mesh", {"type", "element", "inner", "outer", "units", "max_edge", "optimise_steps"});
   SurfacePairSpec& spec = scene.surface_pair.spec;
-  const MeshUnits units = m.contains("units") ? r.choice<MeshUnits>(m.at("units"), "mesh.units", kLengthUnitNames)
-                                              : MeshUnits::kMetres;
-  spec.metres_per_unit = kMetresPerUnit[static_cast<int>(units)];
+  spec.metres_per_unit = read_metres_per_unit(r, m);
   spec.inner_file = scene_relative(r, r.require(m, "mesh", "inner"), "mesh.inner", dir);
   spec.outer_file = scene_relative(r, r.require(m, "mesh", "outer"), "mesh.outer", dir);
   if (m.contains("max_edge")) spec.size.max_edge = spec.metres_per_unit * r.positive(m.at("max_edge"), "mesh.max_edge");
   if (m.contains("optimise_steps"))
     spec.size.optimise_steps =
         r.integer_in(m.at("optimise_steps"), "mesh.optimise_steps", 0, physics::kPairMesherMaxOptimiseSteps);
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = Clock::now();
   scene.surface_pair.pair = mesh_surface_pair(spec);
-  scene.mesh_load_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  scene.mesh_load_ms = ms_since(t0);
 }
 
 // mesh.inner_tag / outer_tag of a volume mesh: a tag number, or (gmsh) a physical surface's name.
@@ -377,9 +378,8 @@ int read_wall_tag(const Reader& r, const json& v, const std::string& path, const
 void read_volume(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& scene) {
   VolumeSourceSpec& spec = scene.volume;
   r.only_keys(m, "mesh", {"type", "element", "file", "units", "inner_tag", "outer_tag"});
-  const auto t0 = std::chrono::steady_clock::now();
-  const MeshUnits units = m.contains("units") ? r.choice<MeshUnits>(m.at("units"), "mesh.units", kLengthUnitNames)
-                                              : MeshUnits::kMetres;
+  const auto t0 = Clock::now();
+  const double unit = read_metres_per_unit(r, m);
   spec.file = scene_relative(r, r.require(m, "mesh", "file"), "mesh.file", dir);
   if (m.contains("inner_tag") != m.contains("outer_tag"))
     r.fail(m.contains("inner_tag") ? "mesh.inner_tag" : "mesh.outer_tag",
@@ -392,11 +392,11 @@ void read_volume(const Reader& r, const json& m, const std::filesystem::path& di
       if (spec.tags.inner == spec.tags.outer)
         r.fail("mesh.outer_tag", "must differ from mesh.inner_tag", &m.at("outer_tag"));
     }
-    spec.mesh = physics::make_volume_mesh(f, kMetresPerUnit[static_cast<int>(units)], spec.tags);
+    spec.mesh = physics::make_volume_mesh(f, unit, spec.tags);
   } catch (const std::invalid_argument& e) {
     throw InputError(e.what());
   }
-  scene.mesh_load_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  scene.mesh_load_ms = ms_since(t0);
 }
 
 void read_mesh(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& s) {

@@ -1,6 +1,7 @@
 #include "engine/simulation.hpp"
 
 #include "collision/distance.hpp"
+#include "engine/clock.hpp"
 #include "engine/mesh_check.hpp"
 #include "engine/response.hpp"
 #include "physics/quadratic.hpp"
@@ -16,11 +17,7 @@
 namespace lumen::engine {
 namespace {
 
-using Clock = std::chrono::steady_clock;
 constexpr double kPi = static_cast<double>(EIGEN_PI);
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 }  // namespace
 

@@ -2,24 +2,21 @@
 #include "engine/surface_pair.hpp"
 
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <vector>
 
 #include "collision/intersect.hpp"
+#include "engine/clock.hpp"
 #include "engine/input.hpp"
 #include "engine/scene.hpp"
 
 namespace lumen::engine {
 namespace {
 
-using Clock = std::chrono::steady_clock;
 using StackedPoints = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using StackedTris = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
 constexpr double kPi = static_cast<double>(EIGEN_PI);
-
-double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 // Refuses an intersecting triangle pair of the two surfaces together (each with itself, or one with the other).
 void require_no_intersections(const SurfacePairSpec& spec, const SurfaceMesh& in, const SurfaceMesh& out) {

@@ -4,13 +4,13 @@
 
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <vector>
 
 #include "collision/intersect.hpp"
 #include "collision/raycast.hpp"
+#include "engine/clock.hpp"
 #include "engine/input.hpp"
 #include "engine/scene.hpp"
 #include "engine/surface_file.hpp"
@@ -20,7 +20,6 @@
 namespace lumen::engine {
 namespace {
 
-using Clock = std::chrono::steady_clock;
 // Both walls as one point array: the surface's vertices, then the offset's (each triangle of the surface once
 // on each wall).
 using StackedPoints = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
@@ -231,7 +230,7 @@ SurfaceWall grow_surface_wall(const SurfaceWallSpec& spec) {
   wall.clamped_vertices = static_cast<int>(std::count_if(offset.begin(), offset.end(), [&](double o) { return o < spec.thickness; }));
   wall.min_offset = *std::min_element(offset.begin(), offset.end());
   wall.mesh = prism_wall(s, stacked_walls(s, dirs, offset), spec.direction, spec.layers);
-  wall.grow_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  wall.grow_ms = ms_since(t0);
   require_valid_prisms(spec, wall.mesh);
   return wall;
 }

@@ -8,7 +8,6 @@
 // .smesh written beforehand, meshing, writing its .node and .ele files).
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -18,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "engine/clock.hpp"
 #include "engine/surface_file.hpp"
 #include "engine/surface_pair.hpp"
 #include "physics/mesh_quality.hpp"
@@ -29,7 +29,8 @@ using lumen::engine::SurfaceMesh;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using lumen::engine::Clock;
+using lumen::engine::ms_since;
 using Face = std::array<int, 3>;
 constexpr int kFixedArguments = 8;
 constexpr double kMillimetre = 1e-3;
@@ -37,8 +38,6 @@ constexpr double kMillimetre = 1e-3;
 // inner surface straight behind it.
 constexpr double kHoleFraction = 0.5;
 constexpr int kMedian = 2;
-
-double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 // Distance along unit d from p to the first triangle of s it meets (skipping triangle `skip`), or -1.
 double ray_hit(const SurfaceMesh& s, const Eigen::Vector3d& p, const Eigen::Vector3d& d, int skip) {
