@@ -10,28 +10,17 @@
 #include <nlohmann/json.hpp>
 
 #include "render/writers.hpp"
+#include "support/files.hpp"
 
 namespace fs = std::filesystem;
 
 namespace {
 
-struct CliRun {
-  int code = -1;
-  std::string output;  // stdout + stderr
-};
+using CliRun = lumen::test::CommandRun;  // output: stdout + stderr
 
 // Runs build/lumen; output is stdout and, when merge_stderr, stderr too.
 CliRun run_lumen(const std::string& args, bool merge_stderr = true) {
-  CliRun r;
-  const std::string cmd = std::string(LUMEN_BINARY) + " " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null");
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) r.output.append(buf, n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+  return lumen::test::run_command(std::string(LUMEN_BINARY) + " " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null"));
 }
 
 fs::path temp_dir(const std::string& name) {

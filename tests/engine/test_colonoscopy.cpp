@@ -5,7 +5,6 @@
 // wall); every refusal names the key path and the value.
 #include <gtest/gtest.h>
 
-#include <sys/wait.h>
 
 #include <algorithm>
 #include <cmath>
@@ -133,14 +132,9 @@ int tube_node(int i, int j, int k) { return (j * (kLayers + 1) + k) * kAround + 
 
 // The lumen program's exit status and output for a command line.
 int run_lumen(const std::string& args, std::string& output) {
-  const std::string cmd = std::string(LUMEN_BINARY) + " " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return -1;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) output.append(buf, n);
-  const int status = pclose(p);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  const lumen::test::CommandRun r = lumen::test::run_command(std::string(LUMEN_BINARY) + " " + args + " 2>&1");
+  output += r.output;
+  return r.code;
 }
 
 // A swept tube on a straight 100 mm centreline along +z (millimetres, range 20-80 mm), for the refusals.

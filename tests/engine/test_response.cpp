@@ -18,6 +18,7 @@
 #include "physics/compliance.hpp"
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
+#include "support/scene_files.hpp"
 
 namespace lumen::engine {
 namespace {
@@ -135,12 +136,7 @@ Scene squeeze_scene(const std::string& response, int frames) {
 }
 
 void expect_session_intersection_free(const std::string& response, int frames) {
-  const Scene scene = squeeze_scene(response, frames);
-  const auto model = compile_model(scene);
-  SessionOptions opt;
-  opt.render = false;
-  opt.check = true;
-  const SessionResult r = run_session(*model, make_inputs(scene), opt);
+  const SessionResult r = lumen::test::run_checked_session(squeeze_scene(response, frames));
   long contacts = 0, solved_frames = 0;
   for (const FrameRecord& f : r.frames) {
     EXPECT_EQ(f.intersecting_pairs, 0) << response << " frame " << f.frame;
@@ -174,11 +170,7 @@ TEST(CollideAndRespond, AFrameAfterACappedFallbackChecksTheMotionItCommits) {
     p.track = {TrackKey{0.0, held}, TrackKey{1.0, held}};
   }
   s.collision.max_contact_rows = 4;
-  const auto model = compile_model(s);
-  SessionOptions opt;
-  opt.render = false;
-  opt.check = true;
-  const SessionResult r = run_session(*model, make_inputs(s), opt);
+  const SessionResult r = lumen::test::run_checked_session(s);
   ASSERT_TRUE(r.frames.front().contact_rows_capped) << "the first frame should cross the closure with many contacts";
   for (const FrameRecord& f : r.frames) {
     EXPECT_EQ(f.intersecting_pairs, 0) << "frame " << f.frame;
@@ -190,11 +182,7 @@ TEST(CollideAndRespond, AFrameAfterACappedFallbackChecksTheMotionItCommits) {
 TEST(CollideAndRespond, TheSqueezeIntersectsWithoutResponse) {
   Scene s = squeeze_scene("constraint", 36);
   s.collision.self = false;
-  const auto model = compile_model(s);
-  SessionOptions opt;
-  opt.render = false;
-  opt.check = true;
-  const SessionResult r = run_session(*model, make_inputs(s), opt);
+  const SessionResult r = lumen::test::run_checked_session(s);
   long frames_with = 0;
   for (const FrameRecord& f : r.frames) frames_with += f.intersecting_pairs > 0;
   EXPECT_GT(frames_with, 3);

@@ -23,6 +23,7 @@
 #include "physics/pair_mesh.hpp"
 #include "physics/volume_mesh.hpp"
 #include "support/files.hpp"
+#include "support/scene_files.hpp"
 #include "support/sphere.hpp"
 
 namespace fs = std::filesystem;
@@ -125,25 +126,9 @@ json pair_scene(const std::string& inner, const std::string& outer) {
   return s;
 }
 
-std::string write_scene(const fs::path& d, const json& scene) {
-  std::ofstream(d / "s.json") << scene.dump();
-  return (d / "s.json").string();
-}
-
-std::string load_error(const std::string& scene) {
-  return lumen::test::message_of<InputError>([&] { lumen::engine::load_scene(scene); });
-}
-
-// lumen run on a scene (with `options`): the exit code; the output in `text`.
-int run_lumen(const std::string& scene, const fs::path& out, std::string& text, const std::string& options) {
-  const std::string cmd = std::string(LUMEN_BINARY) + " run " + scene + options + " --out " + out.string() + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  char buf[4096];
-  size_t n;
-  while (p && (n = fread(buf, 1, sizeof buf, p)) > 0) text.append(buf, n);
-  const int status = p ? pclose(p) : -1;
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
+using lumen::test::load_error;
+using lumen::test::run_lumen;
+using lumen::test::write_scene;
 
 using Triangle = std::array<std::array<double, 3>, 3>;  // corner positions, sorted
 std::multiset<Triangle> triangles(const lumen::Points& x, const lumen::Tris& t) {

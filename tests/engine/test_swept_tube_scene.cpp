@@ -244,15 +244,9 @@ TEST(SweptTubeScene, BadCentrelineExitsTwoAndWritesNothing) {
   line["points"][7] = line["points"][6];
   const std::string scene = write_case(d, swept_scene(), line);
   const fs::path out = d / "out";
-  const std::string cmd = std::string(LUMEN_BINARY) + " run " + scene + " --out " + out.string() + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  ASSERT_NE(p, nullptr);
-  std::string output;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) output.append(buf, n);
-  const int status = pclose(p);
-  EXPECT_EQ(WIFEXITED(status) ? WEXITSTATUS(status) : -1, 2) << output;
+  const auto [code, output] =
+      lumen::test::run_command(std::string(LUMEN_BINARY) + " run " + scene + " --out " + out.string() + " 2>&1");
+  EXPECT_EQ(code, 2) << output;
   EXPECT_NE(output.find("lumen: error: " + (d / "line.json").string() + ": points[7]: repeats points[6], got [0, 0, "),
             std::string::npos) << output;
   EXPECT_TRUE(!fs::exists(out) || fs::is_empty(out));

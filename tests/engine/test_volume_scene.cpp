@@ -8,7 +8,6 @@
 #include <stdexcept>
 #include <stdlib.h>
 #include <string>
-#include <sys/wait.h>
 #include <system_error>
 
 #include <nlohmann/json.hpp>
@@ -208,14 +207,9 @@ TEST(VolumeScene, LumenRunExitsTwoOnABadFileAndWritesNothing) {
   std::string text = lumen::test::write_msh22(v);
   text = text.substr(0, text.find("$EndNodes") / 2);  // truncated inside $Nodes
   const std::string scene = write_case(d, volume_scene(), text);
-  const std::string cmd = std::string(LUMEN_BINARY) + " run " + scene + " --out " + (d / "out").string() + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  ASSERT_NE(p, nullptr);
-  std::string output;
-  char buf[4096];
-  for (size_t n; (n = fread(buf, 1, sizeof buf, p)) > 0;) output.append(buf, n);
-  const int status = pclose(p);
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 2) << output;
+  const auto [code, output] =
+      lumen::test::run_command(std::string(LUMEN_BINARY) + " run " + scene + " --out " + (d / "out").string() + " 2>&1");
+  EXPECT_EQ(code, 2) << output;
   EXPECT_NE(output.find((d / "tube.msh").string() + ": line "), std::string::npos) << output;
   EXPECT_NE(output.find(": the file ends inside $Nodes (from line 9) (expected "), std::string::npos) << output;
   EXPECT_FALSE(fs::exists(d / "out"));

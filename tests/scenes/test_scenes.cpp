@@ -18,31 +18,31 @@
 #include "engine/surface_pair.hpp"
 #include "physics/mesh_quality.hpp"
 #include "physics/volume_mesh.hpp"
+#include "support/scene_files.hpp"
 
 using namespace lumen::engine;
 
 namespace {
 
-SessionResult run_checked(const std::string& scene_file) {
-  Scene scene = load_scene(std::string(LUMEN_SOURCE_DIR) + "/scenes/" + scene_file);
-  auto model = compile_model(scene);
-  SessionOptions opt;
-  opt.render = false;
-  opt.check = true;
-  return run_session(*model, make_inputs(scene), opt);
-}
+Scene shipped_scene(const std::string& scene_file) { return load_scene(std::string(LUMEN_SOURCE_DIR) + "/scenes/" + scene_file); }
 
-void expect_never_intersects(const std::string& scene_file) {
-  SessionResult r = run_checked(scene_file);
+SessionResult run_checked(const std::string& scene_file) { return lumen::test::run_checked_session(shipped_scene(scene_file)); }
+
+// Every frame of the scene's session intersection-free and without numerical failure, and the walls meet; the
+// contacts summed over the frames.
+long expect_never_intersects(const Scene& scene, const std::string& what) {
+  const SessionResult r = lumen::test::run_checked_session(scene);
   long contacts = 0;
   for (const auto& f : r.frames) {
-    EXPECT_EQ(f.intersecting_pairs, 0) << scene_file << " frame " << f.frame;
-    EXPECT_FALSE(f.numerical_failure) << scene_file << " frame " << f.frame;
+    EXPECT_EQ(f.intersecting_pairs, 0) << what << " frame " << f.frame;
+    EXPECT_FALSE(f.numerical_failure) << what << " frame " << f.frame;
     contacts += f.contacts;
   }
   // The scene really makes the walls meet (otherwise the check proves nothing).
-  EXPECT_GT(contacts, 0) << scene_file;
+  EXPECT_GT(contacts, 0) << what;
+  return contacts;
 }
+void expect_never_intersects(const std::string& scene_file) { expect_never_intersects(shipped_scene(scene_file), scene_file); }
 
 }  // namespace
 
@@ -234,11 +234,10 @@ TEST(Scenes, AneurysmWallGrowsIntersectionFreeAndMovesWhereItIsPressed) {
 // the volume between the two files' surfaces (divergence theorem over their triangles), all positive, and their
 // boundary faces are exactly the files' triangles (node ids: inner vertices first, then outer), the inner wall the
 // inner file's; the same press as aneurysm-wall-press-coarse (shortened to 90 frames: the walls meet from frame 74 on
-// the prism wall) has 0 intersecting inner-wall pairs by the exact check, no numerical failure, contacts, and the
-// probe follows its track.
+// the prism wall) has 0 intersecting inner-wall pairs by the exact check, no numerical failure, and contacts.
 TEST(Scenes, AneurysmPairTetrahedralisedAtLoadKeepsItsSurfacesAndNeverIntersects) {
   const std::string file = "aneurysm-pair-press.json";
-  Scene scene = load_scene(std::string(LUMEN_SOURCE_DIR) + "/scenes/" + file);
+  Scene scene = shipped_scene(file);
   const lumen::engine::SurfacePair& pair = scene.surface_pair.pair;
   const lumen::engine::SurfaceMesh in = read_closed_surface(scene.surface_pair.spec.inner_file, 1e-3);
   const lumen::engine::SurfaceMesh out = read_closed_surface(scene.surface_pair.spec.outer_file, 1e-3);
@@ -272,18 +271,7 @@ TEST(Scenes, AneurysmPairTetrahedralisedAtLoadKeepsItsSurfacesAndNeverIntersects
 
   constexpr int kFrames = 90;
   scene.frames = kFrames;
-  const auto model = compile_model(scene);
-  SessionOptions opt;
-  opt.render = false;
-  opt.check = true;
-  const SessionResult r = run_session(*model, make_inputs(scene), opt);
-  long contacts = 0;
-  for (const auto& f : r.frames) {
-    EXPECT_EQ(f.intersecting_pairs, 0) << "frame " << f.frame;
-    EXPECT_FALSE(f.numerical_failure) << "frame " << f.frame;
-    contacts += f.contacts;
-  }
-  EXPECT_GT(contacts, 0);
+  const long contacts = expect_never_intersects(scene, file);
   std::printf("%s: %ld tets, %d nodes added, Netgen %.0f ms; %d frames, %ld contacts\n", file.c_str(),
               static_cast<long>(pair.mesh.tets.rows()), pair.added_nodes, pair.mesher_ms, kFrames, contacts);
 }

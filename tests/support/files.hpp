@@ -1,6 +1,9 @@
-// Test support: files written by a test and the message of the error a call throws.
+// Test support: files written by a test, the message of the error a call throws, and a shell command's output.
 #pragma once
 
+#include <sys/wait.h>
+
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -23,6 +26,22 @@ std::string message_of(F&& f) {
     return e.what();
   }
   return "";
+}
+
+// A shell command's exit code (-1 when it could not start or did not exit normally) and what it printed.
+struct CommandRun {
+  int code = -1;
+  std::string output;  // its standard output (append " 2>&1" to the command for its errors too)
+};
+inline CommandRun run_command(const std::string& command) {
+  CommandRun r;
+  FILE* p = popen(command.c_str(), "r");
+  if (!p) return r;
+  char buf[4096];
+  for (size_t n; (n = fread(buf, 1, sizeof buf, p)) > 0;) r.output.append(buf, n);
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
 }
 
 }  // namespace lumen::test
