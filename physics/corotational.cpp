@@ -38,20 +38,6 @@ constexpr double kArmijo = 1e-4;
 // steps.)
 constexpr double kDivergenceGrowth = 1e4;
 
-// Index of the first non-finite entry of v, or -1.
-int first_non_finite(const Eigen::VectorXd& v) {
-  for (Eigen::Index i = 0; i < v.size(); ++i)
-    if (!std::isfinite(v[i])) return static_cast<int>(i);
-  return -1;
-}
-
-// Checks a 3n vector: the given size and finite entries.
-void check_vector(const char* where, const char* name, const Eigen::VectorXd& v, int n) {
-  if (v.size() != n) detail::fail_must(where, std::string(name) + ".size()", ("be " + std::to_string(n)).c_str(), v.size());
-  const int bad = first_non_finite(v);
-  if (bad >= 0) detail::fail_must(where, std::string(name) + "[" + std::to_string(bad) + "]", "be finite", v[bad]);
-}
-
 // Cofactor matrix of X (X^-T det X): its columns are cross products of the columns of X.
 Eigen::Matrix3d cofactor(const Eigen::Matrix3d& X) {
   Eigen::Matrix3d C;
@@ -211,7 +197,7 @@ Eigen::Matrix3d CorotationalElements::gradient(const Eigen::VectorXd& u, int t) 
 }
 
 int CorotationalElements::rotations(const Eigen::VectorXd& u, std::vector<Eigen::Matrix3d>& R) const {
-  check_vector("CorotationalElements::rotations", "u", u, n_dofs());
+  detail::check_vector("CorotationalElements::rotations", "u", u, n_dofs());
   R.resize(n_tets());
   int inverted_count = 0;
   for (int t = 0; t < n_tets(); ++t) {
@@ -303,7 +289,7 @@ void CorotationalElements::twist_modes(const Eigen::VectorXd& u, const std::vect
                                        bool project, std::vector<TwistModes>& modes) const {
   require_linear("CorotationalElements::twist_modes");
   check_rotations("CorotationalElements::twist_modes", R);
-  check_vector("CorotationalElements::twist_modes", "u", u, n_dofs());
+  detail::check_vector("CorotationalElements::twist_modes", "u", u, n_dofs());
   modes.resize(n_tets());
   for (int t = 0; t < n_tets(); ++t) {
     // Signed singular values s and frame Q of the symmetric stretch R^T F = Q diag(s) Q^T; U = R Q.
@@ -368,7 +354,7 @@ Eigen::SparseMatrix<double> CorotationalElements::tangent_stiffness(const std::v
 
 double CorotationalElements::elastic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const {
   check_rotations("CorotationalElements::elastic_energy", R);
-  check_vector("CorotationalElements::elastic_energy", "u", u, n_dofs());
+  detail::check_vector("CorotationalElements::elastic_energy", "u", u, n_dofs());
   if (order_ == ElementOrder::kQuadratic) return quadratic_energy(u, R);
   double energy = 0.0;
   for (int t = 0; t < n_tets(); ++t) {
@@ -612,7 +598,7 @@ std::vector<char> checked_pcg_call(const char* where, const WarpedSystem& system
     detail::fail_must(where, "system.c_mass", "be >= 0 and finite", system.c_mass);
   if (system.c_mass > 0.0) {
     if (!system.mass) throw std::invalid_argument(std::string(where) + ": system.mass must not be null when c_mass > 0");
-    check_vector(where, "system.mass", *system.mass, n);
+    detail::check_vector(where, "system.mass", *system.mass, n);
   }
   if (system.contacts && (!system.pushing || system.pushing->size() != system.contacts->rows.size()))
     throw std::invalid_argument(std::string(where) + ": system.pushing must hold one flag per contact row");
@@ -621,9 +607,9 @@ std::vector<char> checked_pcg_call(const char* where, const WarpedSystem& system
   }
   if (!(tolerance > 0.0 && tolerance < 1.0)) detail::fail_must(where, "tolerance", "be in (0, 1)", tolerance);
   if (max_iterations < 1) detail::fail_must(where, "max_iterations", "be >= 1", max_iterations);
-  check_vector(where, "b", b, n);
+  detail::check_vector(where, "b", b, n);
   if (x.size() == 0) x.setZero(n);
-  check_vector(where, "x", x, n);
+  detail::check_vector(where, "x", x, n);
   // Fixed DOFs of the factorisation; per-node rotation needs whole fixed nodes.
   std::vector<char> fixed(n);
   for (int d = 0; d < n; ++d) fixed[d] = preconditioner.is_fixed_dof(d) ? 1 : 0;
@@ -1077,11 +1063,11 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
   const CorotationalElements& el = model.elements();
   if (options.tangent != CorotationalTangent::warped) el.require_linear(where);
   const int n = model.n_dofs();
-  check_vector(where, "f_ext", f_ext, n);
-  if (u_fixed.size() != 0) check_vector(where, "u_fixed", u_fixed, n);
+  detail::check_vector(where, "f_ext", f_ext, n);
+  if (u_fixed.size() != 0) detail::check_vector(where, "u_fixed", u_fixed, n);
   if (contacts) validate_contacts(where, *contacts, el.n_nodes());
   if (state.u.size() == 0) state.u.setZero(n);
-  check_vector(where, "state.u", state.u, n);
+  detail::check_vector(where, "state.u", state.u, n);
   const bool can_extrapolate = options.extrapolate && state.u_previous.size() == n;
   const Eigen::VectorXd u_before = can_extrapolate ? state.u_previous : Eigen::VectorXd();
   state.u_previous = state.u;

@@ -14,13 +14,6 @@ namespace lumen::physics {
 
 namespace {
 
-// Checks a 3n vector: the given size and finite entries.
-void check_vector(const char* where, const char* name, const Eigen::VectorXd& v, int n) {
-  if (v.size() != n) detail::fail_must(where, std::string(name) + ".size()", ("be " + std::to_string(n)).c_str(), v.size());
-  for (int i = 0; i < n; ++i)
-    if (!std::isfinite(v[i])) detail::fail_must(where, std::string(name) + "[" + std::to_string(i) + "]", "be finite", v[i]);
-}
-
 void validate_params(const DynamicParams& p) {
   const char* where = "DynamicParams";
   if (p.elastic != ElasticModel::kLinear && p.elastic != ElasticModel::kCorotational)
@@ -61,12 +54,12 @@ DynamicModel::DynamicModel(const TetMesh& mesh, const LinearMaterial& material, 
       solver_(system_matrix(K_, mass_, params), fixed_nodes) {}
 
 double kinetic_energy(const DynamicModel& model, const DynamicState& state) {
-  check_vector("kinetic_energy", "state.v", state.v, model.n_dofs());
+  detail::check_vector("kinetic_energy", "state.v", state.v, model.n_dofs());
   return 0.5 * state.v.dot(model.mass().cwiseProduct(state.v));
 }
 
 double elastic_energy(const DynamicModel& model, const Eigen::VectorXd& u) {
-  check_vector("elastic_energy", "u", u, model.n_dofs());
+  detail::check_vector("elastic_energy", "u", u, model.n_dofs());
   if (model.params().elastic == ElasticModel::kLinear) return 0.5 * u.dot(model.stiffness() * u);
   std::vector<Eigen::Matrix3d> R;
   model.elements().rotations(u, R);
@@ -204,11 +197,11 @@ StepResult step(const DynamicModel& model, DynamicState& state, const Eigen::Vec
   validate_options(options);
   if (!(h > 0.0) || !std::isfinite(h)) detail::fail_must(where, "h", "be > 0 and finite", h);
   const int n = model.n_dofs();
-  check_vector(where, "f_ext", f_ext, n);
+  detail::check_vector(where, "f_ext", f_ext, n);
   if (state.u.size() == 0) state.u.setZero(n);
   if (state.v.size() == 0) state.v.setZero(n);
-  check_vector(where, "state.u", state.u, n);
-  check_vector(where, "state.v", state.v, n);
+  detail::check_vector(where, "state.u", state.u, n);
+  detail::check_vector(where, "state.v", state.v, n);
   // Loads on the free DOFs; fixed DOFs have zero velocity.
   std::vector<char> fixed(n);
   Eigen::VectorXd f = f_ext;

@@ -1,4 +1,5 @@
 #include "physics/volume_mesh.hpp"
+#include "physics/detail/messages.hpp"
 
 #include <algorithm>
 #include <array>
@@ -18,9 +19,7 @@ namespace {
 using Face = std::array<int, 3>;
 using Edge = std::pair<int, int>;  // (low, high) node ids
 
-[[noreturn]] void fail(const std::string& file, const std::string& where, const std::string& problem) {
-  throw std::invalid_argument(file + ": " + where + ": " + problem);
-}
+using detail::fail;  // "<file>: <where>: <problem>"
 
 Face sorted(Face f) {
   std::sort(f.begin(), f.end());

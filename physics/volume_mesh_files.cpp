@@ -1,4 +1,5 @@
 #include "physics/volume_mesh_files.hpp"
+#include "physics/detail/messages.hpp"
 
 #include <expat.h>
 
@@ -17,9 +18,7 @@
 namespace lumen::physics {
 namespace {
 
-[[noreturn]] void fail(const std::string& file, const std::string& where, const std::string& problem) {
-  throw std::invalid_argument(file + ": " + where + ": " + problem);
-}
+using detail::fail;  // "<file>: <where>: <problem>"
 
 // Whitespace-separated tokens of a text, each with the line it is on; every read names the file, the line and
 // what was expected.

@@ -7,8 +7,15 @@ root="$(cd "$(dirname "$0")/.." && pwd)"
 # Debug information as line tables only (-g1): backtraces and sanitizer reports keep file:line, and the compiler
 # spends a third to nearly half less time per file than with full -g (variables and types, which CI never reads).
 line_tables=-g1
+# Both builds are unity builds (CMake joins up to 8 sources of a target into one translation unit): Eigen, gtest and
+# the JSON library are parsed and their templates instantiated once per batch instead of once per file. Measured
+# from scratch on 2 cores (CPU = user + sys): this Release build 666 s of CPU and 347 s wall against 1068 s and
+# 545 s per file; the sanitizer build 696 s of CPU and 373 s wall against 1092 s. So a name local to one source
+# file (an anonymous namespace) must not be another file's of the same target: shared helpers live in
+# physics/detail/ or tests/support/.
+unity="-DCMAKE_UNITY_BUILD=ON"
 # tools/build.sh's build (build/, Release with debug info), every target, with -Werror.
-cmake -S "$root" -B "$root/build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLUMEN_WERROR=ON \
+cmake -S "$root" -B "$root/build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLUMEN_WERROR=ON $unity \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 $line_tables -DNDEBUG" >/dev/null
 cmake --build "$root/build" -j"$(nproc)"
 (cd "$root/build" && ctest --output-on-failure -j"$(nproc)")
@@ -20,7 +27,7 @@ if [ -f "$root/build-asan/CMakeCache.txt" ] && ! grep -q '^CMAKE_CXX_COMPILER:[A
   rm -rf "$root/build-asan"
 fi
 cmake -S "$root" -B "$root/build-asan" -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
-  -DCMAKE_BUILD_TYPE=Debug -DLUMEN_SANITIZE=ON -DLUMEN_WERROR=ON \
+  -DCMAKE_BUILD_TYPE=Debug -DLUMEN_SANITIZE=ON -DLUMEN_WERROR=ON $unity \
   -DLUMEN_BUILD_BENCHMARKS=OFF -DCMAKE_CXX_FLAGS_DEBUG="$line_tables" >/dev/null
 cmake --build "$root/build-asan" -j"$(nproc)" --target lumen_unit_tests
 (cd "$root/build-asan" && ctest --output-on-failure -j"$(nproc)" -L unit)

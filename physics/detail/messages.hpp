@@ -7,6 +7,10 @@
 namespace lumen::physics::detail {
 
 [[noreturn]] inline void fail(const std::string& what) { throw std::invalid_argument(what); }
+// A file reader's error: "<file>: <where>: <problem>" (where: a line, a section, a field).
+[[noreturn]] inline void fail(const std::string& file, const std::string& where, const std::string& problem) {
+  throw std::invalid_argument(file + ": " + where + ": " + problem);
+}
 
 // A double with all 17 significant digits.
 inline std::string num(double v) {

@@ -23,13 +23,6 @@ CliRun run_lumen(const std::string& args, bool merge_stderr = true) {
   return lumen::test::run_command(std::string(LUMEN_BINARY) + " " + args + (merge_stderr ? " 2>&1" : " 2>/dev/null"));
 }
 
-fs::path temp_dir(const std::string& name) {
-  fs::path d = fs::temp_directory_path() / ("lumen_cli_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
-
 std::string small_scene(const std::string& name, const std::string& extra_render = "") {
   return R"({"name": ")" + name + R"(",
     "mesh": {"type": "hollow_cylinder", "inner_radius": 0.01, "outer_radius": 0.013, "length": 0.1,
@@ -46,7 +39,7 @@ bool is_empty_dir(const fs::path& d) { return !fs::exists(d) || fs::is_empty(d);
 }  // namespace
 
 TEST(Cli, BadSceneExitsTwoNamingFileKeyValueAndWritesNothing) {
-  const fs::path d = temp_dir("bad");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_cli_", "bad");
   std::string text = small_scene("bad");
   text.replace(text.find("0.45"), 4, "0.7");
   std::ofstream(d / "bad.json") << text;
@@ -64,7 +57,7 @@ TEST(Cli, MissingSceneAndUnwritableOutput) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("/nonexistent/scene.json: no such scene file"), std::string::npos) << r.output;
 
-  const fs::path d = temp_dir("unwritable");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_cli_", "unwritable");
   std::ofstream(d / "s.json") << small_scene("s");
   std::ofstream(d / "file") << "x";  // a file where the output folder should be
   r = run_lumen("run " + (d / "s.json").string() + " --out " + (d / "file" / "out").string());
@@ -82,7 +75,7 @@ TEST(Cli, CommandLineErrorsNameTheArgumentAndTheValue) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("lumen: error: a command is required: one of run, serve, bench, ccd"), std::string::npos) << r.output;
 
-  const fs::path d = temp_dir("cli_args");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_cli_", "cli_args");
   std::ofstream(d / "s.json") << small_scene("s");
   r = run_lumen("run " + (d / "s.json").string() + " --frames 0 --out " + (d / "out").string());
   EXPECT_EQ(r.code, 2);
@@ -105,7 +98,7 @@ TEST(Cli, CommandLineErrorsNameTheArgumentAndTheValue) {
 }
 
 TEST(Cli, BadReplayFileExitsTwoBeforeWriting) {
-  const fs::path d = temp_dir("replay");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_cli_", "replay");
   std::ofstream(d / "r.csv") << "0,0,0.013,0.05,0,0,0\n0.1,0,0.013,0.05,0,oops,0\n";
   std::string text = small_scene("replay");
   const std::string track = R"("track": [{"t": 0.0, "force": [0, 0, 0]}, {"t": 0.2, "force": [0, -0.3, 0]}])";
@@ -119,7 +112,7 @@ TEST(Cli, BadReplayFileExitsTwoBeforeWriting) {
 }
 
 TEST(Cli, RunWritesFramesVideoReportAndSurface) {
-  const fs::path d = temp_dir("run");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_cli_", "run");
   std::ofstream(d / "s.json") << small_scene("small");
   const fs::path out = d / "out";
   CliRun r = run_lumen("run " + (d / "s.json").string() + " --out " + out.string() + " --export-surface --check");
@@ -168,7 +161,7 @@ TEST(Cli, RunWritesFramesVideoReportAndSurface) {
 }
 
 TEST(Cli, BenchPrintsStageTableAsJson) {
-  const fs::path d = temp_dir("bench");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_cli_", "bench");
   std::ofstream(d / "s.json") << small_scene("small");
   CliRun r = run_lumen("bench " + (d / "s.json").string() + " --frames 4 --json", false);
   ASSERT_EQ(r.code, 0) << r.output;
@@ -181,7 +174,7 @@ TEST(Cli, BenchPrintsStageTableAsJson) {
 // An instrument driven only by a device (the bridge is not built) and a bad instrument key: exit 2 from run and
 // bench, naming the scene file, the key and the value, and nothing written.
 TEST(Cli, InstrumentErrorsExitTwoBeforeWriting) {
-  const fs::path d = temp_dir("instrument");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_cli_", "instrument");
   nlohmann::json scene = nlohmann::json::parse(small_scene("instrument"));
   scene["instruments"] = {{{"name", "probe"},
                            {"shape", {{"type", "sphere_probe"}, {"tip_radius", 0.003}, {"shaft_radius", 0.002},

@@ -162,7 +162,7 @@ std::string write_straight(const std::string& name, const json& scene) {
 }
 
 // The InputError of loading (and then compiling) a scene ("" when both succeed).
-std::string error_of(const std::string& path) {
+std::string compile_error_of(const std::string& path) {
   return lumen::test::message_of<InputError>([&] { lumen::engine::compile_model(lumen::engine::load_scene(path)); });
 }
 
@@ -247,10 +247,10 @@ TEST(NearCentreline, RefusalsNameTheKeyPathAndTheValue) {
   json s = straight_scene();
   s["fixed"] = json::parse(R"(["ends", {"near_centreline": [30.0, 50.0]}])");
   const std::string ok = write_straight("ok", s);
-  EXPECT_EQ(error_of(ok), "");
+  EXPECT_EQ(compile_error_of(ok), "");
   auto message = [](const std::string& name, const json& scene) {
     const std::string path = write_straight(name, scene);
-    std::string m = error_of(path);
+    std::string m = compile_error_of(path);
     const std::string prefix = path + ": ";
     return m.rfind(prefix, 0) == 0 ? m.substr(prefix.size()) : "(no prefix) " + m;
   };
@@ -424,7 +424,7 @@ TEST(CentrelineCamera, KeysAreValidatedNamingTheirPath) {
   EXPECT_DOUBLE_EQ(ok.render.flight_to, 0.07);
   auto message = [](const std::string& name, const json& scene) {
     const std::string path = write_straight(name, scene);
-    std::string m = error_of(path);
+    std::string m = compile_error_of(path);
     const std::string prefix = path + ": ";
     return m.rfind(prefix, 0) == 0 ? m.substr(prefix.size()) : "(no prefix) " + m;
   };

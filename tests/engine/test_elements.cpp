@@ -9,6 +9,7 @@
 #include "engine/scene.hpp"
 #include "engine/simulation.hpp"
 #include "physics/quadratic.hpp"
+#include "support/scene_files.hpp"
 
 using namespace lumen;
 using nlohmann::json;
@@ -27,42 +28,35 @@ json small_scene() {
   })");
 }
 
-std::string error_of(const json& scene) {
-  try {
-    engine::parse_scene(scene.dump(), "dir/s.json");
-  } catch (const engine::InputError& e) {
-    return e.what();
-  }
-  return "";
-}
+using lumen::test::scene_parse_error;
 
 }  // namespace
 
 TEST(Elements, LoaderNamesBadElementAndCombinations) {
   json s = small_scene();
   s["mesh"]["element"] = "tet8";
-  EXPECT_EQ(error_of(s), "dir/s.json: mesh.element: must be one of tet4, tet10 (value \"tet8\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: mesh.element: must be one of tet4, tet10 (value \"tet8\")");
   s = small_scene();
   s["material"]["model"] = "corotational";
-  EXPECT_EQ(error_of(s), "");
+  EXPECT_EQ(scene_parse_error(s), "");
   s["solver"] = {{"tangent", "exact"}};
-  EXPECT_EQ(error_of(s),
+  EXPECT_EQ(scene_parse_error(s),
             "dir/s.json: solver.tangent: \"exact\" needs mesh.element \"tet4\" (got \"tet10\") (value \"exact\")");
   s = small_scene();
   s["solver"] = {{"type", "dynamic"}};
-  EXPECT_EQ(error_of(s),
+  EXPECT_EQ(scene_parse_error(s),
             "dir/s.json: mesh.element: \"tet10\" needs solver.type \"quasi_static\" (got \"dynamic\") (value \"tet10\")");
 }
 
 TEST(Elements, LoaderNamesBadCollisionSurfaces) {
   json s = small_scene();
   s["collision"] = {{"self", true}, {"surfaces", {"outer"}}};
-  EXPECT_EQ(error_of(s),
+  EXPECT_EQ(scene_parse_error(s),
             "dir/s.json: collision.surfaces: must include \"inner\" (the lumen's walls always collide) (value [\"outer\"])");
   s["collision"]["surfaces"] = {"inner", "ends"};
-  EXPECT_EQ(error_of(s), "dir/s.json: collision.surfaces[1]: must be one of inner, outer (value \"ends\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.surfaces[1]: must be one of inner, outer (value \"ends\")");
   s["collision"]["surfaces"] = json::array();
-  EXPECT_EQ(error_of(s), "dir/s.json: collision.surfaces: must be a non-empty array of wall names (value [])");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.surfaces: must be a non-empty array of wall names (value [])");
 }
 
 // The engine's tet10 model (precomputed probe responses, walls split over the edge nodes) against a direct solve

@@ -14,7 +14,7 @@ std::string write_temp(const std::string& name, const std::string& text) {
   std::ofstream(path) << text;
   return path.string();
 }
-std::string error_of(const std::string& path) {
+std::string replay_error_of(const std::string& path) {
   try {
     ReplaySource s(path);
   } catch (const InputError& e) {
@@ -59,14 +59,14 @@ TEST(ReplaySource, MovingPointIsNotFixed) {
 
 TEST(ReplaySource, ErrorsNameFileLineFieldAndValue) {
   auto p1 = write_temp("replay_bad1.csv", "0,0,0.013,0.05,0,0,0\n1,0,0.013,abc,0,0,0\n");
-  EXPECT_EQ(error_of(p1), p1 + ": line 2: field z: not a number (value \"abc\")");
+  EXPECT_EQ(replay_error_of(p1), p1 + ": line 2: field z: not a number (value \"abc\")");
   auto p2 = write_temp("replay_bad2.csv", "0,0,0.013,0.05,0,0\n");
-  EXPECT_EQ(error_of(p2), p2 + ": line 1: expected 7 fields (t, x, y, z, fx, fy, fz), got 6");
+  EXPECT_EQ(replay_error_of(p2), p2 + ": line 1: expected 7 fields (t, x, y, z, fx, fy, fz), got 6");
   auto p3 = write_temp("replay_bad3.csv", "0,0,0.013,0.05,0,0,0\n0,0,0.013,0.05,0,0,0\n");
-  EXPECT_EQ(error_of(p3), p3 + ": line 2: field t: times must be strictly increasing (value 0.000000)");
+  EXPECT_EQ(replay_error_of(p3), p3 + ": line 2: field t: times must be strictly increasing (value 0.000000)");
   auto p4 = write_temp("replay_bad4.csv", "0,0,0.013,0.05,0,nan,0\n");
-  EXPECT_EQ(error_of(p4), p4 + ": line 1: field fy: must be finite (value nan)");
+  EXPECT_EQ(replay_error_of(p4), p4 + ": line 1: field fy: must be finite (value nan)");
   auto p5 = write_temp("replay_empty.csv", "# nothing\n");
-  EXPECT_EQ(error_of(p5), p5 + ": no samples (expected lines t, x, y, z, fx, fy, fz)");
-  EXPECT_EQ(error_of("/nonexistent/r.csv"), "/nonexistent/r.csv: cannot read replay file");
+  EXPECT_EQ(replay_error_of(p5), p5 + ": no samples (expected lines t, x, y, z, fx, fy, fz)");
+  EXPECT_EQ(replay_error_of("/nonexistent/r.csv"), "/nonexistent/r.csv: cannot read replay file");
 }

@@ -15,25 +15,26 @@
 #include "engine/instrument.hpp"
 #include "engine/scene.hpp"
 #include "support/files.hpp"
+#include "support/build.hpp"
 
 using namespace lumen;
 using namespace lumen::engine;
 
 namespace {
 
-constexpr double kPi = static_cast<double>(EIGEN_PI);
+using lumen::test::kPi;
 // Positions and exact volumes computed two ways agree to rounding (relative).
 constexpr double kTight = 1e-12;
 // The scenes' default collision gap, metres.
-constexpr double kGap = 1e-4;
+constexpr double kDetectGap = 1e-4;
 
 using lumen::test::write_temp;
 
 // The message of the InputError that f throws ("" when it throws none).
-std::string error_of(const std::function<void()>& f) { return lumen::test::message_of<InputError>(f); }
+std::string instrument_error_of(const std::function<void()>& f) { return lumen::test::message_of<InputError>(f); }
 
 std::string mesh_error(const std::string& path, MeshUnits units = MeshUnits::kMetres) {
-  return error_of([&] { load_mesh_instrument({path, units}); });
+  return instrument_error_of([&] { load_mesh_instrument({path, units}); });
 }
 
 // Brute force, every triangle against every other: each side a -> b of each triangle is run b -> a by exactly
@@ -243,7 +244,7 @@ TEST(Instrument, ShapeDimensionsAreValidatedNamingTheFieldAndValue) {
   auto probe_error = [](const std::function<void(SphereProbeSpec&)>& edit) {
     SphereProbeSpec s;
     edit(s);
-    return error_of([&] { make_sphere_probe(s, "instruments[0].shape"); });
+    return instrument_error_of([&] { make_sphere_probe(s, "instruments[0].shape"); });
   };
   EXPECT_EQ(probe_error([](SphereProbeSpec& s) { s.tip_radius = -0.003; }),
             "instruments[0].shape.tip_radius: must be > 0 (value -0.003)");
@@ -261,17 +262,17 @@ TEST(Instrument, ShapeDimensionsAreValidatedNamingTheFieldAndValue) {
   rod.end = RodEnd::kRounded;
   rod.radius = 0.002;
   rod.length = 0.003;
-  EXPECT_EQ(error_of([&] { make_rod(rod); }), "rod.length: must be > 2 radius (0.004) for a rounded end (value 0.003)");
+  EXPECT_EQ(instrument_error_of([&] { make_rod(rod); }), "rod.length: must be > 2 radius (0.004) for a rounded end (value 0.003)");
   rod.radius = INFINITY;
-  EXPECT_EQ(error_of([&] { make_rod(rod); }), "rod.radius: must be finite (value inf)");
+  EXPECT_EQ(instrument_error_of([&] { make_rod(rod); }), "rod.radius: must be finite (value inf)");
   GrasperSpec g;
   g.opening_angle = 4.0;
-  EXPECT_EQ(error_of([&] { make_grasper(g); }), "grasper.opening_angle: out of range [0, 3.14159] radians (value 4)");
+  EXPECT_EQ(instrument_error_of([&] { make_grasper(g); }), "grasper.opening_angle: out of range [0, 3.14159] radians (value 4)");
   g.opening_angle = 0.0;
   g.jaw_width = 0.0;
-  EXPECT_EQ(error_of([&] { make_grasper(g); }), "grasper.jaw_width: must be > 0 (value 0)");
+  EXPECT_EQ(instrument_error_of([&] { make_grasper(g); }), "grasper.jaw_width: must be > 0 (value 0)");
   // Through the shape variant.
-  EXPECT_EQ(error_of([] { make_instrument(GrasperSpec{0.01, 0.004, -1.0}, "tool"); }),
+  EXPECT_EQ(instrument_error_of([] { make_instrument(GrasperSpec{0.01, 0.004, -1.0}, "tool"); }),
             "tool.jaw_thickness: must be > 0 (value -1)");
 }
 
@@ -362,7 +363,7 @@ TEST(InstrumentContact, SweptSphereProbeTouchesAFlatPatchOnlyWhenItCrossesIt) {
     };
     const Points x0 = at_lowest(start);
     std::vector<collision::PairContact> out;
-    collision::detect_pair(probe_surface, wa, x0, at_lowest(below), patch_surface, wb, patch.points, patch.points, kGap,
+    collision::detect_pair(probe_surface, wa, x0, at_lowest(below), patch_surface, wb, patch.points, patch.points, kDetectGap,
                            out);
     EXPECT_FALSE(out.empty()) << "tilt " << tilt;
     double first = 1.0;
@@ -372,13 +373,13 @@ TEST(InstrumentContact, SweptSphereProbeTouchesAFlatPatchOnlyWhenItCrossesIt) {
     // analytic one.
     const double dphi = (kPi - std::asin(s.shaft_radius / s.tip_radius)) / s.rings;
     const double lag = s.tip_radius * (1.0 - std::cos(0.5 * dphi) * std::cos(kPi / s.segments_around));
-    EXPECT_LE(first, (start - kGap + lag) / (start - below)) << "tilt " << tilt;
+    EXPECT_LE(first, (start - kDetectGap + lag) / (start - below)) << "tilt " << tilt;
     // And no earlier than the analytic sphere (which holds the mesh) comes within the gap plus the elementary
     // tests' accuracy (a contact has its features within gap + 2 tolerance).
     const double accuracy = 2.0 * collision::CcdOptions{}.tolerance;
-    EXPECT_GE(first, (start - kGap - accuracy) / (start - below)) << "tilt " << tilt;
+    EXPECT_GE(first, (start - kDetectGap - accuracy) / (start - below)) << "tilt " << tilt;
     collision::detect_pair(probe_surface, wa, x0, at_lowest(short_of), patch_surface, wb, patch.points, patch.points,
-                           kGap, out);
+                           kDetectGap, out);
     EXPECT_TRUE(out.empty()) << "tilt " << tilt << ": " << out.size() << " contacts";
   }
 }

@@ -10,13 +10,14 @@
 
 #include "engine/session.hpp"
 #include "support/instruments.hpp"
+#include "support/tube.hpp"
 
 using namespace lumen::engine;
 using nlohmann::json;
 
 namespace {
 
-constexpr double kOuterRadius = 0.013;
+using lumen::test::kPaperOuterRadius;
 constexpr double kGap = 1e-4;  // the scene's collision gap, metres
 
 // A small tube pressed from above by a 3 mm sphere-tipped probe moving from 0.5 mm above the outer wall to
@@ -30,8 +31,8 @@ json press_scene(double depth, int press_frames, int frames) {
   constexpr double kStartClearance = 0.0005;
   const double t1 = press_frames / s["fps"].get<double>();
   s["frames"] = frames;
-  s["instruments"][0]["track"] = {{{"t", 0.0}, {"position", {0.0, kOuterRadius + kStartClearance, 0.05}}},
-                                  {{"t", t1}, {"position", {0.0, kOuterRadius - depth, 0.05}}}};
+  s["instruments"][0]["track"] = {{{"t", 0.0}, {"position", {0.0, kPaperOuterRadius + kStartClearance, 0.05}}},
+                                  {{"t", t1}, {"position", {0.0, kPaperOuterRadius - depth, 0.05}}}};
   return s;
 }
 
@@ -86,7 +87,7 @@ TEST(InstrumentSession, SafeFallbackStopsTheToolsShortOfTheirTargets) {
   // Two probes, above and below (turned half a turn about z), each 12 mm in over eight frames: the lumen shuts,
   // and with a single response round the re-check finds the walls' new self-contacts, so the fallback ends the
   // last frames.
-  constexpr double kDepth = 0.012, kStart = kOuterRadius + 0.0005;
+  constexpr double kDepth = 0.012, kStart = kPaperOuterRadius + 0.0005;
   constexpr int kFrames = 8;
   json s = press_scene(kDepth, kFrames, kFrames);
   s["collision"]["max_iterations"] = 1;
@@ -108,7 +109,7 @@ TEST(InstrumentSession, SafeFallbackStopsTheToolsShortOfTheirTargets) {
     if (!f.fallback) continue;
     ++fallbacks;
     // Held back by the organ: each tool ends the frame short of where its track wanted it.
-    const double target_y = kStart + (kOuterRadius - kDepth - kStart) * f.frame / kFrames;
+    const double target_y = kStart + (kPaperOuterRadius - kDepth - kStart) * f.frame / kFrames;
     EXPECT_GT(f.instruments[0].position.y(), target_y) << "frame " << f.frame;
     EXPECT_LT(f.instruments[1].position.y(), -target_y) << "frame " << f.frame;
   }
@@ -118,7 +119,7 @@ TEST(InstrumentSession, SafeFallbackStopsTheToolsShortOfTheirTargets) {
 TEST(InstrumentSession, AToolThatTouchesNothingLeavesTheSessionExactlyAsWithout) {
   // A force press whose walls meet (self-contacts), with and without a static probe far above the tube.
   json with_tool = press_scene(0.0, 1, 30);
-  with_tool["probes"] = {{{"point", {0.0, kOuterRadius, 0.05}},
+  with_tool["probes"] = {{{"point", {0.0, kPaperOuterRadius, 0.05}},
                           {"track", {{{"t", 0.0}, {"force", {0, 0, 0}}}, {{"t", 0.5}, {"force", {0, -0.3, 0}}}}}}};
   constexpr double kFarAbove = 0.05;
   with_tool["instruments"][0]["track"] = {{{"t", 0.0}, {"position", {0.0, kFarAbove, 0.05}}}};

@@ -37,7 +37,7 @@ json instrument_scene() {
 
 const char* kScenePath = "dir/s.json";
 
-std::string error_of(const json& scene, const std::string& path = kScenePath) {
+std::string instrument_scene_error(const json& scene, const std::string& path = kScenePath) {
   return message_of<InputError>([&] { parse_scene(scene.dump(), path); });
 }
 
@@ -116,104 +116,104 @@ TEST(InstrumentScene, ReplayIsReadBesideTheSceneFile) {
 }
 
 TEST(InstrumentScene, KeysAndTypesNameFileKeyAndValue) {
-  EXPECT_EQ(error_of(with_instrument_key("colour", "red")), "dir/s.json: instruments[0].colour: unknown key");
-  EXPECT_EQ(error_of(with_instrument_key("shape", {{"type", "scalpel"}})),
+  EXPECT_EQ(instrument_scene_error(with_instrument_key("colour", "red")), "dir/s.json: instruments[0].colour: unknown key");
+  EXPECT_EQ(instrument_scene_error(with_instrument_key("shape", {{"type", "scalpel"}})),
             "dir/s.json: instruments[0].shape.type: must be one of sphere_probe, rod, grasper, mesh (value \"scalpel\")");
-  EXPECT_EQ(error_of(with_instrument_key("shape", {{"type", "rod"}, {"radius", 0.002}})),
+  EXPECT_EQ(instrument_scene_error(with_instrument_key("shape", {{"type", "rod"}, {"radius", 0.002}})),
             "dir/s.json: instruments[0].shape.length: missing key");
-  EXPECT_EQ(error_of(with_instrument_key("shape", {{"type", "rod"}, {"radius", 0.002}, {"length", 0.05},
+  EXPECT_EQ(instrument_scene_error(with_instrument_key("shape", {{"type", "rod"}, {"radius", 0.002}, {"length", 0.05},
                                                    {"tip_radius", 0.003}})),
             "dir/s.json: instruments[0].shape.tip_radius: unknown key");
-  EXPECT_EQ(error_of(with_instrument_key("name", 3)), "dir/s.json: instruments[0].name: must be a string (value 3)");
+  EXPECT_EQ(instrument_scene_error(with_instrument_key("name", 3)), "dir/s.json: instruments[0].name: must be a string (value 3)");
   json s = instrument_scene();
   s["instruments"] = {{{"name", "a"}}};
-  EXPECT_EQ(error_of(s), "dir/s.json: instruments[0].shape: missing key");
+  EXPECT_EQ(instrument_scene_error(s), "dir/s.json: instruments[0].shape: missing key");
   s["instruments"] = json::object();
-  EXPECT_EQ(error_of(s), "dir/s.json: instruments: must be an array (value {})");
+  EXPECT_EQ(instrument_scene_error(s), "dir/s.json: instruments: must be an array (value {})");
 }
 
 TEST(InstrumentScene, DimensionsAreCheckedByTheShapeBuilderUnderTheSceneKey) {
   json s = instrument_scene();
   s["instruments"][0]["shape"]["tip_radius"] = -0.003;
-  EXPECT_EQ(error_of(s), "dir/s.json: instruments[0].shape.tip_radius: must be > 0 (value -0.003)");
+  EXPECT_EQ(instrument_scene_error(s), "dir/s.json: instruments[0].shape.tip_radius: must be > 0 (value -0.003)");
   s = instrument_scene();
   s["instruments"][0]["shape"]["shaft_radius"] = 0.004;
-  EXPECT_EQ(error_of(s),
+  EXPECT_EQ(instrument_scene_error(s),
             "dir/s.json: instruments[0].shape.shaft_radius: must be <= tip_radius (0.003) (value 0.004)");
   s = instrument_scene();
   s["instruments"][0]["shape"]["segments_around"] = 2;
-  EXPECT_NE(error_of(s).find("dir/s.json: instruments[0].shape.segments_around: out of range [3, "), std::string::npos);
+  EXPECT_NE(instrument_scene_error(s).find("dir/s.json: instruments[0].shape.segments_around: out of range [3, "), std::string::npos);
   s["instruments"][0]["shape"]["segments_around"] = 2.5;
-  EXPECT_EQ(error_of(s), "dir/s.json: instruments[0].shape.segments_around: must be an integer (value 2.5)");
+  EXPECT_EQ(instrument_scene_error(s), "dir/s.json: instruments[0].shape.segments_around: must be an integer (value 2.5)");
 }
 
 TEST(InstrumentScene, MeshFileErrorsNameTheSceneKeyAndTheFile) {
-  const std::string missing = error_of(with_instrument_key("shape", {{"type", "mesh"}, {"file", "/nonexistent/t.obj"}}));
+  const std::string missing = instrument_scene_error(with_instrument_key("shape", {{"type", "mesh"}, {"file", "/nonexistent/t.obj"}}));
   EXPECT_EQ(missing, "dir/s.json: instruments[0].shape.file: /nonexistent/t.obj: no such mesh file (value "
                      "\"/nonexistent/t.obj\")");
   // An open surface: the tetrahedron without its last face.
   const std::string open = write_temp("open_tool.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\n");
-  const std::string msg = error_of(with_instrument_key("shape", {{"type", "mesh"}, {"file", open}, {"units", "mm"}}));
+  const std::string msg = instrument_scene_error(with_instrument_key("shape", {{"type", "mesh"}, {"file", open}, {"units", "mm"}}));
   EXPECT_EQ(msg.rfind("dir/s.json: instruments[0].shape.file: " + open + ": not closed: ", 0), 0u) << msg;
-  EXPECT_EQ(error_of(with_instrument_key("shape", {{"type", "mesh"}, {"file", open}, {"units", "cm"}})),
+  EXPECT_EQ(instrument_scene_error(with_instrument_key("shape", {{"type", "mesh"}, {"file", open}, {"units", "cm"}})),
             "dir/s.json: instruments[0].shape.units: must be one of m, mm (value \"cm\")");
 }
 
 TEST(InstrumentScene, PoseTrackErrorsNameTheKey) {
   json s = instrument_scene();
   s["instruments"][0]["track"][1]["t"] = 0.0;
-  EXPECT_EQ(error_of(s), "dir/s.json: instruments[0].track[1].t: times must be strictly increasing (value 0, after 0)");
+  EXPECT_EQ(instrument_scene_error(s), "dir/s.json: instruments[0].track[1].t: times must be strictly increasing (value 0, after 0)");
   s = instrument_scene();
   s["instruments"][0]["track"][0]["t"] = -1.0;
-  EXPECT_EQ(error_of(s), "dir/s.json: instruments[0].track[0].t: must be >= 0 (value -1.0)");
+  EXPECT_EQ(instrument_scene_error(s), "dir/s.json: instruments[0].track[0].t: must be >= 0 (value -1.0)");
   s = instrument_scene();
   s["instruments"][0]["track"][1]["rotation"] = {2, 0, 0, 0};
-  EXPECT_EQ(error_of(s).rfind("dir/s.json: instruments[0].track[1].rotation: not a unit quaternion: norm 2", 0), 0u)
-      << error_of(s);
+  EXPECT_EQ(instrument_scene_error(s).rfind("dir/s.json: instruments[0].track[1].rotation: not a unit quaternion: norm 2", 0), 0u)
+      << instrument_scene_error(s);
   s["instruments"][0]["track"][1]["rotation"] = {1, 0, 0};
-  EXPECT_EQ(error_of(s), "dir/s.json: instruments[0].track[1].rotation: must be a quaternion [w, x, y, z] or "
+  EXPECT_EQ(instrument_scene_error(s), "dir/s.json: instruments[0].track[1].rotation: must be a quaternion [w, x, y, z] or "
                          "{\"axis\", \"angle\"} (value [1,0,0])");
   s["instruments"][0]["track"][1]["rotation"] = {{"axis", {0, 0, 0}}, {"angle", 1.0}};
-  EXPECT_EQ(error_of(s), "dir/s.json: instruments[0].track[1].rotation.axis: must not be zero (value [0, 0, 0])");
+  EXPECT_EQ(instrument_scene_error(s), "dir/s.json: instruments[0].track[1].rotation.axis: must not be zero (value [0, 0, 0])");
   s["instruments"][0]["track"][1]["rotation"] = {{"axis", {0, 0, 1}}, {"degrees", 1.0}};
-  EXPECT_EQ(error_of(s), "dir/s.json: instruments[0].track[1].rotation.degrees: unknown key");
+  EXPECT_EQ(instrument_scene_error(s), "dir/s.json: instruments[0].track[1].rotation.degrees: unknown key");
   s = instrument_scene();
   s["instruments"][0]["track"][0]["position"] = {0, 1};
-  EXPECT_EQ(error_of(s), "dir/s.json: instruments[0].track[0].position: must be an array of 3 numbers (value [0,1])");
-  EXPECT_EQ(error_of(with_instrument_key("track", json::array())), "dir/s.json: instruments[0].track: must not be empty (value [])");
+  EXPECT_EQ(instrument_scene_error(s), "dir/s.json: instruments[0].track[0].position: must be an array of 3 numbers (value [0,1])");
+  EXPECT_EQ(instrument_scene_error(with_instrument_key("track", json::array())), "dir/s.json: instruments[0].track: must not be empty (value [])");
 }
 
 TEST(InstrumentScene, SourcesAndTransformAreValidated) {
   json both = instrument_scene();
   both["instruments"][0]["replay"] = "poses.csv";
-  EXPECT_EQ(error_of(both), "dir/s.json: instruments[0]: needs at most one of \"track\" or \"replay\"");
+  EXPECT_EQ(instrument_scene_error(both), "dir/s.json: instruments[0]: needs at most one of \"track\" or \"replay\"");
   json none = with_instrument_key("track", nullptr);
   none["instruments"][0].erase("device_name");
-  EXPECT_EQ(error_of(none), "dir/s.json: instruments[0]: needs one of \"track\", \"replay\" or \"device_name\"");
+  EXPECT_EQ(instrument_scene_error(none), "dir/s.json: instruments[0]: needs one of \"track\", \"replay\" or \"device_name\"");
   json replay = with_instrument_key("track", nullptr);
   replay["instruments"][0]["replay"] = "missing_poses.csv";
-  EXPECT_EQ(error_of(replay), "dir/missing_poses.csv: no such pose replay file");
-  EXPECT_EQ(error_of(with_instrument_key("device_name", "")),
+  EXPECT_EQ(instrument_scene_error(replay), "dir/missing_poses.csv: no such pose replay file");
+  EXPECT_EQ(instrument_scene_error(with_instrument_key("device_name", "")),
             "dir/s.json: instruments[0].device_name: must not be empty (value \"\")");
   // A scale of 2 is not a rigid transform.
-  const std::string scaled = error_of(with_instrument_key("to_organ", {2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}));
+  const std::string scaled = instrument_scene_error(with_instrument_key("to_organ", {2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}));
   EXPECT_EQ(scaled.rfind("dir/s.json: instruments[0].to_organ", 0), 0u) << scaled;
   EXPECT_NE(scaled.find("orthonormal"), std::string::npos) << scaled;
-  EXPECT_EQ(error_of(with_instrument_key("to_organ", {1, 0, 0})),
+  EXPECT_EQ(instrument_scene_error(with_instrument_key("to_organ", {1, 0, 0})),
             "dir/s.json: instruments[0].to_organ: must be an array of 16 numbers (row-major 4 x 4) (value [1,0,0])");
   json twice = instrument_scene();
   twice["instruments"].push_back(twice["instruments"][0]);
-  EXPECT_EQ(error_of(twice), "dir/s.json: instruments[1].name: must be unique among the instruments (value \"probe\")");
+  EXPECT_EQ(instrument_scene_error(twice), "dir/s.json: instruments[1].name: must be unique among the instruments (value \"probe\")");
 }
 
 TEST(InstrumentScene, ResponseAndCouplingMustSuitToolContacts) {
   json paper = instrument_scene();
   paper["collision"] = {{"self", true}, {"response", "paper"}};
-  EXPECT_EQ(error_of(paper), "dir/s.json: collision.response: instruments need \"constraint\" (value \"paper\")");
+  EXPECT_EQ(instrument_scene_error(paper), "dir/s.json: collision.response: instruments need \"constraint\" (value \"paper\")");
   json carried = instrument_scene();
   carried["material"]["model"] = "corotational";
   carried["collision"] = {{"self", true}, {"coupling", "carried"}};
-  EXPECT_EQ(error_of(carried), "dir/s.json: collision.coupling: instruments need \"correct\" (value \"carried\")");
+  EXPECT_EQ(instrument_scene_error(carried), "dir/s.json: collision.coupling: instruments need \"correct\" (value \"carried\")");
 }
 
 TEST(InstrumentScene, RunRefusesAnInstrumentDrivenOnlyByADevice) {
@@ -248,15 +248,15 @@ TEST(InstrumentScene, EndoscopeCameraRidesOnANamedInstrument) {
   EXPECT_EQ(ok.render.scope_instrument, "probe");
   EXPECT_TRUE(parse_scene(instrument_scene().dump(), kScenePath).render.scope_instrument.empty());
   s["render"]["camera"]["endoscope"] = "scope";
-  EXPECT_EQ(error_of(s), "dir/s.json: render.camera.endoscope: names no instrument of the scene (value \"scope\")");
+  EXPECT_EQ(instrument_scene_error(s), "dir/s.json: render.camera.endoscope: names no instrument of the scene (value \"scope\")");
   s["render"]["camera"] = {{"endoscope", 3}};
-  EXPECT_NE(error_of(s).find("render.camera.endoscope"), std::string::npos) << error_of(s);
+  EXPECT_NE(instrument_scene_error(s).find("render.camera.endoscope"), std::string::npos) << instrument_scene_error(s);
   s["render"]["camera"] = {{"endoscope", "probe"}, {"fov", 70}};
-  EXPECT_NE(error_of(s).find("render.camera"), std::string::npos) << error_of(s);
-  EXPECT_NE(error_of(s).find("fov"), std::string::npos) << error_of(s);
+  EXPECT_NE(instrument_scene_error(s).find("render.camera"), std::string::npos) << instrument_scene_error(s);
+  EXPECT_NE(instrument_scene_error(s).find("fov"), std::string::npos) << instrument_scene_error(s);
   s["render"]["camera"] = json::object();
-  EXPECT_NE(error_of(s).find("render.camera"), std::string::npos) << error_of(s);
-  EXPECT_NE(error_of(s).find("endoscope"), std::string::npos) << error_of(s);
+  EXPECT_NE(instrument_scene_error(s).find("render.camera"), std::string::npos) << instrument_scene_error(s);
+  EXPECT_NE(instrument_scene_error(s).find("endoscope"), std::string::npos) << instrument_scene_error(s);
 }
 
 namespace {
@@ -296,28 +296,28 @@ TEST(InstrumentScene, GrasperOpeningTrackAndGraspKeys) {
 
   json bad = s;
   bad["instruments"][0]["track"][1]["opening"] = 4.0;
-  EXPECT_NE(error_of(bad).find("instruments[0].track[1].opening"), std::string::npos) << error_of(bad);
+  EXPECT_NE(instrument_scene_error(bad).find("instruments[0].track[1].opening"), std::string::npos) << instrument_scene_error(bad);
   bad = s;
   bad["instruments"][0]["grasp"]["grip_force_n"] = -1.0;
-  EXPECT_NE(error_of(bad).find("instruments[0].grasp.grip_force_n"), std::string::npos) << error_of(bad);
+  EXPECT_NE(instrument_scene_error(bad).find("instruments[0].grasp.grip_force_n"), std::string::npos) << instrument_scene_error(bad);
   bad = s;
   bad["instruments"][0]["grasp"]["release_margin"] = 0.0;
-  EXPECT_NE(error_of(bad).find("instruments[0].grasp.release_margin"), std::string::npos) << error_of(bad);
+  EXPECT_NE(instrument_scene_error(bad).find("instruments[0].grasp.release_margin"), std::string::npos) << instrument_scene_error(bad);
   bad = s;
   bad["instruments"][0]["grasp"]["hold"] = true;
-  EXPECT_NE(error_of(bad).find("hold"), std::string::npos) << error_of(bad);
+  EXPECT_NE(instrument_scene_error(bad).find("hold"), std::string::npos) << instrument_scene_error(bad);
   // A probe has no jaws.
   json probe = instrument_scene();
   probe["instruments"][0]["grasp"] = json::object();
-  EXPECT_EQ(error_of(probe), "dir/s.json: instruments[0].grasp: needs shape.type \"grasper\" (value {})");
+  EXPECT_EQ(instrument_scene_error(probe), "dir/s.json: instruments[0].grasp: needs shape.type \"grasper\" (value {})");
   probe = instrument_scene();
   probe["instruments"][0]["track"][0]["opening"] = 0.5;
-  EXPECT_NE(error_of(probe).find("instruments[0].track[0]"), std::string::npos) << error_of(probe);
-  EXPECT_NE(error_of(probe).find("opening"), std::string::npos) << error_of(probe);
+  EXPECT_NE(instrument_scene_error(probe).find("instruments[0].track[0]"), std::string::npos) << instrument_scene_error(probe);
+  EXPECT_NE(instrument_scene_error(probe).find("opening"), std::string::npos) << instrument_scene_error(probe);
   // Holds are prescribed displacements of the linear quasi-static model.
   bad = s;
   bad["material"]["model"] = "corotational";
-  EXPECT_EQ(error_of(bad), "dir/s.json: instruments[0].grasp: needs material.model \"linear\" and solver.type "
+  EXPECT_EQ(instrument_scene_error(bad), "dir/s.json: instruments[0].grasp: needs material.model \"linear\" and solver.type "
                            "\"quasi_static\" (value {\"grip_force_n\":0.02,\"release_margin\":0.1})");
 }
 
@@ -352,8 +352,8 @@ TEST(InstrumentScene, MaxContactRowsIsAPositiveInteger) {
   s["collision"] = {{"max_contact_rows", 250}};
   EXPECT_EQ(parse_scene(s.dump(), kScenePath).collision.max_contact_rows, 250);
   s["collision"]["max_contact_rows"] = 0;
-  EXPECT_NE(error_of(s).find("collision.max_contact_rows"), std::string::npos) << error_of(s);
-  EXPECT_NE(error_of(s).find("value 0"), std::string::npos) << error_of(s);
+  EXPECT_NE(instrument_scene_error(s).find("collision.max_contact_rows"), std::string::npos) << instrument_scene_error(s);
+  EXPECT_NE(instrument_scene_error(s).find("value 0"), std::string::npos) << instrument_scene_error(s);
   s["collision"]["max_contact_rows"] = 2.5;
-  EXPECT_NE(error_of(s).find("collision.max_contact_rows"), std::string::npos) << error_of(s);
+  EXPECT_NE(instrument_scene_error(s).find("collision.max_contact_rows"), std::string::npos) << instrument_scene_error(s);
 }

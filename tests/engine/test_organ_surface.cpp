@@ -24,6 +24,7 @@
 #include "support/files.hpp"
 #include "support/scene_files.hpp"
 #include "support/sphere.hpp"
+#include "support/build.hpp"
 
 namespace fs = std::filesystem;
 using lumen::engine::InputError;
@@ -31,18 +32,11 @@ using nlohmann::json;
 
 namespace {
 
-constexpr double kPi = static_cast<double>(EIGEN_PI);
+using lumen::test::kPi;
 // assimp reads positions as single-precision floats: a point's distance from the origin is off by up to two float
 // roundings (2 x 2^-24 relative).
 constexpr double kFloatRounding = 1.2e-7;
 const std::string kOrgans = std::string(LUMEN_SOURCE_DIR) + "/data/organs/";
-
-fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("lumen_organ_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
 
 // An OBJ file of vertices and 0-based triangles.
 void write_obj(const fs::path& file, const std::vector<Eigen::Vector3d>& v, const std::vector<std::array<int, 3>>& f) {
@@ -137,7 +131,7 @@ using lumen::test::write_scene;
 // 48-gon between r cos(pi / 48) and r; assimp holds positions as floats), smoothing kept it there (a linear profile is unchanged by it), and the
 // tube is meshed with those radii.
 TEST(SurfaceRadius, ConeProfileIsTheAnalyticRadiusWithinThePolygonError) {
-  const fs::path d = temp_dir("cone");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_organ_", "cone");
   std::ofstream(d / "line.json") << straight_line().dump();
   const int around = 48;
   write_cone(d / "surf.obj", 0.0, 100.0, 6.0, 0.05, around, 10);
@@ -161,7 +155,7 @@ TEST(SurfaceRadius, ConeProfileIsTheAnalyticRadiusWithinThePolygonError) {
 // Bad input names the file, the problem and the ring: a missing file, an unsupported format, a ring past the
 // surface's end (its plane misses the surface), an open surface; the keys of mesh.radius.
 TEST(SurfaceRadius, RefusesBadSurfacesNamingFileProblemAndRing) {
-  const fs::path d = temp_dir("radius_bad");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_organ_", "radius_bad");
   std::ofstream(d / "line.json") << straight_line().dump();
   write_cone(d / "surf.obj", 10.0, 90.0, 6.0, 0.0, 24, 8);
   json scene = from_surface_scene(80.0);
@@ -191,7 +185,7 @@ TEST(SurfaceRadius, RefusesBadSurfacesNamingFileProblemAndRing) {
 
 // The program on a ring that misses the surface: exit 2, the message, nothing written.
 TEST(SurfaceRadius, LumenRunExitsTwoAndWritesNothing) {
-  const fs::path d = temp_dir("radius_cli");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_organ_", "radius_cli");
   std::ofstream(d / "line.json") << straight_line().dump();
   write_cone(d / "surf.obj", 10.0, 90.0, 6.0, 0.0, 24, 8);
   std::string text;
@@ -225,7 +219,7 @@ TEST(SurfaceRadius, ColonSegmentFromTheCtSurfaceIsIntersectionFree) {
 // 1 % (the smoothed normals tilt from the radius by at most the latitude step); no offset is clamped (the gap
 // along the normal is the sphere's diameter, or none outward).
 TEST(SurfaceWall, SphereShellHasTheAnalyticVolumeAndThickness) {
-  const fs::path d = temp_dir("sphere");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_organ_", "sphere");
   const double R = 0.01, t = 0.001;
   write_sphere(d / "ball.obj", 10.0, 15, 32);
   const lumen::engine::SurfaceMesh ball = lumen::engine::read_closed_surface((d / "ball.obj").string(), 1e-3);
@@ -254,7 +248,7 @@ TEST(SurfaceWall, SphereShellHasTheAnalyticVolumeAndThickness) {
 
 // Every refusal of a surface wall, one message each naming the file (or the scene's key), the problem and where.
 TEST(SurfaceWall, RefusesBadSurfacesNamingFileProblemAndWhere) {
-  const fs::path d = temp_dir("wall_bad");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_organ_", "wall_bad");
   const std::string tet = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n";
   auto error = [&](const std::string& name, const std::string& obj) {
     std::ofstream(d / name) << obj;
@@ -348,7 +342,7 @@ TEST(SurfaceWall, RefusesBadSurfacesNamingFileProblemAndWhere) {
 
 // The program on an open surface: exit 2, the message, nothing written.
 TEST(SurfaceWall, LumenRunExitsTwoAndWritesNothing) {
-  const fs::path d = temp_dir("wall_cli");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_organ_", "wall_cli");
   std::ofstream(d / "open.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\n";
   std::string text;
   EXPECT_EQ(run_lumen(write_scene(d, wall_scene("open.obj", 0.1, "outward")), d / "out", text), 2) << text;
@@ -395,7 +389,7 @@ TEST(SurfaceWall, AneurysmGrownHalfAMillimetreOutwardIsIntersectionFree) {
 // mean of its neighbours, the cap's centre) and says so; lumen run reports the count the growth returns in
 // report.json (mesh.untangled_vertices) and on the mesh line.
 TEST(SurfaceWall, UntangledFoldOverIsCountedInTheReportAndTheMeshLine) {
-  const fs::path d = temp_dir("untangle");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_organ_", "untangle");
   write_cone(d / "cone.obj", 0.0, 20.0, 6.0, 0.0, 24, 4, 9.0);
   lumen::engine::SurfaceWallSpec spec;
   spec.file = (d / "cone.obj").string();

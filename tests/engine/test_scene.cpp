@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "engine/scene.hpp"
+#include "support/scene_files.hpp"
 
 using lumen::engine::InputError;
 using lumen::engine::parse_scene;
@@ -33,14 +34,7 @@ json good_scene() {
 }
 
 // Message of the InputError thrown for `scene`, or "" when accepted.
-std::string error_of(const json& scene) {
-  try {
-    parse_scene(scene.dump(), "dir/s.json");
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
+using lumen::test::scene_parse_error;
 
 }  // namespace
 
@@ -70,65 +64,65 @@ TEST(Scene, MalformedJsonNamesTheFile) {
 TEST(Scene, UnknownKeyIsNamedWithItsPath) {
   json s = good_scene();
   s["material"]["stiffness"] = 3;
-  EXPECT_EQ(error_of(s), "dir/s.json: material.stiffness: unknown key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: material.stiffness: unknown key");
   s = good_scene();
   s["colour"] = "red";
-  EXPECT_EQ(error_of(s), "dir/s.json: colour: unknown key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: colour: unknown key");
 }
 
 TEST(Scene, MissingKeyIsNamed) {
   json s = good_scene();
   s["mesh"].erase("layers");
-  EXPECT_EQ(error_of(s), "dir/s.json: mesh.layers: missing key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: mesh.layers: missing key");
   s = good_scene();
   s.erase("fps");
-  EXPECT_EQ(error_of(s), "dir/s.json: fps: missing key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: fps: missing key");
 }
 
 TEST(Scene, WrongTypesNameKeyAndValue) {
   json s = good_scene();
   s["mesh"]["inner_radius"] = "0.01";
-  EXPECT_EQ(error_of(s), "dir/s.json: mesh.inner_radius: must be a number (value \"0.01\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: mesh.inner_radius: must be a number (value \"0.01\")");
   s = good_scene();
   s["mesh"]["layers"] = 2.5;
-  EXPECT_EQ(error_of(s), "dir/s.json: mesh.layers: must be an integer (value 2.5)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: mesh.layers: must be an integer (value 2.5)");
   s = good_scene();
   s["render"]["video"] = 1;
-  EXPECT_EQ(error_of(s), "dir/s.json: render.video: must be true or false (value 1)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: render.video: must be true or false (value 1)");
   s = good_scene();
   s["probes"][0]["point"] = json::array({0, 1});
-  EXPECT_EQ(error_of(s), "dir/s.json: probes[0].point: must be an array of 3 numbers (value [0,1])");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: probes[0].point: must be an array of 3 numbers (value [0,1])");
 }
 
 TEST(Scene, OutOfRangeValues) {
   json s = good_scene();
   s["mesh"]["inner_radius"] = 0.0;
-  EXPECT_EQ(error_of(s), "dir/s.json: mesh.inner_radius: must be > 0 (value 0.0)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: mesh.inner_radius: must be > 0 (value 0.0)");
   s = good_scene();
   s["mesh"]["inner_radius"] = -0.01;
-  EXPECT_EQ(error_of(s), "dir/s.json: mesh.inner_radius: must be > 0 (value -0.01)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: mesh.inner_radius: must be > 0 (value -0.01)");
   s = good_scene();
   s["mesh"]["inner_radius"] = 0.02;
-  EXPECT_NE(error_of(s).find("dir/s.json: mesh.inner_radius: must be < mesh.outer_radius"), std::string::npos);
-  EXPECT_NE(error_of(s).find("(value 0.02)"), std::string::npos);
+  EXPECT_NE(scene_parse_error(s).find("dir/s.json: mesh.inner_radius: must be < mesh.outer_radius"), std::string::npos);
+  EXPECT_NE(scene_parse_error(s).find("(value 0.02)"), std::string::npos);
   s = good_scene();
   s["material"]["poisson_ratio"] = 0.5;
-  EXPECT_EQ(error_of(s), "dir/s.json: material.poisson_ratio: out of range (-1, 0.5) (value 0.5)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: material.poisson_ratio: out of range (-1, 0.5) (value 0.5)");
   s = good_scene();
   s["material"]["poisson_ratio"] = -1.0;
-  EXPECT_EQ(error_of(s), "dir/s.json: material.poisson_ratio: out of range (-1, 0.5) (value -1.0)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: material.poisson_ratio: out of range (-1, 0.5) (value -1.0)");
   s = good_scene();
   s["fps"] = 0;
-  EXPECT_EQ(error_of(s), "dir/s.json: fps: out of range (0, 10000] (value 0)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: fps: out of range (0, 10000] (value 0)");
   s = good_scene();
   s["render"]["width"] = 641;
-  EXPECT_EQ(error_of(s), "dir/s.json: render.width: must be even (video encoding) (value 641)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: render.width: must be even (video encoding) (value 641)");
   s = good_scene();
   s["render"]["camera"] = "top";
-  EXPECT_EQ(error_of(s), "dir/s.json: render.camera: must be one of side, diagonal, endoscope (value \"top\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: render.camera: must be one of side, diagonal, endoscope (value \"top\")");
   s = good_scene();
   s["fixed"] = json::array({"both"});
-  EXPECT_EQ(error_of(s), "dir/s.json: fixed[0]: must be one of ends, start, stop (value \"both\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: fixed[0]: must be one of ends, start, stop (value \"both\")");
 }
 
 TEST(Scene, NonFiniteNumbersAreRefused) {
@@ -150,13 +144,13 @@ TEST(Scene, NonFiniteNumbersAreRefused) {
 TEST(Scene, TrackMustBeNonEmptyAndIncreasing) {
   json s = good_scene();
   s["probes"][0]["track"] = json::array();
-  EXPECT_EQ(error_of(s), "dir/s.json: probes[0].track: must not be empty (value [])");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: probes[0].track: must not be empty (value [])");
   s = good_scene();
   s["probes"][0]["track"][1]["t"] = 0.0;
-  EXPECT_EQ(error_of(s), "dir/s.json: probes[0].track[1].t: track times must be strictly increasing (value 0.0)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: probes[0].track[1].t: track times must be strictly increasing (value 0.0)");
   s = good_scene();
   s["probes"][0]["track"][0]["force"][2] = "x";
-  EXPECT_EQ(error_of(s), "dir/s.json: probes[0].track[0].force[2]: must be a number (value \"x\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: probes[0].track[0].force[2]: must be a number (value \"x\")");
 }
 
 TEST(Scene, DisplacementDrivenProbe) {
@@ -167,7 +161,7 @@ TEST(Scene, DisplacementDrivenProbe) {
   EXPECT_DOUBLE_EQ(scene.probes[0].track[1].value.y(), -0.004);
   // Keys must not mix force and displacement.
   s["probes"][0]["track"][1] = json::parse(R"({"t": 1, "force": [0, -0.1, 0]})");
-  EXPECT_EQ(error_of(s), "dir/s.json: probes[0].track[1].force: unknown key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: probes[0].track[1].force: unknown key");
 }
 
 TEST(Scene, ReplayPathIsResolvedBesideTheScene) {
@@ -177,7 +171,7 @@ TEST(Scene, ReplayPathIsResolvedBesideTheScene) {
   auto scene = parse_scene(s.dump(), "dir/s.json");
   EXPECT_EQ(scene.probes[0].replay, "dir/session.csv");
   s["probes"][0]["track"] = good_scene()["probes"][0]["track"];
-  EXPECT_EQ(error_of(s), "dir/s.json: probes[0]: needs exactly one of \"track\" or \"replay\"");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: probes[0]: needs exactly one of \"track\" or \"replay\"");
 }
 
 TEST(Scene, CollisionKeys) {
@@ -188,7 +182,7 @@ TEST(Scene, CollisionKeys) {
   EXPECT_EQ(scene.collision.kdop, 18);
   EXPECT_EQ(scene.collision.response, ResponseKind::kPaper);
   s["collision"]["kdop"] = 10;
-  EXPECT_EQ(error_of(s), "dir/s.json: collision.kdop: must be one of 6, 14, 18, 26 (value 10)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.kdop: must be one of 6, 14, 18, 26 (value 10)");
 }
 
 TEST(Scene, LcpSolverKeys) {
@@ -199,13 +193,13 @@ TEST(Scene, LcpSolverKeys) {
   EXPECT_EQ(scene.collision.lcp_sweeps, 50);
   EXPECT_EQ(parse_scene(good_scene().dump(), "dir/s.json").collision.lcp, LcpSolver::kActiveSet);
   s["collision"]["lcp_sweeps"] = 1;
-  EXPECT_EQ(error_of(s), "dir/s.json: collision.lcp_sweeps: out of range [2, 100000] (value 1)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.lcp_sweeps: out of range [2, 100000] (value 1)");
   s["collision"]["lcp_sweeps"] = 50;
   s["collision"]["lcp"] = "pgs";
-  EXPECT_EQ(error_of(s), "dir/s.json: collision.lcp: must be one of active_set, nncg (value \"pgs\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.lcp: must be one of active_set, nncg (value \"pgs\")");
   s["collision"]["lcp"] = "nncg";
   s["collision"]["response"] = "paper";
-  EXPECT_EQ(error_of(s), "dir/s.json: collision.lcp: \"nncg\" needs collision.response \"constraint\" (got \"paper\") (value \"nncg\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.lcp: \"nncg\" needs collision.response \"constraint\" (got \"paper\") (value \"nncg\")");
 }
 
 TEST(Scene, CouplingKey) {
@@ -215,14 +209,14 @@ TEST(Scene, CouplingKey) {
   EXPECT_EQ(parse_scene(s.dump(), "dir/s.json").collision.coupling, lumen::engine::ContactCoupling::kCarried);
   EXPECT_EQ(parse_scene(good_scene().dump(), "dir/s.json").collision.coupling, lumen::engine::ContactCoupling::kCorrect);
   s["collision"]["coupling"] = "warped";
-  EXPECT_EQ(error_of(s), "dir/s.json: collision.coupling: must be one of correct, carried (value \"warped\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.coupling: must be one of correct, carried (value \"warped\")");
   s["collision"]["coupling"] = "carried";
   s["material"]["model"] = "linear";
-  EXPECT_EQ(error_of(s), "dir/s.json: collision.coupling: \"carried\" needs material.model \"corotational\" and "
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.coupling: \"carried\" needs material.model \"corotational\" and "
                          "solver.type \"quasi_static\" (got \"linear\", \"quasi_static\") (value \"carried\")");
   s["material"]["model"] = "corotational";
   s["collision"]["response"] = "paper";
-  EXPECT_EQ(error_of(s), "dir/s.json: collision.coupling: \"carried\" needs collision.response \"constraint\" "
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.coupling: \"carried\" needs collision.response \"constraint\" "
                          "(got \"paper\") (value \"carried\")");
 }
 
@@ -233,13 +227,13 @@ TEST(Scene, SolverMethodKey) {
   s["solver"] = {{"method", "chord"}};
   EXPECT_EQ(parse_scene(s.dump(), "dir/s.json").solver.method, lumen::engine::SolveMethod::kChord);
   s["solver"]["method"] = "newton";
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.method: must be one of pcg, chord (value \"newton\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.method: must be one of pcg, chord (value \"newton\")");
   s["solver"] = {{"method", "chord"}, {"tangent", "exact"}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.method: \"chord\" needs solver.tangent \"warped\" (got \"exact\") "
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.method: \"chord\" needs solver.tangent \"warped\" (got \"exact\") "
                          "(value \"chord\")");
   s["solver"] = {{"method", "chord"}};
   s["material"]["model"] = "linear";
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.method: needs material.model \"corotational\" and solver.type "
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.method: needs material.model \"corotational\" and solver.type "
                          "\"quasi_static\" (got \"linear\", \"quasi_static\") (value \"chord\")");
 }
 
@@ -280,39 +274,39 @@ TEST(Scene, SolverKeysWithDefaultsAndValues) {
 TEST(Scene, SolverKeysAreValidated) {
   json s = good_scene();
   s["solver"] = {{"type", "explicit"}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.type: must be one of quasi_static, dynamic (value \"explicit\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.type: must be one of quasi_static, dynamic (value \"explicit\")");
   s["solver"] = {{"type", "dynamic"}, {"damping", 1.0}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.damping: unknown key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.damping: unknown key");
   s["solver"] = {{"tolerance", 0.0}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.tolerance: out of range (0, 1) (value 0.0)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.tolerance: out of range (0, 1) (value 0.0)");
   s["solver"] = {{"tolerance", 1.0}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.tolerance: out of range (0, 1) (value 1.0)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.tolerance: out of range (0, 1) (value 1.0)");
   s["solver"] = {{"background_factorisation", 1}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.background_factorisation: must be true or false (value 1)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.background_factorisation: must be true or false (value 1)");
   s["solver"] = {{"tolerance", "tight"}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.tolerance: must be a number (value \"tight\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.tolerance: must be a number (value \"tight\")");
   s["solver"] = {{"max_iterations", 0}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.max_iterations: out of range [1, 10000] (value 0)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.max_iterations: out of range [1, 10000] (value 0)");
   s["solver"] = {{"anderson_depth", 21}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.anderson_depth: out of range [0, 20] (value 21)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.anderson_depth: out of range [0, 20] (value 21)");
   s["solver"] = {{"tangent", "newton"}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.tangent: must be one of warped, projected, exact (value \"newton\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.tangent: must be one of warped, projected, exact (value \"newton\")");
   s["solver"] = {{"tangent", "exact"}};  // (good_scene is linear)
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.tangent: needs material.model \"corotational\" and solver.type "
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.tangent: needs material.model \"corotational\" and solver.type "
                          "\"quasi_static\" (got \"linear\", \"quasi_static\") (value \"exact\")");
   s["solver"] = {{"max_iterations", 2.5}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.max_iterations: must be an integer (value 2.5)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.max_iterations: must be an integer (value 2.5)");
   s["solver"] = {{"type", "dynamic"}, {"rayleigh_mass", -0.1}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.rayleigh_mass: must be >= 0 (value -0.1)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.rayleigh_mass: must be >= 0 (value -0.1)");
   s["solver"] = {{"type", "dynamic"}, {"rayleigh_stiffness", -1e-3}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.rayleigh_stiffness: must be >= 0 (value -0.001)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.rayleigh_stiffness: must be >= 0 (value -0.001)");
   s["solver"] = {{"type", "dynamic"}, {"rayleigh_stiffness", nullptr}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.rayleigh_stiffness: must be a number (value null)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.rayleigh_stiffness: must be a number (value null)");
   // Damping without a dynamic solve is a mistake, not a no-op.
   s["solver"] = {{"rayleigh_mass", 1.0}};
-  EXPECT_EQ(error_of(s), "dir/s.json: solver.rayleigh_mass: needs solver.type \"dynamic\" (value 1.0)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.rayleigh_mass: needs solver.type \"dynamic\" (value 1.0)");
   s["solver"] = "dynamic";
-  EXPECT_EQ(error_of(s), "dir/s.json: solver: must be an object (value \"dynamic\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver: must be an object (value \"dynamic\")");
 }
 
 TEST(Scene, TwistKeysWithTheirValues) {
@@ -334,39 +328,39 @@ TEST(Scene, TwistKeysAreValidated) {
   json s = good_scene();
   s["twist"] = good;
   s["twist"]["end"] = "middle";
-  EXPECT_EQ(error_of(s), "dir/s.json: twist.end: must be one of start, stop (value \"middle\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: twist.end: must be one of start, stop (value \"middle\")");
   s["twist"] = good;
   s["twist"].erase("end");
-  EXPECT_EQ(error_of(s), "dir/s.json: twist.end: missing key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: twist.end: missing key");
   s["twist"] = good;
   s["twist"].erase("track");
-  EXPECT_EQ(error_of(s), "dir/s.json: twist.track: missing key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: twist.track: missing key");
   s["twist"] = good;
   s["twist"]["axis"] = json::array({0, 0, 1});
-  EXPECT_EQ(error_of(s), "dir/s.json: twist.axis: unknown key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: twist.axis: unknown key");
   s["twist"] = good;
   s["twist"]["track"] = json::array();
-  EXPECT_EQ(error_of(s), "dir/s.json: twist.track: must not be empty (value [])");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: twist.track: must not be empty (value [])");
   s["twist"]["track"] = 90;
-  EXPECT_EQ(error_of(s), "dir/s.json: twist.track: must be an array of {\"t\", \"degrees\"} keys (value 90)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: twist.track: must be an array of {\"t\", \"degrees\"} keys (value 90)");
   s["twist"] = good;
   s["twist"]["track"][1]["t"] = 0.0;
-  EXPECT_EQ(error_of(s), "dir/s.json: twist.track[1].t: track times must be strictly increasing (value 0.0)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: twist.track[1].t: track times must be strictly increasing (value 0.0)");
   s["twist"] = good;
   s["twist"]["track"][0]["t"] = -0.5;
-  EXPECT_EQ(error_of(s), "dir/s.json: twist.track[0].t: must be >= 0 (value -0.5)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: twist.track[0].t: must be >= 0 (value -0.5)");
   s["twist"] = good;
   s["twist"]["track"][1]["degrees"] = 1000.0;
-  EXPECT_EQ(error_of(s), "dir/s.json: twist.track[1].degrees: out of range [-720, 720] (value 1000.0)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: twist.track[1].degrees: out of range [-720, 720] (value 1000.0)");
   s["twist"] = good;
   s["twist"]["track"][1]["degrees"] = "half";
-  EXPECT_EQ(error_of(s), "dir/s.json: twist.track[1].degrees: must be a number (value \"half\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: twist.track[1].degrees: must be a number (value \"half\")");
   s["twist"] = good;
   s["twist"]["track"][1].erase("degrees");
-  EXPECT_EQ(error_of(s), "dir/s.json: twist.track[1].degrees: missing key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: twist.track[1].degrees: missing key");
   s["twist"] = good;
   s["twist"]["track"][1]["radians"] = 3.14;
-  EXPECT_EQ(error_of(s), "dir/s.json: twist.track[1].radians: unknown key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: twist.track[1].radians: unknown key");
 }
 
 // mesh.grading: angles in degrees become radians, arc lengths stay metres; bad values are named by key path.
@@ -381,14 +375,14 @@ TEST(Scene, MeshGradingIsReadAndItsErrorsNamed) {
   EXPECT_EQ(scene.mesh.grading_along.focus[0], 0.05);
   EXPECT_EQ(scene.mesh.grading_along.ratio, 12.0);
   s["mesh"]["grading"]["around"]["ratio"] = 0.5;
-  EXPECT_EQ(error_of(s), "dir/s.json: mesh.grading.around.ratio: out of range [1, 100] (value 0.5)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: mesh.grading.around.ratio: out of range [1, 100] (value 0.5)");
   s["mesh"]["grading"]["around"]["ratio"] = 6;
   s["mesh"]["grading"]["along"]["at"] = json::parse("[0.2]");
-  EXPECT_EQ(error_of(s), "dir/s.json: mesh.grading.along.at[0]: out of range [0, 0.1] (value 0.2)");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: mesh.grading.along.at[0]: out of range [0, 0.1] (value 0.2)");
   s["mesh"]["grading"]["along"]["at"] = json::parse("[]");
-  EXPECT_EQ(error_of(s), "dir/s.json: mesh.grading.along.at: must be a non-empty array of numbers (value [])");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: mesh.grading.along.at: must be a non-empty array of numbers (value [])");
   s["mesh"]["grading"]["along"].erase("at");
-  EXPECT_EQ(error_of(s), "dir/s.json: mesh.grading.along.at: missing key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: mesh.grading.along.at: missing key");
   s["mesh"]["grading"]["sideways"] = json::object();
-  EXPECT_EQ(error_of(s), "dir/s.json: mesh.grading.sideways: unknown key");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: mesh.grading.sideways: unknown key");
 }

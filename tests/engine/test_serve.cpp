@@ -33,6 +33,7 @@
 #include "engine/serve.hpp"
 #include "support/files.hpp"
 #include "support/instruments.hpp"
+#include "support/tube.hpp"
 
 using namespace lumen::engine;
 using nlohmann::json;
@@ -40,12 +41,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kOuterRadius = 0.013;
+using lumen::test::kPaperOuterRadius;
 
 // The small tube with a device-driven 3 mm probe: device origin 0.5 mm above the outer wall's top.
 json device_scene(int frames) {
   const json probe = {{"type", "sphere_probe"}, {"tip_radius", 0.003}, {"shaft_radius", 0.002}, {"shaft_length", 0.04}};
-  return lumen::test::device_tube_scene("probe", frames, probe, "Hand", Eigen::Vector3d(0.0, kOuterRadius + 0.0005, 0.05));
+  return lumen::test::device_tube_scene("probe", frames, probe, "Hand", Eigen::Vector3d(0.0, kPaperOuterRadius + 0.0005, 0.05));
 }
 
 // An OpenIGTLink client on loopback (the real client library, engine/device_client.hpp).
@@ -138,7 +139,7 @@ TEST(Serve, ASimulatedHandDrivesTheProbeFeelsTheTissueAndTheReplayIsBitIdentical
   EXPECT_GT(hand.sensors(), 0);
   EXPECT_GT(max_up, 0.0);
   // The probe was where the hand sent it: the last frame's tip below the device's start.
-  EXPECT_LT(served.session.frames.back().instruments[0].position.y(), kOuterRadius + 0.0005);
+  EXPECT_LT(served.session.frames.back().instruments[0].position.y(), kPaperOuterRadius + 0.0005);
 
   // Replay: the recorded poses played back give the same frames and reactions, bit for bit.
   const fs::path dir = fs::temp_directory_path() / "lumen_serve_replay";
@@ -221,7 +222,7 @@ TEST(Serve, MalformedMessagesAreCountedByReasonAndIgnored) {
   EXPECT_EQ(s["received"]["POSITION"].get<long>(), 1);
   EXPECT_EQ(s["received"]["STATUS"].get<long>(), 1);
   // Only the good pose moved the probe: 1 mm along x, 2 mm up from the device origin.
-  const Eigen::Vector3d expected(0.001, kOuterRadius + 0.0005 + 0.002, 0.05);
+  const Eigen::Vector3d expected(0.001, kPaperOuterRadius + 0.0005 + 0.002, 0.05);
   EXPECT_LE((served.session.frames.back().instruments[0].position - expected).norm(), 1e-9);
 }
 
@@ -263,7 +264,7 @@ TEST(Serve, ADeviceThatDisconnectsLeavesTheInstrumentAtItsLastPoseAndMayReconnec
   EXPECT_EQ(s["connections"].get<long>(), 2);
   EXPECT_GT(s["devices"][0]["disconnected_frames"].get<long>(), 0);
   // While disconnected the probe stayed at the first pose; at the end it is at the second.
-  const Eigen::Vector3d origin(0.0, kOuterRadius + 0.0005, 0.05);
+  const Eigen::Vector3d origin(0.0, kPaperOuterRadius + 0.0005, 0.05);
   const Eigen::Vector3d a = origin + 1e-3 * a_mm.cast<double>(), b = origin + 1e-3 * b_mm.cast<double>();
   EXPECT_LE((served.session.frames[19].instruments[0].position - a).norm(), 1e-9);
   EXPECT_LE((served.session.frames.back().instruments[0].position - b).norm(), 1e-9);

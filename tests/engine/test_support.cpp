@@ -13,6 +13,7 @@
 #include "physics/support.hpp"
 #include "support/files.hpp"
 #include "support/instruments.hpp"
+#include "support/tube.hpp"
 
 using namespace lumen;
 using nlohmann::json;
@@ -21,8 +22,9 @@ namespace {
 
 // The small tube's outer wall: 12 sides of radius 13 mm, 0.1 m long, 10 cells along.
 constexpr int kAround = 12, kAlong = 10;
-constexpr double kOuterRadius = 0.013, kLength = 0.1;
-double chord() { return 2.0 * kOuterRadius * std::sin(EIGEN_PI / kAround); }
+using lumen::test::kPaperOuterRadius;
+constexpr double kLength = 0.1;
+double chord() { return 2.0 * kPaperOuterRadius * std::sin(EIGEN_PI / kAround); }
 
 }  // namespace
 

@@ -44,13 +44,6 @@ constexpr double kCubeGap = 1.0 / (1 << 21);
 using Vertices = std::vector<std::array<double, 3>>;
 using Faces = std::vector<std::array<int, 3>>;
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("lumen_pair_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
-
 // A latitude-longitude sphere of radius r about `centre` (tests/support/sphere.hpp).
 void sphere(double r, int rings, int around, Vertices& v, Faces& f, double centre_x = 0.0) {
   lumen::test::TubePoints x;
@@ -149,7 +142,7 @@ std::multiset<Triangle> triangles(const lumen::Points& x, const lumen::Tris& t) 
 // theorem over their triangles), all positive, whose boundary faces are exactly the files' triangles (by corner
 // positions), the inner wall the inner file's and the outer wall the outer file's.
 TEST(SurfacePair, EveryFormatLoadsIntoTetsBoundedByTheFilesTriangles) {
-  const fs::path d = temp_dir("formats");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_pair_", "formats");
   for (const auto& [in, out] : std::vector<std::array<std::string, 2>>{{"in.obj", "out.off"}, {"in.stl", "out.ply"}}) {
     write_spheres(d, in, out);
     const lumen::engine::Scene s = lumen::engine::load_scene(write_scene(d, pair_scene(in, out)));
@@ -178,7 +171,7 @@ TEST(SurfacePair, EveryFormatLoadsIntoTetsBoundedByTheFilesTriangles) {
 // surface through itself, the surfaces through each other, an outer surface that does not enclose the inner one
 // (apart, or swapped), the mesher's failure in its own words; the keys; what a closed wall cannot combine with.
 TEST(SurfacePair, RefusesBadPairsNamingFileProblemAndWhere) {
-  const fs::path d = temp_dir("bad");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_pair_", "bad");
   const std::string in = (d / "in.obj").string(), out = (d / "out.obj").string(), scene = (d / "s.json").string();
   auto error = [&](const std::string& inner, const std::string& outer) {
     return load_error(write_scene(d, pair_scene(inner, outer)));
@@ -246,7 +239,7 @@ TEST(SurfacePair, RefusesBadPairsNamingFileProblemAndWhere) {
 
 // The program on surfaces through each other: exit 2, the message, nothing written.
 TEST(SurfacePair, LumenRunExitsTwoAndWritesNothing) {
-  const fs::path d = temp_dir("cli");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_pair_", "cli");
   write_spheres(d, "in.obj", "shifted.obj", kOuterMm, 6.0);
   std::string text;
   EXPECT_EQ(run_lumen(write_scene(d, pair_scene("in.obj", "shifted.obj")), d / "out", text, " --no-render"), 2) << text;
@@ -259,7 +252,7 @@ TEST(SurfacePair, LumenRunExitsTwoAndWritesNothing) {
 // inner-wall pair, and report.json's mesh block says where the mesh came from, the mesher and its time (within the
 // build time), with the quality block over the same tets the scene loaded; the terminal's mesh line says so too.
 TEST(SurfacePair, ShortCheckedSessionReportsTheMesherAndItsTime) {
-  const fs::path d = temp_dir("run");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_pair_", "run");
   write_spheres(d, "in.off", "out.stl");
   const std::string scene = write_scene(d, pair_scene("in.off", "out.stl"));
   const lumen::engine::Scene s = lumen::engine::load_scene(scene);

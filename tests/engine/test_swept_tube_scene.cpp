@@ -26,13 +26,6 @@ using nlohmann::json;
 namespace {
 
 // A fresh folder for one test's files.
-fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("lumen_swept_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
-
 // A centreline file: n points along +z from z = 0 to z = length (file units), optional extra keys.
 json straight_centreline(int n, double length) {
   json c;
@@ -64,8 +57,8 @@ std::string write_case(const fs::path& d, const json& scene, const json& centrel
 }
 
 // The InputError message of loading that case ("" when it loads).
-std::string error_of(const json& scene, const json& centreline) {
-  const fs::path d = temp_dir("error");
+std::string swept_scene_error(const json& scene, const json& centreline) {
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_swept_", "error");
   const std::string path = write_case(d, scene, centreline);
   return lumen::test::message_of<InputError>([&] { lumen::engine::load_scene(path); });
 }
@@ -74,7 +67,7 @@ std::string error_of(const json& scene, const json& centreline) {
 
 // Lengths in millimetres become metres; the centreline is read relative to the scene file.
 TEST(SweptTubeScene, LoadsMillimetresRelativeToTheSceneFile) {
-  const fs::path d = temp_dir("load");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_swept_", "load");
   const lumen::engine::Scene s = lumen::engine::load_scene(write_case(d, swept_scene(), straight_centreline(11, 100.0)));
   ASSERT_EQ(s.mesh_type, MeshType::kSweptTube);
   const lumen::physics::SweptTubeSpec& t = s.swept_tube;
@@ -112,50 +105,50 @@ TEST(SweptTubeScene, RefusesBadInputNamingFileKeyAndSample) {
     s["mesh"][key] = value;
     return s;
   };
-  EXPECT_EQ(error_of(swept_scene(), line), "");
+  EXPECT_EQ(swept_scene_error(swept_scene(), line), "");
   // The centreline file: repeated points, too few, a non-finite or malformed value, a count that disagrees.
   json repeated = line;
   repeated["points"][4] = repeated["points"][3];
-  EXPECT_NE(error_of(swept_scene(), repeated).find(line_file + ": points[4]: repeats points[3], got [0, 0, "),
-            std::string::npos) << error_of(swept_scene(), repeated);
+  EXPECT_NE(swept_scene_error(swept_scene(), repeated).find(line_file + ": points[4]: repeats points[3], got [0, 0, "),
+            std::string::npos) << swept_scene_error(swept_scene(), repeated);
   json one = straight_centreline(2, 100.0);
   one["points"].erase(1);
   one["n"] = 1;
-  EXPECT_EQ(error_of(swept_scene(), one), line_file + ": points: needs at least 2 points, got 1");
+  EXPECT_EQ(swept_scene_error(swept_scene(), one), line_file + ": points: needs at least 2 points, got 1");
   json text = line;
   text["points"][2][1] = "x";
-  EXPECT_EQ(error_of(swept_scene(), text), line_file + ": points[2][1]: must be a number (value \"x\")");
+  EXPECT_EQ(swept_scene_error(swept_scene(), text), line_file + ": points[2][1]: must be a number (value \"x\")");
   json count = line;
   count["n"] = 12;
-  EXPECT_EQ(error_of(swept_scene(), count), line_file + ": n: must equal the number of points (11) (value 12)");
+  EXPECT_EQ(swept_scene_error(swept_scene(), count), line_file + ": n: must equal the number of points (11) (value 12)");
   json normals = line;
   normals["normals"] = json::array();
   for (int k = 0; k < 11; ++k) normals["normals"].push_back({0.0, 0.0, 1.0});
-  EXPECT_NE(error_of(swept_scene(), normals).find(line_file + ": normals[0]: is zero or (nearly) parallel to the tangent"),
+  EXPECT_NE(swept_scene_error(swept_scene(), normals).find(line_file + ": normals[0]: is zero or (nearly) parallel to the tangent"),
             std::string::npos);
-  EXPECT_NE(error_of(scene_with("centreline", "missing.json"), line)
+  EXPECT_NE(swept_scene_error(scene_with("centreline", "missing.json"), line)
                 .find((fs::path(scene_file).parent_path() / "missing.json").string() + ": no such centreline file"),
             std::string::npos);
   // The scene's mesh keys.
-  EXPECT_EQ(error_of(scene_with("range", {20.0, 120.0}), line),
+  EXPECT_EQ(swept_scene_error(scene_with("range", {20.0, 120.0}), line),
             scene_file + ": mesh.range: must lie within the centreline's arc length [0, 100] of " + line_file +
                 ", start < stop (value [20.0,120.0])");
-  EXPECT_NE(error_of(scene_with("range", {50.0, 50.0}), line).find("mesh.range: must lie within"), std::string::npos);
-  EXPECT_EQ(error_of(scene_with("radius", 0.0), line), scene_file + ": mesh.radius: must be > 0 (value 0.0)");
-  EXPECT_EQ(error_of(scene_with("wall_thickness", -1.0), line),
+  EXPECT_NE(swept_scene_error(scene_with("range", {50.0, 50.0}), line).find("mesh.range: must lie within"), std::string::npos);
+  EXPECT_EQ(swept_scene_error(scene_with("radius", 0.0), line), scene_file + ": mesh.radius: must be > 0 (value 0.0)");
+  EXPECT_EQ(swept_scene_error(scene_with("wall_thickness", -1.0), line),
             scene_file + ": mesh.wall_thickness: must be > 0 (value -1.0)");
-  EXPECT_EQ(error_of(scene_with("radius", json::parse(R"({"from_surface": "colon.ply"})")), line),
+  EXPECT_EQ(swept_scene_error(scene_with("radius", json::parse(R"({"from_surface": "colon.ply"})")), line),
             (fs::path(scene_file).parent_path() / "colon.ply").string() + ": no such surface file");
-  EXPECT_EQ(error_of(scene_with("radius", json::parse("[[30, 8], [100, 9]]")), line),
+  EXPECT_EQ(swept_scene_error(scene_with("radius", json::parse("[[30, 8], [100, 9]]")), line),
             scene_file + ": mesh.radius: the profile must cover mesh.range (first s <= range start, last s >= range "
                          "stop) (value [[30,8],[100,9]])");
-  EXPECT_EQ(error_of(scene_with("radius", json::parse("[[0, 8], [0, 9]]")), line),
+  EXPECT_EQ(swept_scene_error(scene_with("radius", json::parse("[[0, 8], [0, 9]]")), line),
             scene_file + ": mesh.radius[1][0]: arc lengths must be strictly increasing (value 0)");
-  EXPECT_EQ(error_of(scene_with("units", "cm"), line), scene_file + ": mesh.units: must be one of m, mm (value \"cm\")");
-  EXPECT_EQ(error_of(scene_with("haustra", json::parse(R"({"depth": 1.0, "pitch": 10.0})")), line),
+  EXPECT_EQ(swept_scene_error(scene_with("units", "cm"), line), scene_file + ": mesh.units: must be one of m, mm (value \"cm\")");
+  EXPECT_EQ(swept_scene_error(scene_with("haustra", json::parse(R"({"depth": 1.0, "pitch": 10.0})")), line),
             scene_file + ": mesh.haustra.pitch: must be at least 4 mesh.segment_length (value 10.0)");
-  EXPECT_EQ(error_of(scene_with("inner_radius", 8.0), line), scene_file + ": mesh.inner_radius: unknown key");
-  EXPECT_EQ(error_of(scene_with("element", "tet10"), line),
+  EXPECT_EQ(swept_scene_error(scene_with("inner_radius", 8.0), line), scene_file + ": mesh.inner_radius: unknown key");
+  EXPECT_EQ(swept_scene_error(scene_with("element", "tet10"), line),
             scene_file + ": mesh.element: \"tet10\" needs mesh.type \"hollow_cylinder\" (got \"swept_tube\") (value "
                          "\"tet10\")");
 }
@@ -186,7 +179,7 @@ TEST(SweptTubeScene, ColonSegmentInnerWallIsIntersectionFree) {
 // Probes given as organ-frame points in metres snap onto the swept tube's outer wall; the mesh line says how it was
 // built.
 TEST(SweptTubeScene, ProbesSnapToTheOuterWallAndTheMeshLineSaysHowItWasBuilt) {
-  const fs::path d = temp_dir("probe");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_swept_", "probe");
   const lumen::engine::Scene scene =
       lumen::engine::load_scene(write_case(d, swept_scene(), straight_centreline(11, 100.0)));
   const auto model = lumen::engine::compile_model(scene);
@@ -239,7 +232,7 @@ TEST(FixedNodeSets, BoxAndPlaneSelectTheNodesInsideAndOnTheNormalsSide) {
 // The lumen program on a bad centreline: exit 2, one message naming the centreline file, the field and the sample,
 // and nothing written into the output folder.
 TEST(SweptTubeScene, BadCentrelineExitsTwoAndWritesNothing) {
-  const fs::path d = temp_dir("cli");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_swept_", "cli");
   json line = straight_centreline(11, 100.0);
   line["points"][7] = line["points"][6];
   const std::string scene = write_case(d, swept_scene(), line);
@@ -256,7 +249,7 @@ TEST(SweptTubeScene, BadCentrelineExitsTwoAndWritesNothing) {
 // centreline its prescribed displacement is the hollow cylinder's (the same node numbering, the tube shifted by the
 // range start), and on a bent one every turned node stays at its distance from the end ring's centre.
 TEST(SweptTubeScene, TwistTurnsTheEndRingAboutItsOwnTangent) {
-  const fs::path d = temp_dir("twist");
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_swept_", "twist");
   json swept = swept_scene();
   swept["mesh"].erase("haustra");
   swept["mesh"]["segment_length"] = 5.0;

@@ -57,7 +57,7 @@ const fs::path& temp_root() {
 fs::path case_dir(const std::string& name) { return temp_root() / name; }
 
 // The folder of one case, emptied.
-fs::path temp_dir(const std::string& name) {
+fs::path fresh_case_dir(const std::string& name) {
   const fs::path d = case_dir(name);
   fs::remove_all(d);
   fs::create_directories(d);
@@ -91,8 +91,8 @@ std::string write_case(const fs::path& d, const json& scene, const std::string& 
   return (d / "s.json").string();
 }
 
-std::string error_of(const json& scene, const std::string& mesh_text = "") {
-  const fs::path d = temp_dir("error");
+std::string volume_scene_error(const json& scene, const std::string& mesh_text = "") {
+  const fs::path d = fresh_case_dir("error");
   const std::string path = write_case(d, scene, mesh_text);
   return lumen::test::message_of<InputError>([&] { load_scene(path); });
 }
@@ -133,7 +133,7 @@ TEST(VolumeScene, TagsByNumberOrNameAndFoundWalls) {
   found["mesh"].erase("inner_tag");
   found["mesh"].erase("outer_tag");
   for (const json& scene : {volume_scene(), by_name, found}) {
-    const fs::path d = temp_dir("tags");
+    const fs::path d = fresh_case_dir("tags");
     const lumen::engine::Scene s = load_scene(write_case(d, scene));
     EXPECT_EQ(s.volume.file, (d / "tube.msh").string());
     EXPECT_EQ(s.volume.mesh.tets, tube.tets);
@@ -142,7 +142,7 @@ TEST(VolumeScene, TagsByNumberOrNameAndFoundWalls) {
   }
   json mm = volume_scene();
   mm["mesh"]["units"] = "mm";
-  const lumen::engine::Scene s = load_scene(write_case(temp_dir("mm"), mm));
+  const lumen::engine::Scene s = load_scene(write_case(fresh_case_dir("mm"), mm));
   EXPECT_NEAR(s.volume.mesh.rest.cwiseAbs().maxCoeff(), 0.05e-3, 1e-18);
 }
 
@@ -151,32 +151,32 @@ TEST(VolumeScene, RefusesBadKeysNamingFileKeyAndValue) {
   const std::string mesh = (case_dir("error") / "tube.msh").string();
   json s = volume_scene();
   s["mesh"].erase("outer_tag");
-  EXPECT_EQ(error_of(s), scene + ": mesh.inner_tag: give both mesh.inner_tag and mesh.outer_tag, or neither (the "
+  EXPECT_EQ(volume_scene_error(s), scene + ": mesh.inner_tag: give both mesh.inner_tag and mesh.outer_tag, or neither (the "
                                  "walls are then found on the boundary)");
   s = volume_scene();
   s["mesh"]["outer_tag"] = "muscle";
-  EXPECT_EQ(error_of(s), scene + ": mesh.outer_tag: no physical surface of that name in " + mesh +
+  EXPECT_EQ(volume_scene_error(s), scene + ": mesh.outer_tag: no physical surface of that name in " + mesh +
                              " (it has: \"lumen\", \"serosa\") (value \"muscle\")");
   s = volume_scene();
   s["mesh"]["outer_tag"] = 1;
-  EXPECT_EQ(error_of(s), scene + ": mesh.outer_tag: must differ from mesh.inner_tag (value 1)");
+  EXPECT_EQ(volume_scene_error(s), scene + ": mesh.outer_tag: must differ from mesh.inner_tag (value 1)");
   s = volume_scene();
   s["mesh"]["outer_tag"] = 7;
-  EXPECT_EQ(error_of(s), mesh + ": mesh.outer_tag: no triangle has tag 7 (triangle tags in the file: 1, 2)");
+  EXPECT_EQ(volume_scene_error(s), mesh + ": mesh.outer_tag: no triangle has tag 7 (triangle tags in the file: 1, 2)");
   s = volume_scene();
   s["mesh"]["radius"] = 1.0;
-  EXPECT_EQ(error_of(s), scene + ": mesh.radius: unknown key");
+  EXPECT_EQ(volume_scene_error(s), scene + ": mesh.radius: unknown key");
   s = volume_scene();
   s["mesh"]["file"] = "none.msh";
-  EXPECT_EQ(error_of(s), (case_dir("error") / "none.msh").string() +
+  EXPECT_EQ(volume_scene_error(s), (case_dir("error") / "none.msh").string() +
                              ": file: no such volume mesh file");
   s = volume_scene();
   s["twist"] = json::parse(R"({"end": "stop", "track": [{"t": 0.0, "degrees": 0.0}]})");
-  EXPECT_EQ(error_of(s), scene + ": twist: needs a generated tube (mesh.type \"hollow_cylinder\" or \"swept_tube\"; got "
+  EXPECT_EQ(volume_scene_error(s), scene + ": twist: needs a generated tube (mesh.type \"hollow_cylinder\" or \"swept_tube\"; got "
                                  "\"volume\")");
   s = volume_scene();
   s["mesh"]["element"] = "tet10";
-  EXPECT_EQ(error_of(s), scene + ": mesh.element: \"tet10\" needs mesh.type \"hollow_cylinder\" (got \"volume\") (value "
+  EXPECT_EQ(volume_scene_error(s), scene + ": mesh.element: \"tet10\" needs mesh.type \"hollow_cylinder\" (got \"volume\") (value "
                                  "\"tet10\")");
 }
 
@@ -190,18 +190,18 @@ TEST(VolumeScene, NamedEndsNeedTwoEndCaps) {
   const lumen::test::TaggedVolume v{m.rest, m.tets, {m.surface(physics::kInnerWall), outer}, {1, 2}, {"a", "b"}};
   const std::string text = lumen::test::write_msh22(v);
   const std::string mesh = (case_dir("error") / "tube.msh").string();
-  EXPECT_EQ(error_of(volume_scene(), text),
+  EXPECT_EQ(volume_scene_error(volume_scene(), text),
             (case_dir("error") / "s.json").string() + ": fixed[0]: the volume mesh " +
                 mesh + " has no end node sets (its end caps are not two separate pieces): hold nodes by {\"box\": "
                 "...} or {\"plane\": ...} (value \"ends\")");
   json boxed = volume_scene();
   boxed["fixed"] = json::parse(R"([{"box": [[-1, -1, -0.001], [1, 1, 0.001]]}])");
-  EXPECT_EQ(error_of(boxed, text), "");
+  EXPECT_EQ(volume_scene_error(boxed, text), "");
 }
 
 // lumen run on a bad volume file: exit 2, the reader's message, nothing written.
 TEST(VolumeScene, LumenRunExitsTwoOnABadFileAndWritesNothing) {
-  const fs::path d = temp_dir("cli");
+  const fs::path d = fresh_case_dir("cli");
   const physics::TetMesh m = physics::make_hollow_cylinder(small_tube());
   const lumen::test::TaggedVolume v{m.rest, m.tets, {m.surface(physics::kInnerWall)}, {1}, {"a"}};
   std::string text = lumen::test::write_msh22(v);

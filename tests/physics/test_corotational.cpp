@@ -16,26 +16,17 @@
 #include "physics/corotational.hpp"
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
+#include "support/fem.hpp"
 
 namespace lumen::physics {
 namespace {
 
 using Mat43 = Eigen::Matrix<double, 4, 3>;
 using Mat12 = Eigen::Matrix<double, 12, 12>;
-const LinearMaterial kMaterial{5000.0, 0.45};
+using lumen::test::kTissue;
 
-// A small tube (8 x 4 x 1 by default).
-TetMesh small_tube(int around = 8, int along = 4, int layers = 1, double length = 0.04) {
-  HollowCylinderSpec s;
-  s.segments_around = around, s.segments_along = along, s.layers = layers, s.length = length;
-  return make_hollow_cylinder(s);
-}
-
-std::vector<int> both_ends(const TetMesh& m) {
-  std::vector<int> f = m.node_set(kStartEnd);
-  f.insert(f.end(), m.node_set(kStopEnd).begin(), m.node_set(kStopEnd).end());
-  return f;
-}
+using lumen::test::both_ends;
+using lumen::test::small_tube;
 
 // u (3n) of x = Q X + c - X for every node.
 Eigen::VectorXd rigid_displacement(const TetMesh& m, const Eigen::Matrix3d& Q, const Eigen::Vector3d& c) {
@@ -58,7 +49,7 @@ Eigen::MatrixXd explicit_warped_stiffness(const TetMesh& m, const std::vector<Ei
   const int n = 3 * m.n_nodes();
   Eigen::MatrixXd K = Eigen::MatrixXd::Zero(n, n);
   for (int t = 0; t < m.tets.rows(); ++t) {
-    const Mat12 Ke = tet_stiffness(rest_of(m, t), kMaterial);
+    const Mat12 Ke = tet_stiffness(rest_of(m, t), kTissue);
     for (int a = 0; a < 4; ++a)
       for (int b = 0; b < 4; ++b)
         K.block<3, 3>(3 * m.tets(t, a), 3 * m.tets(t, b)) += R[t] * Ke.block<3, 3>(3 * a, 3 * b) * R[t].transpose();
@@ -128,14 +119,14 @@ TEST(ProperRotation, MatchesSvdPolarAndStaysProperWhenInverted) {
 
 TEST(CorotationalElements, ForcesAndWarpedProductMatchExplicitElementFormulas) {
   const TetMesh m = small_tube(6, 2, 1);
-  const CorotationalElements el(m, kMaterial);
+  const CorotationalElements el(m, kTissue);
   const int n = 3 * m.n_nodes();
   std::mt19937 rng(4);
   std::uniform_real_distribution<double> du(-2e-4, 2e-4);
   Eigen::VectorXd u(n);
   for (int i = 0; i < n; ++i) u[i] = du(rng);
   // Identity rotations: f_int = K u with the assembled linear stiffness.
-  const Eigen::SparseMatrix<double> K = assemble_stiffness(m, kMaterial);
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(m, kTissue);
   const std::vector<Eigen::Matrix3d> I(el.n_tets(), Eigen::Matrix3d::Identity());
   Eigen::VectorXd f;
   el.elastic_forces(u, I, f);
@@ -157,7 +148,7 @@ TEST(CorotationalElements, ForcesAndWarpedProductMatchExplicitElementFormulas) {
       const Eigen::Vector3d x = X.row(a).transpose() + w.segment<3>(3 * m.tets(t, a));
       local.segment<3>(3 * a) = R[t].transpose() * x - X.row(a).transpose();
     }
-    const Eigen::Matrix<double, 12, 1> fl = tet_stiffness(X, kMaterial) * local;
+    const Eigen::Matrix<double, 12, 1> fl = tet_stiffness(X, kTissue) * local;
     for (int a = 0; a < 4; ++a) twin.segment<3>(3 * m.tets(t, a)) += R[t] * fl.segment<3>(3 * a);
   }
   EXPECT_LE((f - twin).norm(), 1e-10 * twin.norm());
@@ -175,7 +166,7 @@ TEST(CorotationalElements, ForcesAndWarpedProductMatchExplicitElementFormulas) {
 // and with identity rotations against the assembled linear stiffness.
 TEST(CorotationalElements, AssembledWarpedStiffnessMatchesExplicitSum) {
   const TetMesh m = small_tube(6, 3, 2);
-  const CorotationalElements el(m, kMaterial);
+  const CorotationalElements el(m, kTissue);
   std::mt19937 rng(11);
   std::vector<Eigen::Matrix3d> R(el.n_tets());
   for (Eigen::Matrix3d& r : R) r = random_rotation(rng);
@@ -183,15 +174,15 @@ TEST(CorotationalElements, AssembledWarpedStiffnessMatchesExplicitSum) {
   const Eigen::MatrixXd Kw = Eigen::MatrixXd(el.warped_stiffness(R));
   EXPECT_LE((Kw - twin).norm(), 1e-12 * twin.norm());
   const std::vector<Eigen::Matrix3d> I(el.n_tets(), Eigen::Matrix3d::Identity());
-  const Eigen::MatrixXd K = Eigen::MatrixXd(assemble_stiffness(m, kMaterial));
+  const Eigen::MatrixXd K = Eigen::MatrixXd(assemble_stiffness(m, kTissue));
   EXPECT_LE((Eigen::MatrixXd(el.warped_stiffness(I)) - K).norm(), 1e-12 * K.norm());
   EXPECT_THROW(el.warped_stiffness(std::vector<Eigen::Matrix3d>(3)), std::invalid_argument);
 }
 
 TEST(CorotationalElements, RigidRotationOfFreeMeshGivesZeroForceUnlikeLinear) {
   const TetMesh m = small_tube(8, 3, 1, 0.03);
-  const CorotationalElements el(m, kMaterial);
-  const Eigen::SparseMatrix<double> K = assemble_stiffness(m, kMaterial);
+  const CorotationalElements el(m, kTissue);
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(m, kTissue);
   // 90 degrees about a tilted axis, plus a translation.
   const Eigen::Matrix3d Q = Eigen::AngleAxisd(EIGEN_PI / 2, Eigen::Vector3d(1.0, 2.0, -0.5).normalized()).toRotationMatrix();
   const Eigen::VectorXd u = rigid_displacement(m, Q, Eigen::Vector3d(0.003, 0.0, -0.01));
@@ -209,7 +200,7 @@ TEST(CorotationalElements, RigidRotationOfFreeMeshGivesZeroForceUnlikeLinear) {
 
 TEST(CorotationalSolve, EqualsLinearInTheSmallLoadLimit) {
   const TetMesh m = small_tube(8, 4, 1, 0.04);
-  const CorotationalModel model(m, kMaterial, m.node_set(kStartEnd));
+  const CorotationalModel model(m, kTissue, m.node_set(kStartEnd));
   CorotationalOptions opt;
   opt.tolerance = 1e-10;
   opt.max_iterations = 100;
@@ -238,7 +229,7 @@ TEST(CorotationalSolve, EqualsLinearInTheSmallLoadLimit) {
 
 TEST(CorotationalSolve, PcgMatchesDirectSolveOfExplicitWarpedSystem) {
   const TetMesh m = small_tube(8, 2, 1, 0.02);
-  const CorotationalModel model(m, kMaterial, both_ends(m));
+  const CorotationalModel model(m, kTissue, both_ends(m));
   const int n = model.n_dofs();
   // A strongly rotated state: each node turned about the axis by an angle growing along the tube (large twist).
   Eigen::VectorXd u(n);
@@ -324,7 +315,7 @@ VolumeChange volume_change(const TetMesh& m, const Eigen::VectorXd& u) {
 // and over-stretched tets cancel, so the per-tet change is the measure.
 TEST(CorotationalSolve, TwistOfOneEndBy180DegreesKeepsVolumeUnlikeLinear) {
   const TetMesh m = small_tube(12, 10, 1, 0.15);
-  const CorotationalModel model(m, kMaterial, both_ends(m));
+  const CorotationalModel model(m, kTissue, both_ends(m));
   const int n = model.n_dofs();
   // Prescribed end displacements: the stop end turned by theta about the axis, the start end held.
   auto twist = [&](double theta) { return end_twist(m, theta); };
@@ -366,7 +357,7 @@ TEST(CorotationalSolve, TwistOfOneEndBy180DegreesKeepsVolumeUnlikeLinear) {
 // as the rest-state preconditioner on the same 180-degree twist, in fewer CG iterations once it is in use.
 TEST(CorotationalSolve, LaggedWarpedPreconditionerReachesTheSameEquilibriumInFewerIterations) {
   const TetMesh m = small_tube(8, 6, 1, 0.09);
-  const CorotationalModel model(m, kMaterial, both_ends(m));
+  const CorotationalModel model(m, kTissue, both_ends(m));
   const int n = model.n_dofs();
   auto twist = [&](double theta) { return end_twist(m, theta); };
   const Eigen::VectorXd no_load = Eigen::VectorXd::Zero(n);
@@ -416,7 +407,7 @@ TEST(CorotationalElements, InvertedTetGivesFiniteRestoringForceAndIsCounted) {
   m.rest << 0, 0, 0, h, 0, 0, 0, h, 0, 0, 0, h;
   m.tets.resize(1, 4);
   m.tets << 0, 1, 2, 3;
-  const CorotationalElements el(m, kMaterial);
+  const CorotationalElements el(m, kTissue);
   Eigen::VectorXd u = Eigen::VectorXd::Zero(12);
   u[11] = -1.5 * h;
   std::vector<Eigen::Matrix3d> R;
@@ -426,7 +417,7 @@ TEST(CorotationalElements, InvertedTetGivesFiniteRestoringForceAndIsCounted) {
   EXPECT_LE((R[0] - Eigen::Matrix3d::Identity()).norm(), 1e-12);
   Eigen::VectorXd f;
   el.elastic_forces(u, R, f);
-  const Eigen::VectorXd twin = tet_stiffness(rest_of(m, 0), kMaterial) * u;
+  const Eigen::VectorXd twin = tet_stiffness(rest_of(m, 0), kTissue) * u;
   EXPECT_TRUE(f.allFinite());
   EXPECT_LE((f - twin).norm(), 1e-12 * twin.norm());
   EXPECT_LT(f[11], 0.0);  // f_int is along u; the restoring force -f_int pushes node 3 back to +z
@@ -454,7 +445,7 @@ TEST(CorotationalElements, InvertedTetGivesFiniteRestoringForceAndIsCounted) {
 // of its tets.
 struct InvertingTube {
   TetMesh mesh = small_tube(16, 8, 2, 0.06);
-  CorotationalElements el{mesh, kMaterial};
+  CorotationalElements el{mesh, kTissue};
   Eigen::VectorXd u, p;
   InvertingTube() {
     std::mt19937 rng(21);
@@ -476,7 +467,7 @@ TEST(CorotationalKernels, MatchSerialTwinWithInvertedTets) {
   const InvertingTube tube;
   const CorotationalElements& el = tube.el;
   ASSERT_GE(el.n_tets(), 1000);
-  const LameParameters lame = lame_parameters(kMaterial);
+  const LameParameters lame = lame_parameters(kTissue);
   std::vector<Eigen::Matrix3d> R_twin(el.n_tets());
   Eigen::VectorXd f_twin = Eigen::VectorXd::Zero(el.n_dofs()), y_twin = f_twin;
   int inverted_twin = 0;
@@ -538,7 +529,7 @@ TEST(CorotationalSolve, ContinuesThroughInvertedElementsWithoutNaN) {
   ASSERT_GE(outer_node, 0);
   fixed.push_back(inner_node);
   fixed.push_back(outer_node);
-  const CorotationalModel model(m, kMaterial, fixed);
+  const CorotationalModel model(m, kTissue, fixed);
   const int n = model.n_dofs();
   Eigen::VectorXd u_fixed = Eigen::VectorXd::Zero(n);
   const Eigen::Vector3d across = m.rest.row(outer_node) - m.rest.row(inner_node);
@@ -558,7 +549,7 @@ TEST(CorotationalSolve, ContinuesThroughInvertedElementsWithoutNaN) {
 
 TEST(CorotationalSolve, WarmStartAtEquilibriumCostsNoIteration) {
   const TetMesh m = small_tube();
-  const CorotationalModel model(m, kMaterial, m.node_set(kStartEnd));
+  const CorotationalModel model(m, kTissue, m.node_set(kStartEnd));
   const Eigen::VectorXd f = tip_load(m, 0.005);
   CorotationalState state;
   const CorotationalResult first = solve_corotational(model, f, state);
@@ -587,7 +578,7 @@ TEST(CorotationalSolve, WarmStartAtEquilibriumCostsNoIteration) {
 
 TEST(CorotationalSolve, RejectsInvalidInput) {
   const TetMesh m = small_tube(6, 2, 1);
-  const CorotationalModel model(m, kMaterial, both_ends(m));
+  const CorotationalModel model(m, kTissue, both_ends(m));
   const Eigen::VectorXd f = Eigen::VectorXd::Zero(model.n_dofs());
   CorotationalState state;
   auto message = [&](const CorotationalOptions& o, const Eigen::VectorXd& load, const Eigen::VectorXd& u_fixed) {

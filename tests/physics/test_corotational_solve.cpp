@@ -14,11 +14,12 @@
 #include "physics/corotational.hpp"
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
+#include "support/fem.hpp"
 
 namespace lumen::physics {
 namespace {
 
-const LinearMaterial kMaterial{5000.0, 0.45};
+using lumen::test::kTissue;
 
 struct Pressed {
   TetMesh mesh;
@@ -45,7 +46,7 @@ Pressed pressed_tube(double force) {
 
 TEST(AugmentedContacts, MultipliersConvergeToTheExactContactForceOfOneRow) {
   const Pressed p = pressed_tube(1e-7);  // displacements ~1e-6 of the wall: corotational = linear to ~1e-6
-  const CorotationalModel model(p.mesh, kMaterial, p.fixed);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
   const int dof = 3 * p.node + 1;
   // Linear truth: the free displacement, the node's compliance C, the row u_y >= g = -d at half the free motion.
   Eigen::VectorXd u_free, unit = Eigen::VectorXd::Zero(model.n_dofs()), c_col;
@@ -84,7 +85,7 @@ TEST(AugmentedContacts, MultipliersConvergeToTheExactContactForceOfOneRow) {
 
 TEST(AugmentedContacts, ARowThatDoesNotPushCarriesNoForce) {
   const Pressed p = pressed_tube(1e-7);
-  const CorotationalModel model(p.mesh, kMaterial, p.fixed);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
   Eigen::VectorXd u_free;
   model.solver().solve(p.f, u_free);
   AugmentedContacts contacts;
@@ -104,7 +105,7 @@ TEST(AugmentedContacts, ARowThatDoesNotPushCarriesNoForce) {
 
 TEST(AugmentedContacts, BadContactsAreRefusedNamingTheField) {
   const Pressed p = pressed_tube(1e-7);
-  const CorotationalModel model(p.mesh, kMaterial, p.fixed);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
   AugmentedContacts contacts;
   ContactRow row;
   row.node[0] = p.node;
@@ -141,7 +142,7 @@ namespace {
 // deflects by about its thickness) solved to a tight tolerance with and without it.
 TEST(AndersonMixing, ReachesTheSameEquilibriumAsThePlainIteration) {
   const Pressed p = pressed_tube(3e-2);
-  const CorotationalModel model(p.mesh, kMaterial, p.fixed);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
   CorotationalOptions plain;
   plain.tolerance = 1e-9;
   plain.max_iterations = 400;
@@ -162,7 +163,7 @@ TEST(AndersonMixing, ReachesTheSameEquilibriumAsThePlainIteration) {
 // fewer linear steps (its convergence is superlinear where K_w's is linear).
 TEST(ExactTangent, ReachesTheSameEquilibriumInFewerIterations) {
   const Pressed p = pressed_tube(3e-2);
-  const CorotationalModel model(p.mesh, kMaterial, p.fixed);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
   CorotationalOptions warped;
   warped.tolerance = 1e-9;
   warped.max_iterations = 400;
@@ -187,7 +188,7 @@ TEST(ExactTangent, ReachesTheSameEquilibriumInFewerIterations) {
 // reaches the warped iteration's equilibrium in far fewer iterations.
 TEST(ExactTangent, TruncatesItsStepsWhereTheTangentIsIndefiniteAndReachesTheSameEquilibrium) {
   const Pressed p = pressed_tube(1e-3);
-  const CorotationalModel model(p.mesh, kMaterial, p.fixed);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
   Eigen::VectorXd u_fixed = Eigen::VectorXd::Zero(3 * p.mesh.n_nodes());
   for (int v : p.mesh.node_set(kStopEnd)) u_fixed[3 * v + 2] = -0.4 * 0.04;
   CorotationalOptions warped;
@@ -227,7 +228,7 @@ TEST(AndersonMixing, ANegativeDepthIsRefused) {
 // PCG's 1966, which took most of this test's time under the sanitizers), both at tight tolerance.
 TEST(ChordMethod, ReachesThePcgEquilibriumOnAPressAndABucklingCrush) {
   const Pressed p = pressed_tube(3e-2);
-  const CorotationalModel model(p.mesh, kMaterial, p.fixed);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
   Eigen::VectorXd crush = Eigen::VectorXd::Zero(3 * p.mesh.n_nodes());
   for (int v : p.mesh.node_set(kStopEnd)) crush[3 * v + 2] = -0.4 * 0.04;
   const Pressed nudge = pressed_tube(1e-3);
@@ -262,7 +263,7 @@ TEST(ChordMethod, ReachesThePcgEquilibriumOnAPressAndABucklingCrush) {
 TEST(ChordMethod, ADivergingSolveGoesBackToItsStartAndConvergesAfterItsRefactorisation) {
   constexpr double kSoftening = 1e-2;
   const Pressed half = pressed_tube(1.5e-2), full = pressed_tube(3e-2);
-  const CorotationalModel model(full.mesh, kMaterial, full.fixed);
+  const CorotationalModel model(full.mesh, kTissue, full.fixed);
   CorotationalOptions chord;
   chord.method = CorotationalMethod::chord;
   chord.tolerance = 1e-8;

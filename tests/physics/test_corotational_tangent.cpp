@@ -11,11 +11,12 @@
 
 #include "physics/corotational.hpp"
 #include "physics/mesh.hpp"
+#include "support/fem.hpp"
 
 namespace lumen::physics {
 namespace {
 
-const LinearMaterial kMaterial{5000.0, 0.45};
+using lumen::test::kTissue;
 
 // A 8 x 4 x 1 tube, 4 cm long, deformed by x = Q (A X) + bend, with A a stretch (diagonal: sx, sy, sz) and the
 // bend a displacement along y quadratic in z of amplitude `bend` (metres); u (3n) = x - X.
@@ -80,7 +81,7 @@ Eigen::MatrixXd dense_tangent(const CorotationalElements& el, const Eigen::Vecto
 // differences on a tube stretched, bent by 1 cm and rotated by 40 degrees, where K_w alone is off.
 TEST(CorotationalTangent, ExactTangentMatchesFiniteDifferencesOfTheForces) {
   const Deformed d = deformed_tube(Eigen::Vector3d(1.3, 0.8, 1.2), 0.01);
-  const CorotationalElements el(d.mesh, kMaterial);
+  const CorotationalElements el(d.mesh, kTissue);
   std::vector<Eigen::Matrix3d> R;
   ASSERT_EQ(el.rotations(d.u, R), 0);
   std::vector<TwistModes> modes;
@@ -114,7 +115,7 @@ TEST(CorotationalTangent, ProjectionRemovesNegativeEigenvaluesAndKeepsTheStretch
   const Eigen::Matrix3d Q = Eigen::AngleAxisd(1.1, Eigen::Vector3d(-1.0, 0.5, 2.0).normalized()).toRotationMatrix();
   // Compressed to 0.5 x 0.6 x 1.1 and rotated.
   const OneTet squeezed = one_tet(Q * Eigen::Vector3d(0.5, 0.6, 1.1).asDiagonal());
-  const CorotationalElements el(squeezed.mesh, kMaterial);
+  const CorotationalElements el(squeezed.mesh, kTissue);
   const Eigen::MatrixXd exact = dense_tangent(el, squeezed.u, false), projected = dense_tangent(el, squeezed.u, true);
   const double scale = exact.cwiseAbs().maxCoeff();
   const Eigen::VectorXd e_exact = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(exact).eigenvalues();
@@ -125,7 +126,7 @@ TEST(CorotationalTangent, ProjectionRemovesNegativeEigenvaluesAndKeepsTheStretch
   EXPECT_GT(e_proj.minCoeff(), -1e-12 * scale);
   // Stretched to 1.3 x 1.2 x 1.1: every twist eigenvalue is positive, nothing to clamp.
   const OneTet stretched = one_tet(Q * Eigen::Vector3d(1.3, 1.2, 1.1).asDiagonal());
-  const CorotationalElements el2(stretched.mesh, kMaterial);
+  const CorotationalElements el2(stretched.mesh, kTissue);
   const Eigen::MatrixXd a = dense_tangent(el2, stretched.u, false), b = dense_tangent(el2, stretched.u, true);
   EXPECT_LT((a - b).cwiseAbs().maxCoeff(), 1e-12 * a.cwiseAbs().maxCoeff());
   EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(a).eigenvalues().minCoeff(), -1e-12 * scale);
@@ -134,7 +135,7 @@ TEST(CorotationalTangent, ProjectionRemovesNegativeEigenvaluesAndKeepsTheStretch
 // The assembled tangent against the matrix-free product (its twin), and at rest both are the linear K.
 TEST(CorotationalTangent, AssembledTangentMatchesTheProductAndIsTheLinearStiffnessAtRest) {
   const Deformed d = deformed_tube(Eigen::Vector3d(0.7, 1.2, 0.9), 0.008);
-  const CorotationalElements el(d.mesh, kMaterial);
+  const CorotationalElements el(d.mesh, kTissue);
   std::vector<Eigen::Matrix3d> R;
   el.rotations(d.u, R);
   std::vector<TwistModes> modes;
@@ -159,7 +160,7 @@ TEST(TruncatedPcg, MatchesCgWhenPositiveDefiniteAndStopsWithADescentDirectionWhe
   const Deformed d = deformed_tube(Eigen::Vector3d(0.5, 0.5, 1.0), 0.0);
   std::vector<int> ends = d.mesh.node_set(kStartEnd);
   ends.insert(ends.end(), d.mesh.node_set(kStopEnd).begin(), d.mesh.node_set(kStopEnd).end());
-  const CorotationalModel model(d.mesh, kMaterial, ends);
+  const CorotationalModel model(d.mesh, kTissue, ends);
   const CorotationalElements& el = model.elements();
   std::vector<Eigen::Matrix3d> R;
   el.rotations(d.u, R);

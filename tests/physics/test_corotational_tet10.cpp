@@ -18,6 +18,7 @@
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
 #include "physics/quadratic.hpp"
+#include "support/fem.hpp"
 
 using namespace lumen::physics;
 
@@ -30,20 +31,9 @@ LinearMaterial material() {
   return m;
 }
 
-HollowCylinderSpec small_tube() {
-  HollowCylinderSpec s;
-  s.inner_radius = 0.01;
-  s.outer_radius = 0.013;
-  s.length = 0.04;
-  s.segments_around = 8;
-  s.segments_along = 4;
-  s.layers = 1;
-  return s;
-}
-
 // The isoparametric (curved) quadratic tube.
 QuadraticMesh curved_tube() {
-  const HollowCylinderSpec spec = small_tube();
+  const HollowCylinderSpec spec = lumen::test::small_tube_spec();
   return make_quadratic_cylinder(make_hollow_cylinder(spec), spec);
 }
 
@@ -125,7 +115,7 @@ TEST(CorotationalTet10, RigidMotionCostsNothing) {
 // Straight elements deformed affinely, x = F X with F a rotated stretch: the averaged gradient is F, and the energy
 // is that of the 4-node corotational element on the corner mesh (both represent the affine field exactly).
 TEST(CorotationalTet10, AffineDeformationHasTheTet4Energy) {
-  const TetMesh corners = make_hollow_cylinder(small_tube());
+  const TetMesh corners = make_hollow_cylinder(lumen::test::small_tube_spec());
   const QuadraticMesh q = make_quadratic(corners);
   const CorotationalElements quadratic(q, material());
   const CorotationalElements linear(corners, material());

@@ -14,24 +14,15 @@
 #include "physics/dynamics.hpp"
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
+#include "support/fem.hpp"
 
 namespace lumen::physics {
 namespace {
 
-const LinearMaterial kMaterial{5000.0, 0.45};
+using lumen::test::kTissue;
 
-TetMesh small_tube(int around, int along, int layers, double length, HollowCylinderSpec* spec_out = nullptr) {
-  HollowCylinderSpec s;
-  s.segments_around = around, s.segments_along = along, s.layers = layers, s.length = length;
-  if (spec_out) *spec_out = s;
-  return make_hollow_cylinder(s);
-}
-
-std::vector<int> both_ends(const TetMesh& m) {
-  std::vector<int> f = m.node_set(kStartEnd);
-  f.insert(f.end(), m.node_set(kStopEnd).begin(), m.node_set(kStopEnd).end());
-  return f;
-}
+using lumen::test::both_ends;
+using lumen::test::small_tube;
 
 // A transverse load spread over the nodes of the ring nearest to the middle of the tube, newtons (3n).
 Eigen::VectorXd side_load(const TetMesh& m, double total) {
@@ -51,11 +42,11 @@ double total_energy(const DynamicModel& model, const DynamicState& s, const Eige
 }
 
 TEST(DynamicModel, LumpedMassTotalsThePolygonalTubeVolume) {
-  HollowCylinderSpec spec;
-  const TetMesh m = small_tube(10, 3, 2, 0.03, &spec);
+  const HollowCylinderSpec spec = lumen::test::small_tube_spec(10, 3, 2, 0.03);
+  const TetMesh m = make_hollow_cylinder(spec);
   DynamicParams p;
   p.density = 1040.0;
-  const DynamicModel model(m, kMaterial, both_ends(m), p);
+  const DynamicModel model(m, kTissue, both_ends(m), p);
   // Every cross-section is the annulus between two regular N-gons: area N/2 sin(2 pi/N) (b^2 - a^2).
   const int N = spec.segments_around;
   const double area = 0.5 * N * std::sin(2 * EIGEN_PI / N) *
@@ -76,7 +67,7 @@ TEST(DynamicStep, SingleModeFollowsTheBackwardEulerRecurrence) {
   const TetMesh m = small_tube(6, 3, 1, 0.03);
   DynamicParams p;
   p.alpha = 0.5, p.beta = 1e-3, p.time_step = 0.01;
-  const DynamicModel model(m, kMaterial, both_ends(m), p);
+  const DynamicModel model(m, kTissue, both_ends(m), p);
   const int n = model.n_dofs();
   // Dense generalised eigenproblem K_ff phi = w^2 M_ff phi; the lowest mode.
   std::vector<int> free;
@@ -121,7 +112,7 @@ TEST(DynamicStep, StepLoadSettlesToStaticSolutionWithDecayingEnergy) {
   const std::vector<int> fixed = both_ends(m);
   DynamicParams p;
   p.alpha = 5.0, p.beta = 2e-3, p.time_step = 0.01;
-  const DynamicModel model(m, kMaterial, fixed, p);
+  const DynamicModel model(m, kTissue, fixed, p);
   const Eigen::VectorXd f = side_load(m, 0.01);
   const StaticSolver statics(model.stiffness(), fixed);
   Eigen::VectorXd u_static;
@@ -149,11 +140,11 @@ TEST(DynamicStep, UndampedBackwardEulerIsDissipativeAndStableForLargeSteps) {
   const std::vector<int> fixed = both_ends(m);
   const Eigen::VectorXd f = side_load(m, 0.01);
   Eigen::VectorXd u_static;
-  StaticSolver(assemble_stiffness(m, kMaterial), fixed).solve(f, u_static);
+  StaticSolver(assemble_stiffness(m, kTissue), fixed).solve(f, u_static);
   for (const double h : {1e-3, 0.1, 10.0}) {
     DynamicParams p;
     p.time_step = h;
-    const DynamicModel model(m, kMaterial, fixed, p);
+    const DynamicModel model(m, kTissue, fixed, p);
     DynamicState s;
     double energy = 0.0, first = 0.0;
     for (int k = 0; k < 60; ++k) {
@@ -176,14 +167,14 @@ TEST(DynamicStep, CorotationalSettlesToTheQuasiStaticCorotationalSolution) {
   DynamicParams p;
   p.elastic = ElasticModel::kCorotational;
   p.alpha = 10.0, p.beta = 5e-3, p.time_step = 0.05;
-  const DynamicModel model(m, kMaterial, m.node_set(kStartEnd), p);
+  const DynamicModel model(m, kTissue, m.node_set(kStartEnd), p);
   // Cantilever with a large tip load: in the nonlinear range.
   Eigen::VectorXd f = Eigen::VectorXd::Zero(model.n_dofs());
   for (int v : m.node_set(kStopEnd)) f[3 * v + 1] = -0.015 / m.node_set(kStopEnd).size();
   CorotationalOptions opt;
   opt.tolerance = 1e-9;
   opt.max_iterations = 100;
-  const CorotationalModel statics(m, kMaterial, m.node_set(kStartEnd));
+  const CorotationalModel statics(m, kTissue, m.node_set(kStartEnd));
   CorotationalState qs;
   ASSERT_TRUE(solve_corotational(statics, f, qs, opt).converged);
   Eigen::VectorXd u_lin;
@@ -206,9 +197,9 @@ TEST(DynamicStep, CorotationalMatchesLinearForTinyLoads) {
   const TetMesh m = small_tube(6, 2, 1, 0.02);
   DynamicParams p;
   p.alpha = 1.0, p.time_step = 0.01;
-  const DynamicModel linear(m, kMaterial, both_ends(m), p);
+  const DynamicModel linear(m, kTissue, both_ends(m), p);
   p.elastic = ElasticModel::kCorotational;
-  const DynamicModel corot(m, kMaterial, both_ends(m), p);
+  const DynamicModel corot(m, kTissue, both_ends(m), p);
   CorotationalOptions opt;
   opt.tolerance = 1e-8;  // the strain of a 1e-5 N load is ~1e-6: round-off in R^T F - I limits the residual
   for (const double load : {1e-4, 1e-5}) {
@@ -229,7 +220,7 @@ TEST(DynamicStep, RejectsInvalidInput) {
   const TetMesh m = small_tube(6, 2, 1, 0.02);
   auto message = [&](const DynamicParams& p) {
     try {
-      DynamicModel model(m, kMaterial, both_ends(m), p);
+      DynamicModel model(m, kTissue, both_ends(m), p);
     } catch (const std::invalid_argument& e) {
       return std::string(e.what());
     }
@@ -247,7 +238,7 @@ TEST(DynamicStep, RejectsInvalidInput) {
   p = {};
   p.time_step = 0.0;
   EXPECT_NE(message(p).find("time_step"), std::string::npos);
-  const DynamicModel model(m, kMaterial, both_ends(m), DynamicParams{});
+  const DynamicModel model(m, kTissue, both_ends(m), DynamicParams{});
   DynamicState s;
   const Eigen::VectorXd f = Eigen::VectorXd::Zero(model.n_dofs());
   EXPECT_THROW(step(model, s, f, -0.01), std::invalid_argument);

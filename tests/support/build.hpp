@@ -3,6 +3,8 @@
 
 namespace lumen::test {
 
+inline constexpr double kPi = 3.14159265358979323846;  // as a double
+
 // Optimised builds run the finer meshes a test names; the Debug + sanitizer build coarse ones (the same checks,
 // quickly).
 #ifdef NDEBUG

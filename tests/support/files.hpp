@@ -10,6 +10,14 @@
 
 namespace lumen::test {
 
+// An empty folder <prefix><name> in the temporary folder (removed first if it exists); its path.
+inline std::filesystem::path fresh_temp_dir(const std::string& prefix, const std::string& name) {
+  const std::filesystem::path d = std::filesystem::temp_directory_path() / (prefix + name);
+  std::filesystem::remove_all(d);
+  std::filesystem::create_directories(d);
+  return d;
+}
+
 // Write text to lumen_test_<name> in the temporary folder; its path.
 inline std::string write_temp(const std::string& name, const std::string& text) {
   const auto path = std::filesystem::temp_directory_path() / ("lumen_test_" + name);

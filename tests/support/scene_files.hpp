@@ -15,6 +15,11 @@
 
 namespace lumen::test {
 
+// The message of the InputError that parsing a scene's JSON throws ("" when it parses), as from "dir/s.json".
+inline std::string scene_parse_error(const nlohmann::json& scene) {
+  return message_of<engine::InputError>([&] { engine::parse_scene(scene.dump(), "dir/s.json"); });
+}
+
 // Writes the scene as d/s.json; its path.
 inline std::string write_scene(const std::filesystem::path& d, const nlohmann::json& scene) {
   std::ofstream(d / "s.json") << scene.dump();

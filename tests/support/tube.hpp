@@ -7,6 +7,8 @@
 
 namespace lumen::test {
 
+inline constexpr double kPaperOuterRadius = 0.013;  // metres: the paper tube's outer wall (inner 0.010)
+
 using TubePoints = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using TubeTris = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
 

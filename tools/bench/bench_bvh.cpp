@@ -23,14 +23,14 @@ constexpr double kGap = 1e-4;      // contact distance, metres
 
 // The inner wall: nz x nth quads along z, 2 triangles each; x0 -> x1 one frame of a pinch at mid-length
 // that brings the walls from 10 % of the diameter apart to touching.
-struct Scene {
+struct BvhScene {
   Points rest, x0, x1;
   Tris tris;
 };
 
-Scene make_scene() {
+BvhScene make_bvh_scene() {
   const int nz = 20, nth = 26;
-  Scene s;
+  BvhScene s;
   s.rest.resize((nz + 1) * nth, 3);
   for (int k = 0; k <= nz; ++k) {
     for (int j = 0; j < nth; ++j) {
@@ -65,7 +65,7 @@ void set_counters(benchmark::State& state, const CollisionStats& st) {
 
 // One frame of detection through the BVH (refit, self-traversal, deduplicated features, CCD).
 void BM_SelfCollisionBvh(benchmark::State& state) {
-  const Scene s = make_scene();
+  const BvhScene s = make_bvh_scene();
   SelfCollision sc(s.tris, s.rest, static_cast<int>(state.range(0)));
   std::vector<Contact> out;
   CollisionStats st;
@@ -79,7 +79,7 @@ BENCHMARK(BM_SelfCollisionBvh)->Arg(6)->Arg(14)->Arg(18)->Arg(26)->Unit(benchmar
 
 // The same frame with all pairs of triangle k-DOPs (the paper's way).
 void BM_SelfCollisionAllPairs(benchmark::State& state) {
-  const Scene s = make_scene();
+  const BvhScene s = make_bvh_scene();
   SelfCollision sc(s.tris, s.rest, static_cast<int>(state.range(0)));
   std::vector<Contact> out;
   CollisionStats st;
@@ -94,7 +94,7 @@ BENCHMARK(BM_SelfCollisionAllPairs)->Arg(6)->Arg(14)->Arg(18)->Arg(26)->Unit(ben
 // Broad phase alone on the same frame: swept leaf k-DOPs, then overlapping triangle pairs by BVH refit +
 // self-traversal (BroadPhaseBvh) or by all pairs (BroadPhaseAllPairs).
 template <int K>
-std::vector<lumen::collision::Kdop<K>> swept_boxes(const Scene& s) {
+std::vector<lumen::collision::Kdop<K>> swept_boxes(const BvhScene& s) {
   std::vector<lumen::collision::Kdop<K>> boxes(static_cast<std::size_t>(s.tris.rows()));
   for (int t = 0; t < s.tris.rows(); ++t) {
     auto& b = boxes[static_cast<std::size_t>(t)];
@@ -110,7 +110,7 @@ std::vector<lumen::collision::Kdop<K>> swept_boxes(const Scene& s) {
 
 template <int K>
 void BM_BroadPhaseBvh(benchmark::State& state) {
-  const Scene s = make_scene();
+  const BvhScene s = make_bvh_scene();
   const int n = static_cast<int>(s.tris.rows());
   std::vector<double> centres(static_cast<std::size_t>(3 * n));
   for (int t = 0; t < n; ++t) {
@@ -139,7 +139,7 @@ BENCHMARK_TEMPLATE(BM_BroadPhaseBvh, 26)->Unit(benchmark::kMicrosecond);
 
 template <int K>
 void BM_BroadPhaseAllPairs(benchmark::State& state) {
-  const Scene s = make_scene();
+  const BvhScene s = make_bvh_scene();
   const std::size_t n = static_cast<std::size_t>(s.tris.rows());
   long pairs = 0;
   for (auto _ : state) {
@@ -160,7 +160,7 @@ BENCHMARK_TEMPLATE(BM_BroadPhaseAllPairs, 26)->Unit(benchmark::kMicrosecond);
 // Exact discrete intersection count (run on every frame by the engine): 0 = the rest tube (prismatic:
 // many exactly coplanar neighbours), 1 = the frame's start (walls 10 % apart), 2 = its end (walls touching).
 void BM_CountIntersectingPairs(benchmark::State& state) {
-  const Scene s = make_scene();
+  const BvhScene s = make_bvh_scene();
   const Points& x = state.range(0) == 0 ? s.rest : (state.range(0) == 1 ? s.x0 : s.x1);
   long n = 0;
   for (auto _ : state) {

@@ -20,6 +20,8 @@
 //    are twice those of a 40 fps session, a conservative measure).
 // The load sweep (--load-out) shows when linear stops being enough: the pinch on the paper mesh up to the force
 // that shuts the lumen, linear against corotational (tolerance 1e-6), probe displacement, over a range of forces.
+// The sweeps against the converged CalculiX reference (--reference CSV): below first contact (--reference-out) and
+// past closure (--closure-out, the tip, the contact force and the contact area at 0.03 N per tip).
 // The capacity sweep (--capacity-out) finds, per model and scenario, the largest mesh whose whole frame stays
 // inside the 25 ms budget at p99: one probe at 40 fps (the real budget; 1 s ramp then held, 60 frames, rendered
 // at 640x480, self-collision on) pinching with 0.02 N (the lumen stays open) or with the study's 0.1 N (walls
@@ -245,6 +247,7 @@ struct StudyOptions {
   bool quick = false, no_render = false;
   int max_corotational_tets = 30000;
   std::string reference_csv, reference_out;  // the CalculiX reference sweep (both set) or none
+  std::string closure_out;                    // the sweep past closure against the reference's contact rows
   std::string reference_meshes = "all";       // the reference sweep's meshes: "uniform" | "graded" | "all"
 };
 
@@ -332,6 +335,10 @@ void load_sweep(const StudyOptions& opt) {
 struct ReferenceTip {
   double tip_m = 0.0;  // area-weighted mean over the tip's disc of the displacement along the pinch, metres
   int dofs = 0;
+  // Past closure (rows with contact; NaN where the row has none): the full tube's contact force between the
+  // upper and lower inner wall (newtons), its contact area on one side (m^2), the lumen's opening under the tips
+  // (metres, <= 0 closed).
+  double contact_force_n = std::nan(""), contact_area_m2 = std::nan(""), opening_m = std::nan("");
 };
 using ReferenceTable = std::map<std::pair<double, std::string>, ReferenceTip>;
 
@@ -356,13 +363,26 @@ ReferenceTable read_reference(const std::string& path) {
     if (row["status"] != "ok" || row["tip_displacement_m"].empty()) continue;
     try {
       const std::pair<double, std::string> key{std::stod(row["force_N"]), row["material"]};
-      const ReferenceTip tip{std::stod(row["tip_displacement_m"]), std::stoi(row["dofs"])};
+      ReferenceTip tip{std::stod(row["tip_displacement_m"]), std::stoi(row["dofs"])};
+      if (!row["contact_force_N"].empty()) tip.contact_force_n = std::stod(row["contact_force_N"]);
+      if (!row["contact_area_m2"].empty()) tip.contact_area_m2 = std::stod(row["contact_area_m2"]);
+      if (!row["opening_m"].empty()) tip.opening_m = std::stod(row["opening_m"]);
       if (tip.dofs > table[key].dofs) table[key] = tip;
     } catch (const std::exception&) {
-      throw std::runtime_error(path + ":" + std::to_string(number) + ": force_N, tip_displacement_m or dofs is not a number");
+      throw std::runtime_error(path + ":" + std::to_string(number) +
+                               ": force_N, tip_displacement_m, dofs, contact_force_N, contact_area_m2 or opening_m is "
+                               "not a number");
     }
   }
   return table;
+}
+
+// The reference row of (force, material); throws naming the file when it has none that finished.
+ReferenceTip find_reference(const ReferenceTable& table, const std::string& path, double force, const char* material) {
+  const auto it = table.find({force, material});
+  if (it == table.end())
+    throw std::runtime_error(path + ": no finished row for force " + std::to_string(force) + " N, " + material);
+  return it->second;
 }
 
 // The sweep against the converged CalculiX reference (3 mm tips, as the squeeze's): each configuration pinched
@@ -374,12 +394,7 @@ ReferenceTable read_reference(const std::string& path) {
 void reference_sweep(const StudyOptions& opt) {
   const ReferenceTable table = read_reference(opt.reference_csv);
   constexpr double kLinearReferenceForce = 0.002;  // newtons: the force of the linear reference row
-  auto lookup = [&](double force, const char* material) {
-    const auto it = table.find({force, material});
-    if (it == table.end())
-      throw std::runtime_error(opt.reference_csv + ": no finished row for force " + std::to_string(force) + " N, " + material);
-    return it->second;
-  };
+  auto lookup = [&](double force, const char* material) { return find_reference(table, opt.reference_csv, force, material); };
   const ReferenceTip linear = lookup(kLinearReferenceForce, "linear");
   std::vector<Config> configs;
   auto tolerance_of = [](const char* model) { return std::string(model) == "linear" ? 0.0 : 1e-4; };
@@ -439,6 +454,67 @@ void reference_sweep(const StudyOptions& opt) {
                    1e3 * o.probe_disp, 100.0 * err_linear, 100.0 * err_neohooke, 1e3 * o.tip_mean,
                    100.0 * tip_err_linear, 100.0 * tip_err_neohooke, o.total.median_ms, o.total.p99_ms);
     }
+  }
+}
+
+// Past closure against the CalculiX contact reference (--closure-out): the same two 3 mm tips at kClosureForce
+// each, 1.4x the force at which the reference's walls first touch (0.021 N), so that the inner walls are pressed
+// together over an area; the reference is the Neo-Hookean NLGEOM quarter tube with a frictionless penalty contact
+// pair between the upper and lower inner wall (material "neohooke-pair"). Compared at the last frame: the top
+// tip's load-point mean along the pinch (the reference's work-conjugate tip mean), the total contact force the
+// walls carry (Lumen: the sum of the contact multipliers; the reference: the normal force on its slave side), and
+// the contact area on one side (Lumen: half the inner-wall area of the nodes in contact, both walls' nodes being
+// marked; the reference: its slave side's contact area, which depends on the penalty: 27 % less at 10x it).
+// The reference's tip is converged to 0.3 %, its contact force only to 14 % (levels 2 -> 3).
+void closure_sweep(const StudyOptions& opt) {
+  constexpr double kClosureForce = 0.03;  // newtons per tip
+  const ReferenceTip ref =
+      find_reference(read_reference(opt.reference_csv), opt.reference_csv, kClosureForce, "neohooke-pair");
+  if (std::isnan(ref.contact_force_n) || std::isnan(ref.contact_area_m2))
+    throw std::runtime_error(opt.reference_csv + ": the neohooke-pair row at " + std::to_string(kClosureForce) +
+                             " N has no contact_force_N or contact_area_m2");
+  constexpr double kGradeAround = 6.0, kGradeAlong = 12.0;
+  constexpr int kGradedTipPoints = 61;
+  std::vector<Config> configs;
+  for (const char* model : {"linear", "corotational"}) {
+    const double tolerance = std::string(model) == "linear" ? 0.0 : 1e-4;
+    configs.push_back({{20, 26, 3}, "tet4", model, tolerance});
+    configs.push_back({{10, 13, 1}, "tet10", model, tolerance});
+    configs.push_back({{24, 14, 1}, "tet10", model, tolerance, kGradeAround, kGradeAlong, kGradedTipPoints});
+    configs.push_back({{32, 20, 2}, "tet10", model, tolerance, kGradeAround, kGradeAlong, kGradedTipPoints});
+  }
+  std::string csv =
+      "force_n,reference_tip_mm,reference_contact_force_n,reference_contact_area_mm2,reference_dofs,around,along,"
+      "layers,grade_around,grade_along,tip_points,nodes,tets,element,model,tolerance,frames,tip_mean_mm,tip_err,"
+      "opening_mm,contact_force_n,contact_force_err,contact_area_mm2,contact_area_err,total_median_ms,total_p99_ms,"
+      "physics_median_ms,physics_p99_ms,response_median_ms,response_p99_ms,over_budget,not_converged,fallbacks,"
+      "failures,max_inverted\n";
+  char line[1024];  // one CSV row
+  for (const Config& c : configs) {
+    std::fprintf(stderr, "closure %g N %dx%dx%d %s %s ...", kClosureForce, c.level.around, c.level.along,
+                 c.level.layers, c.element.c_str(), c.model.c_str());
+    const Outcome o = run(squeeze_scene(c, kClosureForce, opt.frames, opt.fps), !opt.no_render);
+    const double area_one_side = 0.5 * o.contact_area;
+    // Signed relative errors: < 0 too stiff (tip), too little force or area.
+    const double tip_err = (o.tip_mean - ref.tip_m) / ref.tip_m;
+    const double force_err = (o.contact_force - ref.contact_force_n) / ref.contact_force_n;
+    const double area_err = (area_one_side - ref.contact_area_m2) / ref.contact_area_m2;
+    std::snprintf(line, sizeof line,
+                  "%g,%.6g,%.6g,%.6g,%d,%d,%d,%d,%g,%g,%d,%d,%d,%s,%s,%g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4f,"
+                  "%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld,%ld\n",
+                  kClosureForce, 1e3 * ref.tip_m, ref.contact_force_n, 1e6 * ref.contact_area_m2, ref.dofs,
+                  c.level.around, c.level.along, c.level.layers, c.grade_around, c.grade_along, c.tip_points, o.nodes,
+                  o.tets, c.element.c_str(), c.model.c_str(), c.tolerance, opt.frames, 1e3 * o.tip_mean, tip_err,
+                  1e3 * o.opening, o.contact_force, force_err, 1e6 * area_one_side, area_err, o.total.median_ms,
+                  o.total.p99_ms, o.physics.median_ms, o.physics.p99_ms, o.response.median_ms, o.response.p99_ms,
+                  o.over_budget, o.not_converged, o.fallbacks, o.failures, o.max_inverted);
+    csv += line;
+    engine::write_text_file(opt.closure_out, csv);  // after every configuration
+    std::fprintf(stderr,
+                 " tip %.3f mm (%+.1f %%), contact force %.2f mN (%+.1f %%), area %.2f mm^2 (%+.1f %%), total %.1f / "
+                 "%.1f ms, fallbacks %ld\n",
+                 1e3 * o.tip_mean, 100.0 * tip_err, 1e3 * o.contact_force, 100.0 * force_err, 1e6 * area_one_side,
+                 100.0 * area_err, o.total.median_ms, o.total.p99_ms, o.fallbacks);
   }
 }
 
@@ -525,19 +601,22 @@ int main(int argc, char** argv) {
   app.add_option("--reference", opt.reference_csv,
                  "CalculiX reference CSV (3 mm tips) for the reference sweep, e.g. docs/reference_convergence_tip3mm.csv");
   app.add_option("--reference-out", opt.reference_out, "CSV of the sweep against the CalculiX reference; runs only it");
+  app.add_option("--closure-out", opt.closure_out,
+                 "CSV of the sweep past closure against the reference's contact rows (needs --reference); runs only it");
   app.add_option("--reference-meshes", opt.reference_meshes, "the reference sweep's meshes")
       ->check(CLI::IsMember({"uniform", "graded", "all"}));
   CLI11_PARSE(app, argc, argv);
-  if (opt.reference_out.empty() != opt.reference_csv.empty()) {
-    std::fprintf(stderr, "lumen_study: --reference and --reference-out go together\n");
+  if (opt.reference_csv.empty() != (opt.reference_out.empty() && opt.closure_out.empty())) {
+    std::fprintf(stderr, "lumen_study: --reference goes with --reference-out or --closure-out\n");
     return 2;
   }
   // Output folders exist before any work (each CSV is then written atomically as it grows).
-  for (const std::string& path : {opt.out, opt.load_out, opt.capacity_out, opt.reference_out})
+  for (const std::string& path : {opt.out, opt.load_out, opt.capacity_out, opt.reference_out, opt.closure_out})
     if (!path.empty() && fs::path(path).has_parent_path()) fs::create_directories(fs::path(path).parent_path());
-  if (!opt.reference_out.empty()) {
+  if (!opt.reference_csv.empty()) {
     try {
-      reference_sweep(opt);
+      if (!opt.reference_out.empty()) reference_sweep(opt);
+      if (!opt.closure_out.empty()) closure_sweep(opt);
     } catch (const std::exception& e) {
       std::fprintf(stderr, "lumen_study: %s\n", e.what());
       return 2;
