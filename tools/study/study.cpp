@@ -43,10 +43,15 @@
 #include <CLI/CLI.hpp>
 
 #include "engine/report.hpp"
+#include "engine/response.hpp"
 #include "engine/scene.hpp"
 #include "engine/session.hpp"
 #include "engine/simulation.hpp"
+#include "physics/contact_rows.hpp"
+#include "physics/corotational.hpp"
+#include "physics/integrator.hpp"
 #include "physics/lame.hpp"
+#include "physics/lcp.hpp"
 #include "physics/support.hpp"
 
 namespace fs = std::filesystem;
@@ -75,6 +80,11 @@ struct Config {
 struct Outcome {
   double probe_disp = 0, opening = 0, contact_area = 0, contact_force = 0;  // metres, metres, m^2, newtons
   double tip_mean = 0;  // metres: the top tip's load points' mean displacement along the pinch (-y), work-conjugate
+  // The committed corotational state's equilibrium with its contacts at the last frame (NaN for other models):
+  // |f_int(u) - f_probes - H^T lambda| on the free DOFs over |f_probes|, with the reported multipliers, and with
+  // the multipliers that fit the state best (lambda >= 0, least squares), whose sum is the contact force the
+  // state's own elastic forces imply.
+  double reported_residual = std::nan(""), implied_residual = std::nan(""), implied_force = std::nan("");
   engine::StageSummary total, physics, collision, response, render;
   long over_budget = 0, not_converged = 0, fallbacks = 0, failures = 0, max_inverted = 0;
   int nodes = 0, tets = 0, inner_tris = 0;
@@ -159,6 +169,53 @@ engine::Scene squeeze_scene(const Config& c, double force, int frames, double fp
   return s;
 }
 
+// The committed corotational state's equilibrium with its contacts (an independent check of the reported contact
+// force: the elastic forces of the state itself): r = f_int(u) - f_probes on the free DOFs, the contact rows'
+// forces G lambda (G = H^T, one column per active contact), the residual |r - G lambda| / |f_probes| with the
+// reported multipliers, and the non-negative least-squares multipliers (min |r - G lambda|, lambda >= 0: the LCP
+// of G^T G, solved by Lemke's pivoting) with their residual and sum. No-op for other integrators.
+void contact_equilibrium(const engine::Model& m, const engine::State& st, Outcome& o) {
+  const auto* corot = dynamic_cast<const physics::CorotationalQuasiStatic*>(m.integrator.get());
+  if (corot == nullptr) return;
+  const physics::CorotationalModel& model = corot->model();
+  std::vector<Eigen::Matrix3d> R;
+  model.elements().rotations(st.sim.u, R);
+  Eigen::VectorXd r;
+  model.elements().elastic_forces(st.sim.u, R, r);
+  const Eigen::VectorXd f_probes = engine::nodal_loads(m, st);
+  r -= f_probes;
+  const int n = static_cast<int>(r.size());
+  auto free_only = [&](Eigen::VectorXd& v) {
+    for (int d = 0; d < n; ++d)
+      if (model.is_fixed_dof(d)) v[d] = 0.0;
+  };
+  free_only(r);
+  const double scale = f_probes.norm();
+  std::vector<physics::ContactRow> rows;
+  for (const auto& c : st.active) rows.push_back(engine::contact_row(c, m.mesh.rest, st.x, st.x, m.collision.gap));
+  const int k = static_cast<int>(rows.size());
+  Eigen::MatrixXd G(n, k);  // 3n x k: column j the nodal forces of row j at unit multiplier
+  for (int j = 0; j < k; ++j) {
+    Eigen::VectorXd e = Eigen::VectorXd::Zero(k);
+    e[j] = 1.0;
+    Eigen::VectorXd col = physics::contact_force(rows, e, n);
+    free_only(col);
+    G.col(j) = col;
+  }
+  Eigen::VectorXd reported = Eigen::VectorXd::Zero(k);  // newtons: the committed multipliers of the active rows
+  if (k == static_cast<int>(st.active_total.size())) reported = Eigen::Map<const Eigen::VectorXd>(st.active_total.data(), k);
+  o.reported_residual = (r - G * reported).norm() / scale;
+  if (k == 0) {
+    o.implied_residual = r.norm() / scale;
+    o.implied_force = 0.0;
+    return;
+  }
+  const Eigen::MatrixXd M = G.transpose() * G;
+  const physics::LcpResult fit = physics::solve_lcp_dense(M, -G.transpose() * r);
+  o.implied_residual = (r - G * fit.z).norm() / scale;
+  o.implied_force = fit.converged ? fit.z.sum() : std::nan("");
+}
+
 // Runs a scene (rendering off-screen when `render`) and measures the last frame's shape.
 Outcome run(const engine::Scene& scene, bool render) {
   Outcome o;
@@ -205,6 +262,7 @@ Outcome run(const engine::Scene& scene, bool render) {
     for (int v = 0; v < m.mesh.n_nodes(); ++v)
       if (st.in_contact[v]) o.contact_area += node_area[v];
     o.contact_force = rec.contact_force;
+    contact_equilibrium(m, st, o);
   };
   const engine::SessionResult r = engine::run_session(*model, engine::make_inputs(scene), opt);
   o.session_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -248,6 +306,8 @@ struct StudyOptions {
   int max_corotational_tets = 30000;
   std::string reference_csv, reference_out;  // the CalculiX reference sweep (both set) or none
   std::string closure_out;                    // the sweep past closure against the reference's contact rows
+  std::string coupling = "correct";           // the closure sweep's corotational contact coupling: "correct" | "carried"
+  std::string closure_models = "all";         // the closure sweep's models: "linear" | "corotational" | "all"
   std::string reference_meshes = "all";       // the reference sweep's meshes: "uniform" | "graded" | "all"
 };
 
@@ -477,6 +537,7 @@ void closure_sweep(const StudyOptions& opt) {
   constexpr int kGradedTipPoints = 61;
   std::vector<Config> configs;
   for (const char* model : {"linear", "corotational"}) {
+    if (opt.closure_models != "all" && opt.closure_models != model) continue;
     const double tolerance = std::string(model) == "linear" ? 0.0 : 1e-4;
     configs.push_back({{20, 26, 3}, "tet4", model, tolerance});
     configs.push_back({{10, 13, 1}, "tet10", model, tolerance});
@@ -485,36 +546,42 @@ void closure_sweep(const StudyOptions& opt) {
   }
   std::string csv =
       "force_n,reference_tip_mm,reference_contact_force_n,reference_contact_area_mm2,reference_dofs,around,along,"
-      "layers,grade_around,grade_along,tip_points,nodes,tets,element,model,tolerance,frames,tip_mean_mm,tip_err,"
+      "layers,grade_around,grade_along,tip_points,nodes,tets,element,model,coupling,tolerance,frames,tip_mean_mm,tip_err,"
       "opening_mm,contact_force_n,contact_force_err,contact_area_mm2,contact_area_err,total_median_ms,total_p99_ms,"
       "physics_median_ms,physics_p99_ms,response_median_ms,response_p99_ms,over_budget,not_converged,fallbacks,"
-      "failures,max_inverted\n";
+      "failures,max_inverted,reported_residual,implied_contact_force_n,implied_residual\n";
   char line[1024];  // one CSV row
   for (const Config& c : configs) {
     std::fprintf(stderr, "closure %g N %dx%dx%d %s %s ...", kClosureForce, c.level.around, c.level.along,
                  c.level.layers, c.element.c_str(), c.model.c_str());
-    const Outcome o = run(squeeze_scene(c, kClosureForce, opt.frames, opt.fps), !opt.no_render);
+    engine::Scene scene = squeeze_scene(c, kClosureForce, opt.frames, opt.fps);
+    const bool carried = c.model == "corotational" && opt.coupling == "carried";
+    if (carried) scene.collision.coupling = engine::ContactCoupling::kCarried;
+    const char* coupling = c.model == "corotational" ? opt.coupling.c_str() : "";
+    const Outcome o = run(scene, !opt.no_render);
     const double area_one_side = 0.5 * o.contact_area;
     // Signed relative errors: < 0 too stiff (tip), too little force or area.
     const double tip_err = (o.tip_mean - ref.tip_m) / ref.tip_m;
     const double force_err = (o.contact_force - ref.contact_force_n) / ref.contact_force_n;
     const double area_err = (area_one_side - ref.contact_area_m2) / ref.contact_area_m2;
     std::snprintf(line, sizeof line,
-                  "%g,%.6g,%.6g,%.6g,%d,%d,%d,%d,%g,%g,%d,%d,%d,%s,%s,%g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4f,"
-                  "%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld,%ld\n",
+                  "%g,%.6g,%.6g,%.6g,%d,%d,%d,%d,%g,%g,%d,%d,%d,%s,%s,%s,%g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4f,"
+                  "%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld,%ld,%.6g,%.6g,%.6g\n",
                   kClosureForce, 1e3 * ref.tip_m, ref.contact_force_n, 1e6 * ref.contact_area_m2, ref.dofs,
                   c.level.around, c.level.along, c.level.layers, c.grade_around, c.grade_along, c.tip_points, o.nodes,
-                  o.tets, c.element.c_str(), c.model.c_str(), c.tolerance, opt.frames, 1e3 * o.tip_mean, tip_err,
+                  o.tets, c.element.c_str(), c.model.c_str(), coupling, c.tolerance, opt.frames, 1e3 * o.tip_mean, tip_err,
                   1e3 * o.opening, o.contact_force, force_err, 1e6 * area_one_side, area_err, o.total.median_ms,
                   o.total.p99_ms, o.physics.median_ms, o.physics.p99_ms, o.response.median_ms, o.response.p99_ms,
-                  o.over_budget, o.not_converged, o.fallbacks, o.failures, o.max_inverted);
+                  o.over_budget, o.not_converged, o.fallbacks, o.failures, o.max_inverted, o.reported_residual,
+                  o.implied_force, o.implied_residual);
     csv += line;
     engine::write_text_file(opt.closure_out, csv);  // after every configuration
     std::fprintf(stderr,
                  " tip %.3f mm (%+.1f %%), contact force %.2f mN (%+.1f %%), area %.2f mm^2 (%+.1f %%), total %.1f / "
-                 "%.1f ms, fallbacks %ld\n",
+                 "%.1f ms, fallbacks %ld; equilibrium residual %.3g reported, %.3g fitted, fitted force %.2f mN\n",
                  1e3 * o.tip_mean, 100.0 * tip_err, 1e3 * o.contact_force, 100.0 * force_err, 1e6 * area_one_side,
-                 100.0 * area_err, o.total.median_ms, o.total.p99_ms, o.fallbacks);
+                 100.0 * area_err, o.total.median_ms, o.total.p99_ms, o.fallbacks, o.reported_residual, o.implied_residual,
+                 1e3 * o.implied_force);
   }
 }
 
@@ -603,6 +670,10 @@ int main(int argc, char** argv) {
   app.add_option("--reference-out", opt.reference_out, "CSV of the sweep against the CalculiX reference; runs only it");
   app.add_option("--closure-out", opt.closure_out,
                  "CSV of the sweep past closure against the reference's contact rows (needs --reference); runs only it");
+  app.add_option("--coupling", opt.coupling, "the closure sweep's corotational contact coupling (collision.coupling)")
+      ->check(CLI::IsMember({"correct", "carried"}));
+  app.add_option("--closure-models", opt.closure_models, "the closure sweep's models")
+      ->check(CLI::IsMember({"linear", "corotational", "all"}));
   app.add_option("--reference-meshes", opt.reference_meshes, "the reference sweep's meshes")
       ->check(CLI::IsMember({"uniform", "graded", "all"}));
   CLI11_PARSE(app, argc, argv);
