@@ -42,16 +42,12 @@
 
 #include <CLI/CLI.hpp>
 
+#include "engine/equilibrium.hpp"
 #include "engine/report.hpp"
-#include "engine/response.hpp"
 #include "engine/scene.hpp"
 #include "engine/session.hpp"
 #include "engine/simulation.hpp"
-#include "physics/contact_rows.hpp"
-#include "physics/corotational.hpp"
-#include "physics/integrator.hpp"
 #include "physics/lame.hpp"
-#include "physics/lcp.hpp"
 #include "physics/support.hpp"
 
 namespace fs = std::filesystem;
@@ -169,53 +165,6 @@ engine::Scene squeeze_scene(const Config& c, double force, int frames, double fp
   return s;
 }
 
-// The committed corotational state's equilibrium with its contacts (an independent check of the reported contact
-// force: the elastic forces of the state itself): r = f_int(u) - f_probes on the free DOFs, the contact rows'
-// forces G lambda (G = H^T, one column per active contact), the residual |r - G lambda| / |f_probes| with the
-// reported multipliers, and the non-negative least-squares multipliers (min |r - G lambda|, lambda >= 0: the LCP
-// of G^T G, solved by Lemke's pivoting) with their residual and sum. No-op for other integrators.
-void contact_equilibrium(const engine::Model& m, const engine::State& st, Outcome& o) {
-  const auto* corot = dynamic_cast<const physics::CorotationalQuasiStatic*>(m.integrator.get());
-  if (corot == nullptr) return;
-  const physics::CorotationalModel& model = corot->model();
-  std::vector<Eigen::Matrix3d> R;
-  model.elements().rotations(st.sim.u, R);
-  Eigen::VectorXd r;
-  model.elements().elastic_forces(st.sim.u, R, r);
-  const Eigen::VectorXd f_probes = engine::nodal_loads(m, st);
-  r -= f_probes;
-  const int n = static_cast<int>(r.size());
-  auto free_only = [&](Eigen::VectorXd& v) {
-    for (int d = 0; d < n; ++d)
-      if (model.is_fixed_dof(d)) v[d] = 0.0;
-  };
-  free_only(r);
-  const double scale = f_probes.norm();
-  std::vector<physics::ContactRow> rows;
-  for (const auto& c : st.active) rows.push_back(engine::contact_row(c, m.mesh.rest, st.x, st.x, m.collision.gap));
-  const int k = static_cast<int>(rows.size());
-  Eigen::MatrixXd G(n, k);  // 3n x k: column j the nodal forces of row j at unit multiplier
-  for (int j = 0; j < k; ++j) {
-    Eigen::VectorXd e = Eigen::VectorXd::Zero(k);
-    e[j] = 1.0;
-    Eigen::VectorXd col = physics::contact_force(rows, e, n);
-    free_only(col);
-    G.col(j) = col;
-  }
-  Eigen::VectorXd reported = Eigen::VectorXd::Zero(k);  // newtons: the committed multipliers of the active rows
-  if (k == static_cast<int>(st.active_total.size())) reported = Eigen::Map<const Eigen::VectorXd>(st.active_total.data(), k);
-  o.reported_residual = (r - G * reported).norm() / scale;
-  if (k == 0) {
-    o.implied_residual = r.norm() / scale;
-    o.implied_force = 0.0;
-    return;
-  }
-  const Eigen::MatrixXd M = G.transpose() * G;
-  const physics::LcpResult fit = physics::solve_lcp_dense(M, -G.transpose() * r);
-  o.implied_residual = (r - G * fit.z).norm() / scale;
-  o.implied_force = fit.converged ? fit.z.sum() : std::nan("");
-}
-
 // Runs a scene (rendering off-screen when `render`) and measures the last frame's shape.
 Outcome run(const engine::Scene& scene, bool render) {
   Outcome o;
@@ -262,7 +211,12 @@ Outcome run(const engine::Scene& scene, bool render) {
     for (int v = 0; v < m.mesh.n_nodes(); ++v)
       if (st.in_contact[v]) o.contact_area += node_area[v];
     o.contact_force = rec.contact_force;
-    contact_equilibrium(m, st, o);
+    const engine::ContactEquilibrium eq = engine::contact_equilibrium(m, st);
+    if (eq.available) {
+      o.reported_residual = eq.reported_residual;
+      o.implied_residual = eq.fitted_residual;
+      o.implied_force = eq.fitted_force;
+    }
   };
   const engine::SessionResult r = engine::run_session(*model, engine::make_inputs(scene), opt);
   o.session_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
