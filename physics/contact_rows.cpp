@@ -94,6 +94,8 @@ CouplingMatrix::CouplingMatrix(SurfaceCompliance& compliance, const std::vector<
   for (size_t t = 0; t < touched_.size(); ++t)
     if (touched_set_index_[t] < 0) outside.push_back(touched_[t]);
   compliance.ensure_columns(outside);
+  // And of the touched set nodes, when the set keeps its columns per node.
+  compliance.ensure_set_columns(touched_);
   columns_.resize(m);
   y_.resize(static_cast<Eigen::Index>(touched_.size()), 3);
 }
@@ -104,7 +106,6 @@ const Eigen::VectorXd& CouplingMatrix::column(int s) {
   Eigen::VectorXd& col = columns_[s];
   if (col.size() == m) return col;
   const SurfaceCompliance& sc = *compliance_;
-  const Eigen::MatrixXd& C = sc.C_;
   // y_a = C_{a, .} h_s for every touched node a: sum over the row's entries (node b, w_b n_s) of C_ab w_b n_s.
   y_.setZero();
   const int nt = static_cast<int>(touched_.size());
@@ -114,9 +115,10 @@ const Eigen::VectorXd& CouplingMatrix::column(int s) {
     if (ib >= 0) {
       // b in the set: rows of its column block for touched nodes in the set; for the others, the cached
       // columns of a (C symmetric: C_ab = (C_ba)^T).
-      const double* c0 = C.col(3 * ib).data();
-      const double* c1 = C.col(3 * ib + 1).data();
-      const double* c2 = C.col(3 * ib + 2).data();
+      const Eigen::Ref<const Eigen::MatrixXd> Cb = sc.set_block(ib);  // 3s x 3
+      const double* c0 = Cb.col(0).data();
+      const double* c1 = Cb.col(1).data();
+      const double* c2 = Cb.col(2).data();
       for (int t = 0; t < nt; ++t) {
         const int ia = touched_set_index_[t];
         if (ia >= 0) {

@@ -2,6 +2,7 @@
 #include "physics/surface_compliance.hpp"
 
 #include <algorithm>
+#include <stdexcept>
 #include <string>
 
 #include "physics/detail/messages.hpp"
@@ -11,7 +12,7 @@ namespace lumen::physics {
 using detail::fail;
 
 SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns,
-                                     long max_mesh_column_bytes)
+                                     long max_mesh_column_bytes, long max_set_matrix_bytes)
     : solver_(&solver), nodes_(nodes) {
   const int n = solver.n_dofs(), n_mesh = n / 3, s = static_cast<int>(nodes_.size());
   if (block_columns < 1) fail("SurfaceCompliance: block_columns must be >= 1, got " + std::to_string(block_columns));
@@ -28,6 +29,14 @@ SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vect
     if (index_[v] >= 0) fail("SurfaceCompliance: nodes[" + std::to_string(a) + "] repeats node " + std::to_string(v));
     index_[v] = a;
   }
+  if (max_set_matrix_bytes < 0)
+    fail("SurfaceCompliance: max_set_matrix_bytes must be >= 0, got " + std::to_string(max_set_matrix_bytes));
+  // A set too large for its matrix keeps its columns per node, solved on first use.
+  lazy_ = 9.0 * s * s * sizeof(double) > static_cast<double>(max_set_matrix_bytes);
+  if (lazy_) {
+    set_cols_.resize(s);
+    return;
+  }
   // C by blocks of unit columns: solve, keep the rows of the set (and all rows when they fit the budget).
   const bool keep = static_cast<double>(n) * 3.0 * s * sizeof(double) <= static_cast<double>(max_mesh_column_bytes);
   C_.resize(3 * s, 3 * s);
@@ -40,6 +49,48 @@ SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vect
     for (int a = 0; a < s; ++a) C_.block(3 * a, c0, 3, nc) = X.middleRows(3 * nodes_[a], 3);
     if (Kc_.size() > 0) Kc_.middleCols(c0, nc) = X;
   }
+}
+
+const Eigen::MatrixXd& SurfaceCompliance::matrix() const {
+  if (lazy_)
+    throw std::logic_error("SurfaceCompliance::matrix: the set's " + std::to_string(nodes_.size()) +
+                           " nodes keep their columns per node (lazy); use block()");
+  return C_;
+}
+
+int SurfaceCompliance::n_set_columns() const {
+  if (!lazy_) return static_cast<int>(nodes_.size());
+  return static_cast<int>(std::count_if(set_cols_.begin(), set_cols_.end(), [](const Eigen::MatrixXd& c) { return c.size() > 0; }));
+}
+
+void SurfaceCompliance::ensure_set_columns(const std::vector<int>& nodes) {
+  if (!lazy_) return;
+  // Set nodes whose columns are not at hand, each once.
+  std::vector<int> missing;  // positions in nodes_
+  for (int v : nodes) {
+    check_node(v, "node");
+    const int a = index_[v];
+    if (a >= 0 && set_cols_[a].size() == 0 && std::find(missing.begin(), missing.end(), a) == missing.end())
+      missing.push_back(a);
+  }
+  if (missing.empty()) return;
+  const int n = solver_->n_dofs(), s = static_cast<int>(nodes_.size()), nm = static_cast<int>(missing.size());
+  Eigen::MatrixXd F = Eigen::MatrixXd::Zero(n, 3 * nm);
+  for (int k = 0; k < nm; ++k)
+    for (int c = 0; c < 3; ++c) F(3 * nodes_[missing[k]] + c, 3 * k + c) = 1.0;
+  const Eigen::MatrixXd X = solver_->solve_many(F);
+  for (int k = 0; k < nm; ++k) {
+    Eigen::MatrixXd& col = set_cols_[missing[k]];
+    col.resize(3 * s, 3);
+    for (int a = 0; a < s; ++a) col.middleRows<3>(3 * a) = X.block(3 * nodes_[a], 3 * k, 3, 3);
+  }
+}
+
+Eigen::Ref<const Eigen::MatrixXd> SurfaceCompliance::set_block(int a) const {
+  if (!lazy_) return C_.middleCols(3 * a, 3);
+  if (set_cols_[a].size() == 0)
+    throw std::logic_error("SurfaceCompliance: the columns of set node " + std::to_string(nodes_[a]) + " are not at hand");
+  return set_cols_[a];
 }
 
 void SurfaceCompliance::displacement(const Eigen::VectorXd& f, Eigen::VectorXd& du) {
@@ -109,7 +160,10 @@ Eigen::Matrix3d SurfaceCompliance::block(int node_a, int node_b) {
   check_node(node_b, "node_b");
   const int ia = index_[node_a], ib = index_[node_b];
   // Both in the set: the precomputed matrix.
-  if (ia >= 0 && ib >= 0) return C_.block<3, 3>(3 * ia, 3 * ib);
+  if (ia >= 0 && ib >= 0) {
+    ensure_set_columns({node_b});
+    return set_block(ib).middleRows<3>(3 * ia);
+  }
   // Otherwise a cached column of b (rows of a), or of a transposed (C is symmetric).
   if (ib < 0) {
     ensure_columns({node_b});
@@ -135,12 +189,13 @@ void SurfaceCompliance::displacement_on_set(const Eigen::VectorXd& f, Eigen::Vec
     if (index_[v] < 0) outside.push_back(v);
   }
   ensure_columns(outside);
+  ensure_set_columns(loaded);
   // Set nodes: C times the set loads plus the cached columns of outside loads, gathered on the set rows.
   Eigen::VectorXd v_set = Eigen::VectorXd::Zero(3 * s);
   for (int b : loaded) {
     const Eigen::Vector3d fb = f.segment<3>(3 * b);
     if (index_[b] >= 0) {
-      v_set.noalias() += C_.middleCols<3>(3 * index_[b]) * fb;
+      v_set.noalias() += set_block(index_[b]) * fb;
     } else {
       const Eigen::MatrixXd& X = extra_cols_[extra_index_[b]];
       for (int a = 0; a < s; ++a) v_set.segment<3>(3 * a).noalias() += X.middleRows<3>(3 * nodes_[a]) * fb;

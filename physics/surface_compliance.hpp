@@ -16,19 +16,33 @@ class CouplingMatrix;
 // The whole-mesh columns K^-1 e of the set's DOFs (3n x 3s) come out of the same solves; they are kept when
 // they take at most max_mesh_column_bytes, so that the whole-mesh response to forces on a few set nodes is a
 // short sum of columns instead of a back-substitution (see displacement()).
+//
+// C itself (3s x 3s) is solved for at construction when it takes at most max_set_matrix_bytes; a larger set (a
+// whole organ's wall: 4,200 nodes of the whole colon are 1.3 GB) keeps its columns per node, solved on first use
+// (a contact's nodes, in one multi-column solve), with the same values to round-off. The default budget, 1 GiB,
+// keeps the shipped real-time scenes eager: lazily, their first-contact frames pay for the columns (the
+// oesophagus scope, 525 MB eager: 2 frames over budget, response max 72 ms, against 0 over and 5.6 ms; its start
+// 1.8 s instead of 20 s).
 class SurfaceCompliance {
  public:
   // nodes: distinct mesh node ids. Columns are computed block_columns at a time (solve_many).
   SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns = 64,
-                    long max_mesh_column_bytes = 256L << 20);
+                    long max_mesh_column_bytes = 256L << 20, long max_set_matrix_bytes = 1L << 30);
 
   const StaticSolver& solver() const { return *solver_; }
   int n_nodes_mesh() const { return solver_->n_dofs() / 3; }
   const std::vector<int>& nodes() const { return nodes_; }
   // Position of a mesh node in nodes(), or -1.
   int index_of(int node) const;
-  // C, 3s x 3s, metres per newton: C(3a + i, 3b + j) = d u(nodes[a], i) / d f(nodes[b], j).
-  const Eigen::MatrixXd& matrix() const { return C_; }
+  // C, 3s x 3s, metres per newton: C(3a + i, 3b + j) = d u(nodes[a], i) / d f(nodes[b], j). Only when it was
+  // solved for at construction (std::logic_error otherwise: see lazy()).
+  const Eigen::MatrixXd& matrix() const;
+  // Whether the set's columns are solved per node on first use instead of at construction.
+  bool lazy() const { return lazy_; }
+  // Number of set nodes whose columns are at hand (all of them unless lazy).
+  int n_set_columns() const;
+  // Solves for the set columns of every listed set node not at hand yet (lazy only), in one solve_many.
+  void ensure_set_columns(const std::vector<int>& nodes);
 
   // 3 x 3 block d u(node_a) / d f(node_b) for any two mesh nodes; columns of nodes outside the set are
   // solved for and cached on first use.
@@ -50,11 +64,15 @@ class SurfaceCompliance {
 
  private:
   void check_node(int node, const char* what) const;
+  // Column block of set node a (position in nodes_): 3s x 3, C's columns 3a .. 3a + 2; it must be at hand.
+  Eigen::Ref<const Eigen::MatrixXd> set_block(int a) const;
   friend class CouplingMatrix;
   const StaticSolver* solver_;
   std::vector<int> nodes_;
   std::vector<int> index_;                   // mesh node -> position in nodes_, or -1
-  Eigen::MatrixXd C_;                        // 3s x 3s, m/N
+  bool lazy_ = false;
+  Eigen::MatrixXd C_;                        // 3s x 3s, m/N (empty when lazy)
+  std::vector<Eigen::MatrixXd> set_cols_;    // lazy: per set node, 3s x 3 (empty until solved), m/N
   Eigen::MatrixXd Kc_;                       // 3n x 3s whole-mesh columns of the set DOFs, m/N (or empty)
   std::vector<int> extra_index_;             // mesh node -> position in extra_nodes_, or -1
   std::vector<int> extra_nodes_;             // nodes outside the set with cached columns

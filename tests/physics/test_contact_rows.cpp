@@ -12,27 +12,31 @@ namespace lumen::physics {
 namespace {
 
 // The coupling matrix column by column equals the dense twin H K^-1 H^T, rows inside and outside the set.
+// Once with the set's matrix solved at construction, once with its columns solved per node on first use (lazy).
 TEST(CouplingMatrix, ColumnsEqualDenseTwin) {
-  const Model& m = model();
-  SurfaceCompliance sc(*m.solver, m.inner);
-  std::mt19937 rng(16);
-  std::vector<ContactRow> rows;
-  for (int r = 0; r < 30; ++r) rows.push_back(random_vertex_face(rng, m, r % 4 == 0));
-  ContactRow held;  // a one-node unit row (the paper's hold) on a node outside the set
-  held.node[0] = m.outer_free[3], held.weight[0] = 1.0, held.n = Eigen::Vector3d::UnitY();
-  rows.push_back(held);
-  const Eigen::MatrixXd H = dense_H(rows, m.n());
-  const Eigen::MatrixXd twin = H * m.Kinv * H.transpose();
-  CouplingMatrix A(sc, rows);
-  ASSERT_EQ(A.size(), 31);
-  EXPECT_EQ(A.columns_computed(), 0);
-  for (int s : {30, 4, 0}) EXPECT_LE((A.column(s) - twin.col(s)).norm(), 1e-9 * twin.norm()) << "column " << s;
-  EXPECT_EQ(A.columns_computed(), 3);
-  const Eigen::MatrixXd dense = A.dense();
-  EXPECT_LE((dense - twin).norm(), 1e-9 * twin.norm());
-  EXPECT_EQ((dense - dense.transpose()).norm(), 0.0);
-  EXPECT_LE((coupling_matrix(sc, rows) - dense).norm(), 1e-15 * twin.norm());
-  EXPECT_THROW(A.column(31), std::invalid_argument);
+  for (const long set_matrix_bytes : {256L << 20, 0L}) {
+    const Model& m = model();
+    SurfaceCompliance sc(*m.solver, m.inner, 64, 256L << 20, set_matrix_bytes);
+    ASSERT_EQ(sc.lazy(), set_matrix_bytes == 0);
+    std::mt19937 rng(16);
+    std::vector<ContactRow> rows;
+    for (int r = 0; r < 30; ++r) rows.push_back(random_vertex_face(rng, m, r % 4 == 0));
+    ContactRow held;  // a one-node unit row (the paper's hold) on a node outside the set
+    held.node[0] = m.outer_free[3], held.weight[0] = 1.0, held.n = Eigen::Vector3d::UnitY();
+    rows.push_back(held);
+    const Eigen::MatrixXd H = dense_H(rows, m.n());
+    const Eigen::MatrixXd twin = H * m.Kinv * H.transpose();
+    CouplingMatrix A(sc, rows);
+    ASSERT_EQ(A.size(), 31);
+    EXPECT_EQ(A.columns_computed(), 0);
+    for (int s : {30, 4, 0}) EXPECT_LE((A.column(s) - twin.col(s)).norm(), 1e-9 * twin.norm()) << "column " << s;
+    EXPECT_EQ(A.columns_computed(), 3);
+    const Eigen::MatrixXd dense = A.dense();
+    EXPECT_LE((dense - twin).norm(), 1e-9 * twin.norm());
+    EXPECT_EQ((dense - dense.transpose()).norm(), 0.0);
+    EXPECT_LE((coupling_matrix(sc, rows) - dense).norm(), 1e-15 * twin.norm());
+    EXPECT_THROW(A.column(31), std::invalid_argument);
+  }
 }
 
 }  // namespace

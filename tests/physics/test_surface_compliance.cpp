@@ -3,6 +3,7 @@
 
 #include <Eigen/Dense>
 #include <random>
+#include <stdexcept>
 #include <vector>
 
 #include "physics/surface_compliance.hpp"
@@ -35,6 +36,38 @@ TEST(SurfaceCompliance, BlocksEqualDirectSolves) {
   EXPECT_THROW(SurfaceCompliance(*m.solver, {-1}), std::invalid_argument);
   EXPECT_THROW(SurfaceCompliance(*m.solver, {1}, 0), std::invalid_argument);
   EXPECT_THROW(sc.block(0, m.n()), std::invalid_argument);
+}
+
+// A set whose matrix is over its byte budget (here 0) keeps its columns per node, solved on first use: blocks,
+// set-only displacements and contact-row couplings equal the dense twin K^-1 and the eager compliance's.
+TEST(SurfaceCompliance, LazySetColumnsEqualTheEagerOnes) {
+  const Model& m = model();
+  SurfaceCompliance eager(*m.solver, m.inner), lazy(*m.solver, m.inner, 64, 256L << 20, 0);
+  EXPECT_FALSE(eager.lazy());
+  ASSERT_TRUE(lazy.lazy());
+  EXPECT_EQ(lazy.n_set_columns(), 0);
+  EXPECT_THROW(lazy.matrix(), std::logic_error);
+  const int s = static_cast<int>(m.inner.size());
+  // Blocks between set nodes (and one outside node): only the columns asked for are solved.
+  const int a = m.inner[3], b = m.inner[s - 2], out = m.outer_free[4];
+  const std::pair<int, int> pairs[] = {{a, b}, {b, a}, {a, a}, {a, out}, {out, b}};
+  for (const auto& [p, q] : pairs) {
+    const Eigen::Matrix3d twin = m.Kinv.block(3 * p, 3 * q, 3, 3);
+    EXPECT_LE((lazy.block(p, q) - twin).norm(), 1e-9 * twin.norm() + 1e-15);
+    EXPECT_LE((lazy.block(p, q) - eager.block(p, q)).norm(), 1e-12 * twin.norm() + 1e-18);
+  }
+  EXPECT_LE(lazy.n_set_columns(), 2);
+  // Set-only displacements of forces on a few set nodes and one outside node.
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * m.n());
+  f.segment<3>(3 * m.inner[5]) << 0.01, -0.02, 0.005;
+  f.segment<3>(3 * m.inner[9]) << -0.004, 0.01, 0.0;
+  f.segment<3>(3 * out) << 0.0, 0.003, -0.002;
+  Eigen::VectorXd du_lazy, du_eager;
+  lazy.displacement_on_set(f, du_lazy, {m.outer_free[1]});
+  eager.displacement_on_set(f, du_eager, {m.outer_free[1]});
+  const Eigen::VectorXd twin = m.Kinv * f;
+  EXPECT_LE((du_lazy - du_eager).norm(), 1e-12 * twin.norm());
+  for (int v : m.inner) EXPECT_LE((du_lazy.segment<3>(3 * v) - twin.segment<3>(3 * v)).norm(), 1e-9 * twin.norm());
 }
 
 // Whole-mesh and set-only displacements for sparse nodal forces equal the dense twin K^-1 f, with the
