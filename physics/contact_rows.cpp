@@ -89,13 +89,8 @@ CouplingMatrix::CouplingMatrix(SurfaceCompliance& compliance, const std::vector<
     }
     entry_begin_[r + 1] = static_cast<int>(entry_slot_.size());
   }
-  // Columns of every touched node outside the set, in one solve.
-  std::vector<int> outside;
-  for (size_t t = 0; t < touched_.size(); ++t)
-    if (touched_set_index_[t] < 0) outside.push_back(touched_[t]);
-  compliance.ensure_columns(outside);
-  // And of the touched set nodes, when the set keeps its columns per node.
-  compliance.ensure_set_columns(touched_);
+  // Columns of every touched node not at hand (outside the set, or in a lazy set), in one solve.
+  compliance.ensure_columns(touched_);
   columns_.resize(m);
   y_.resize(static_cast<Eigen::Index>(touched_.size()), 3);
 }

@@ -63,29 +63,6 @@ int SurfaceCompliance::n_set_columns() const {
   return static_cast<int>(std::count_if(set_cols_.begin(), set_cols_.end(), [](const Eigen::MatrixXd& c) { return c.size() > 0; }));
 }
 
-void SurfaceCompliance::ensure_set_columns(const std::vector<int>& nodes) {
-  if (!lazy_) return;
-  // Set nodes whose columns are not at hand, each once.
-  std::vector<int> missing;  // positions in nodes_
-  for (int v : nodes) {
-    check_node(v, "node");
-    const int a = index_[v];
-    if (a >= 0 && set_cols_[a].size() == 0 && std::find(missing.begin(), missing.end(), a) == missing.end())
-      missing.push_back(a);
-  }
-  if (missing.empty()) return;
-  const int n = solver_->n_dofs(), s = static_cast<int>(nodes_.size()), nm = static_cast<int>(missing.size());
-  Eigen::MatrixXd F = Eigen::MatrixXd::Zero(n, 3 * nm);
-  for (int k = 0; k < nm; ++k)
-    for (int c = 0; c < 3; ++c) F(3 * nodes_[missing[k]] + c, 3 * k + c) = 1.0;
-  const Eigen::MatrixXd X = solver_->solve_many(F);
-  for (int k = 0; k < nm; ++k) {
-    Eigen::MatrixXd& col = set_cols_[missing[k]];
-    col.resize(3 * s, 3);
-    for (int a = 0; a < s; ++a) col.middleRows<3>(3 * a) = X.block(3 * nodes_[a], 3 * k, 3, 3);
-  }
-}
-
 Eigen::Ref<const Eigen::MatrixXd> SurfaceCompliance::set_block(int a) const {
   if (!lazy_) return C_.middleCols(3 * a, 3);
   if (set_cols_[a].size() == 0)
@@ -134,24 +111,32 @@ int SurfaceCompliance::index_of(int node) const {
 }
 
 void SurfaceCompliance::ensure_columns(const std::vector<int>& nodes) {
-  // Nodes outside the set and not cached, each once.
+  // Nodes whose columns are not at hand, each once: outside the set and not cached, or in a lazy set not solved.
   std::vector<int> missing;
   for (int v : nodes) {
     check_node(v, "node");
-    if (index_[v] < 0 && extra_index_[v] < 0 && std::find(missing.begin(), missing.end(), v) == missing.end())
-      missing.push_back(v);
+    const int a = index_[v];
+    const bool at_hand = a >= 0 ? !lazy_ || set_cols_[a].size() > 0 : extra_index_[v] >= 0;
+    if (!at_hand && std::find(missing.begin(), missing.end(), v) == missing.end()) missing.push_back(v);
   }
   if (missing.empty()) return;
-  // One multi-column solve for all of them, cached per node.
-  const int n = solver_->n_dofs(), nm = static_cast<int>(missing.size());
+  // One multi-column solve for all of them: a set node keeps the set's rows, another the whole mesh's.
+  const int n = solver_->n_dofs(), s = static_cast<int>(nodes_.size()), nm = static_cast<int>(missing.size());
   Eigen::MatrixXd F = Eigen::MatrixXd::Zero(n, 3 * nm);
   for (int k = 0; k < nm; ++k)
     for (int c = 0; c < 3; ++c) F(3 * missing[k] + c, 3 * k + c) = 1.0;
   const Eigen::MatrixXd X = solver_->solve_many(F);
   for (int k = 0; k < nm; ++k) {
-    extra_index_[missing[k]] = static_cast<int>(extra_nodes_.size());
-    extra_nodes_.push_back(missing[k]);
-    extra_cols_.push_back(X.middleCols(3 * k, 3));
+    const int v = missing[k];
+    if (index_[v] >= 0) {
+      Eigen::MatrixXd& col = set_cols_[index_[v]];
+      col.resize(3 * s, 3);
+      for (int a = 0; a < s; ++a) col.middleRows<3>(3 * a) = X.block(3 * nodes_[a], 3 * k, 3, 3);
+    } else {
+      extra_index_[v] = static_cast<int>(extra_nodes_.size());
+      extra_nodes_.push_back(v);
+      extra_cols_.push_back(X.middleCols(3 * k, 3));
+    }
   }
 }
 
@@ -159,9 +144,9 @@ Eigen::Matrix3d SurfaceCompliance::block(int node_a, int node_b) {
   check_node(node_a, "node_a");
   check_node(node_b, "node_b");
   const int ia = index_[node_a], ib = index_[node_b];
-  // Both in the set: the precomputed matrix.
+  // Both in the set: the set's column block of b.
   if (ia >= 0 && ib >= 0) {
-    ensure_set_columns({node_b});
+    ensure_columns({node_b});
     return set_block(ib).middleRows<3>(3 * ia);
   }
   // Otherwise a cached column of b (rows of a), or of a transposed (C is symmetric).
@@ -178,18 +163,15 @@ void SurfaceCompliance::displacement_on_set(const Eigen::VectorXd& f, Eigen::Vec
   if (f.size() != n) fail("SurfaceCompliance::displacement_on_set: f must have " + std::to_string(n) +
                           " entries, got " + std::to_string(f.size()));
   // Loaded nodes; columns of the ones outside the set, and of the listed outside nodes, at hand.
-  std::vector<int> loaded, outside;
-  for (int v = 0; v < n / 3; ++v) {
-    if (f[3 * v] == 0.0 && f[3 * v + 1] == 0.0 && f[3 * v + 2] == 0.0) continue;
-    loaded.push_back(v);
-    if (index_[v] < 0) outside.push_back(v);
-  }
+  std::vector<int> loaded;
+  for (int v = 0; v < n / 3; ++v)
+    if (f[3 * v] != 0.0 || f[3 * v + 1] != 0.0 || f[3 * v + 2] != 0.0) loaded.push_back(v);
+  std::vector<int> wanted = loaded;  // the loaded nodes, and the listed ones outside the set
   for (int v : also) {
     check_node(v, "also");
-    if (index_[v] < 0) outside.push_back(v);
+    if (index_[v] < 0) wanted.push_back(v);
   }
-  ensure_columns(outside);
-  ensure_set_columns(loaded);
+  ensure_columns(wanted);
   // Set nodes: C times the set loads plus the cached columns of outside loads, gathered on the set rows.
   Eigen::VectorXd v_set = Eigen::VectorXd::Zero(3 * s);
   for (int b : loaded) {

@@ -41,13 +41,12 @@ class SurfaceCompliance {
   bool lazy() const { return lazy_; }
   // Number of set nodes whose columns are at hand (all of them unless lazy).
   int n_set_columns() const;
-  // Solves for the set columns of every listed set node not at hand yet (lazy only), in one solve_many.
-  void ensure_set_columns(const std::vector<int>& nodes);
 
   // 3 x 3 block d u(node_a) / d f(node_b) for any two mesh nodes; columns of nodes outside the set are
   // solved for and cached on first use.
   Eigen::Matrix3d block(int node_a, int node_b);
-  // Solves for the columns of every listed node outside the set not cached yet, in one solve_many.
+  // Solves for the columns of every listed node not at hand yet (outside the set and not cached, or in a lazy set
+  // and not solved), in one solve_many.
   void ensure_columns(const std::vector<int>& nodes);
   // Number of nodes outside the set whose columns are cached.
   int n_cached_nodes() const { return static_cast<int>(extra_nodes_.size()); }

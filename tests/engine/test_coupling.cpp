@@ -13,11 +13,7 @@
 
 #include "collision/self_collision.hpp"
 #include "engine/equilibrium.hpp"
-#include "engine/response.hpp"
 #include "engine/simulation.hpp"
-#include "physics/contact_rows.hpp"
-#include "physics/corotational.hpp"
-#include "physics/integrator.hpp"
 #include "support/build.hpp"
 
 using namespace lumen;

@@ -350,9 +350,8 @@ struct ReferenceTip {
   double tip_m = 0.0;  // area-weighted mean over the tip's disc of the displacement along the pinch, metres
   int dofs = 0;
   // Past closure (rows with contact; NaN where the row has none): the full tube's contact force between the
-  // upper and lower inner wall (newtons), its contact area on one side (m^2), the lumen's opening under the tips
-  // (metres, <= 0 closed).
-  double contact_force_n = std::nan(""), contact_area_m2 = std::nan(""), opening_m = std::nan("");
+  // upper and lower inner wall (newtons) and its contact area on one side (m^2).
+  double contact_force_n = std::nan(""), contact_area_m2 = std::nan("");
 };
 using ReferenceTable = std::map<std::pair<double, std::string>, ReferenceTip>;
 
@@ -380,12 +379,11 @@ ReferenceTable read_reference(const std::string& path) {
       ReferenceTip tip{std::stod(row["tip_displacement_m"]), std::stoi(row["dofs"])};
       if (!row["contact_force_N"].empty()) tip.contact_force_n = std::stod(row["contact_force_N"]);
       if (!row["contact_area_m2"].empty()) tip.contact_area_m2 = std::stod(row["contact_area_m2"]);
-      if (!row["opening_m"].empty()) tip.opening_m = std::stod(row["opening_m"]);
       if (tip.dofs > table[key].dofs) table[key] = tip;
     } catch (const std::exception&) {
       throw std::runtime_error(path + ":" + std::to_string(number) +
-                               ": force_N, tip_displacement_m, dofs, contact_force_N, contact_area_m2 or opening_m is "
-                               "not a number");
+                               ": force_N, tip_displacement_m, dofs, contact_force_N or contact_area_m2 is not a "
+                               "number");
     }
   }
   return table;
