@@ -262,6 +262,8 @@ struct StudyOptions {
   std::string closure_out;                    // the sweep past closure against the reference's contact rows
   std::string coupling = "correct";           // the closure sweep's corotational contact coupling: "correct" | "carried"
   std::string closure_models = "all";         // the closure sweep's models: "linear" | "corotational" | "all"
+  std::string closure_mesh;                   // the closure sweep's one mesh ("24x14x1"; empty: all)
+  double closure_force = 0.03;                // the closure sweep's force per tip, newtons (a reference row's)
   std::string reference_meshes = "all";       // the reference sweep's meshes: "uniform" | "graded" | "all"
 };
 
@@ -352,6 +354,7 @@ struct ReferenceTip {
   // Past closure (rows with contact; NaN where the row has none): the full tube's contact force between the
   // upper and lower inner wall (newtons) and its contact area on one side (m^2).
   double contact_force_n = std::nan(""), contact_area_m2 = std::nan("");
+  double opening_m = std::nan("");  // the inner wall's opening between the tips (NaN where the row has none), metres
 };
 using ReferenceTable = std::map<std::pair<double, std::string>, ReferenceTip>;
 
@@ -379,11 +382,12 @@ ReferenceTable read_reference(const std::string& path) {
       ReferenceTip tip{std::stod(row["tip_displacement_m"]), std::stoi(row["dofs"])};
       if (!row["contact_force_N"].empty()) tip.contact_force_n = std::stod(row["contact_force_N"]);
       if (!row["contact_area_m2"].empty()) tip.contact_area_m2 = std::stod(row["contact_area_m2"]);
+      if (!row["opening_m"].empty()) tip.opening_m = std::stod(row["opening_m"]);
       if (tip.dofs > table[key].dofs) table[key] = tip;
     } catch (const std::exception&) {
       throw std::runtime_error(path + ":" + std::to_string(number) +
-                               ": force_N, tip_displacement_m, dofs, contact_force_N or contact_area_m2 is not a "
-                               "number");
+                               ": force_N, tip_displacement_m, dofs, contact_force_N, contact_area_m2 or opening_m is "
+                               "not a number");
     }
   }
   return table;
@@ -469,21 +473,23 @@ void reference_sweep(const StudyOptions& opt) {
   }
 }
 
-// Past closure against the CalculiX contact reference (--closure-out): the same two 3 mm tips at kClosureForce
-// each, 1.4x the force at which the reference's walls first touch (0.021 N), so that the inner walls are pressed
-// together over an area; the reference is the Neo-Hookean NLGEOM quarter tube with a frictionless penalty contact
-// pair between the upper and lower inner wall (material "neohooke-pair"). Compared at the last frame: the top
-// tip's load-point mean along the pinch (the reference's work-conjugate tip mean), the total contact force the
-// walls carry (Lumen: the sum of the contact multipliers; the reference: the normal force on its slave side), and
-// the contact area on one side (Lumen: half the inner-wall area of the nodes in contact, both walls' nodes being
-// marked; the reference: its slave side's contact area, which depends on the penalty: 27 % less at 10x it).
+// Past closure against the CalculiX contact reference (--closure-out): the same two 3 mm tips at --closure-force
+// each (default 0.03 N: 1.4x the force at which the reference's walls first touch, 0.021 N, so that the inner walls
+// are pressed together over an area; at 0.02 N, just before they touch, the tip and the opening that lead to the
+// contact; --closure-mesh runs one mesh); the reference is the Neo-Hookean NLGEOM quarter tube with a frictionless
+// penalty contact pair between the upper and lower inner wall (material "neohooke-pair"). Compared at the last
+// frame: the top tip's load-point mean along the pinch (the reference's work-conjugate tip mean), the opening, the
+// total contact force the walls carry (Lumen: the sum of the contact multipliers; the reference: the normal force
+// on its slave side), and the contact area on one side (Lumen: half the inner-wall area of the nodes in contact,
+// both walls' nodes being marked; the reference: its slave side's contact area, which depends on the penalty: 27 %
+// less at 10x it).
 // The reference's tip is converged to 0.3 %, its contact force only to 14 % (levels 2 -> 3).
 void closure_sweep(const StudyOptions& opt) {
-  constexpr double kClosureForce = 0.03;  // newtons per tip
+  const double force = opt.closure_force;  // newtons per tip
   const ReferenceTip ref =
-      find_reference(read_reference(opt.reference_csv), opt.reference_csv, kClosureForce, "neohooke-pair");
+      find_reference(read_reference(opt.reference_csv), opt.reference_csv, force, "neohooke-pair");
   if (std::isnan(ref.contact_force_n) || std::isnan(ref.contact_area_m2))
-    throw std::runtime_error(opt.reference_csv + ": the neohooke-pair row at " + std::to_string(kClosureForce) +
+    throw std::runtime_error(opt.reference_csv + ": the neohooke-pair row at " + std::to_string(force) +
                              " N has no contact_force_N or contact_area_m2");
   constexpr double kGradeAround = 6.0, kGradeAlong = 12.0;
   constexpr int kGradedTipPoints = 61;
@@ -499,16 +505,20 @@ void closure_sweep(const StudyOptions& opt) {
   std::string csv =
       "force_n,reference_tip_mm,reference_contact_force_n,reference_contact_area_mm2,reference_dofs,around,along,"
       "layers,grade_around,grade_along,tip_points,nodes,tets,element,model,coupling,tolerance,frames,tip_mean_mm,tip_err,"
-      "opening_mm,contact_force_n,contact_force_err,contact_area_mm2,contact_area_err,total_median_ms,total_p99_ms,"
+      "opening_mm,reference_opening_mm,contact_force_n,contact_force_err,contact_area_mm2,contact_area_err,"
+      "total_median_ms,total_p99_ms,"
       "physics_median_ms,physics_p99_ms,response_median_ms,response_p99_ms,over_budget,not_converged,fallbacks,"
       "failures,max_inverted,reported_residual,implied_contact_force_n,implied_residual\n";
   char line[1024];  // one CSV row
   for (const Config& c : configs) {
-    std::fprintf(stderr, "closure %g N %dx%dx%d %s %s ...", kClosureForce, c.level.around, c.level.along,
+    const std::string mesh = std::to_string(c.level.around) + "x" + std::to_string(c.level.along) + "x" +
+                             std::to_string(c.level.layers);
+    if (!opt.closure_mesh.empty() && opt.closure_mesh != mesh) continue;
+    std::fprintf(stderr, "closure %g N %dx%dx%d %s %s ...", force, c.level.around, c.level.along,
                  c.level.layers, c.element.c_str(), c.model.c_str());
-    engine::Scene scene = squeeze_scene(c, kClosureForce, opt.frames, opt.fps);
-    const bool carried = c.model == "corotational" && opt.coupling == "carried";
-    if (carried) scene.collision.coupling = engine::ContactCoupling::kCarried;
+    engine::Scene scene = squeeze_scene(c, force, opt.frames, opt.fps);
+    if (c.model == "corotational" && opt.coupling == "carried")
+      scene.collision.coupling = engine::ContactCoupling::kCarried;
     const char* coupling = c.model == "corotational" ? opt.coupling.c_str() : "";
     const Outcome o = run(scene, !opt.no_render);
     const double area_one_side = 0.5 * o.contact_area;
@@ -517,21 +527,25 @@ void closure_sweep(const StudyOptions& opt) {
     const double force_err = (o.contact_force - ref.contact_force_n) / ref.contact_force_n;
     const double area_err = (area_one_side - ref.contact_area_m2) / ref.contact_area_m2;
     std::snprintf(line, sizeof line,
-                  "%g,%.6g,%.6g,%.6g,%d,%d,%d,%d,%g,%g,%d,%d,%d,%s,%s,%s,%g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4f,"
+                  "%g,%.6g,%.6g,%.6g,%d,%d,%d,%d,%g,%g,%d,%d,%d,%s,%s,%s,%g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,"
+                  "%.4f,"
                   "%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld,%ld,%.6g,%.6g,%.6g\n",
-                  kClosureForce, 1e3 * ref.tip_m, ref.contact_force_n, 1e6 * ref.contact_area_m2, ref.dofs,
+                  force, 1e3 * ref.tip_m, ref.contact_force_n, 1e6 * ref.contact_area_m2, ref.dofs,
                   c.level.around, c.level.along, c.level.layers, c.grade_around, c.grade_along, c.tip_points, o.nodes,
                   o.tets, c.element.c_str(), c.model.c_str(), coupling, c.tolerance, opt.frames, 1e3 * o.tip_mean, tip_err,
-                  1e3 * o.opening, o.contact_force, force_err, 1e6 * area_one_side, area_err, o.total.median_ms,
+                  1e3 * o.opening, 1e3 * ref.opening_m, o.contact_force, force_err, 1e6 * area_one_side, area_err,
+                  o.total.median_ms,
                   o.total.p99_ms, o.physics.median_ms, o.physics.p99_ms, o.response.median_ms, o.response.p99_ms,
                   o.over_budget, o.not_converged, o.fallbacks, o.failures, o.max_inverted, o.reported_residual,
                   o.implied_force, o.implied_residual);
     csv += line;
     engine::write_text_file(opt.closure_out, csv);  // after every configuration
     std::fprintf(stderr,
-                 " tip %.3f mm (%+.1f %%), contact force %.2f mN (%+.1f %%), area %.2f mm^2 (%+.1f %%), total %.1f / "
-                 "%.1f ms, fallbacks %ld; equilibrium residual %.3g reported, %.3g fitted, fitted force %.2f mN\n",
-                 1e3 * o.tip_mean, 100.0 * tip_err, 1e3 * o.contact_force, 100.0 * force_err, 1e6 * area_one_side,
+                 " tip %.3f mm (%+.1f %%), opening %.3f mm (reference %.3f), contact force %.2f mN (%+.1f %%), "
+                 "area %.2f mm^2 (%+.1f %%), total %.1f / %.1f ms, fallbacks %ld; equilibrium residual %.3g "
+                 "reported, %.3g fitted, fitted force %.2f mN\n",
+                 1e3 * o.tip_mean, 100.0 * tip_err, 1e3 * o.opening, 1e3 * ref.opening_m, 1e3 * o.contact_force,
+                 100.0 * force_err, 1e6 * area_one_side,
                  100.0 * area_err, o.total.median_ms, o.total.p99_ms, o.fallbacks, o.reported_residual, o.implied_residual,
                  1e3 * o.implied_force);
   }
@@ -624,6 +638,8 @@ int main(int argc, char** argv) {
                  "CSV of the sweep past closure against the reference's contact rows (needs --reference); runs only it");
   app.add_option("--coupling", opt.coupling, "the closure sweep's corotational contact coupling (collision.coupling)")
       ->check(CLI::IsMember({"correct", "carried"}));
+  app.add_option("--closure-force", opt.closure_force, "the closure sweep's force per tip, N (default 0.03)");
+  app.add_option("--closure-mesh", opt.closure_mesh, "the closure sweep's one mesh, e.g. 24x14x1 (default: all)");
   app.add_option("--closure-models", opt.closure_models, "the closure sweep's models")
       ->check(CLI::IsMember({"linear", "corotational", "all"}));
   app.add_option("--reference-meshes", opt.reference_meshes, "the reference sweep's meshes")
