@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstddef>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -14,6 +15,7 @@
 
 #include <assimp/Exporter.hpp>
 #include <assimp/scene.h>
+#include <Eigen/Geometry>
 
 #include "collision/self_collision.hpp"
 #include "engine/mesh_check.hpp"
@@ -45,6 +47,10 @@ std::string numbered(const fs::path& dir, const char* prefix, int i, const char*
 }  // namespace
 
 render::CameraPose centreline_camera(const Model& model, int frame, int frames) {
+  return centreline_camera(model, model.mesh.rest, frame, frames);
+}
+
+render::CameraPose centreline_camera(const Model& model, const Points& x, int frame, int frames) {
   const RenderSpec& rs = model.render;
   if (!rs.centreline_flight || model.flight_frames.empty() || frames < 1)
     throw std::logic_error("centreline_camera: the model has no centreline flight, or frames < 1");
@@ -53,7 +59,25 @@ render::CameraPose centreline_camera(const Model& model, int frame, int frames) 
   const double s = rs.flight_from + (rs.flight_to - rs.flight_from) * progress;
   const physics::CentrelineFrame f = physics::frame_at_arc_length(model.flight_frames, model.flight_arc, s);
   const double travel = rs.flight_to > rs.flight_from ? 1.0 : -1.0;
-  return render::CameraPose{f.point, travel * f.tangent, f.normal};
+  // The rings j, j + 1 around s (clamped to the tube's), their centres at rest and at x, and the share w of j + 1.
+  const std::vector<double>& ring_s = model.flight_ring_s;
+  const int around = model.flight_ring_around;
+  if (ring_s.size() < 2 || around < 1) return render::CameraPose{f.point, travel * f.tangent, f.normal};
+  const size_t j = std::min(static_cast<size_t>(std::max<std::ptrdiff_t>(
+                                std::upper_bound(ring_s.begin(), ring_s.end(), s) - ring_s.begin() - 1, 0)),
+                            ring_s.size() - 2);
+  const double w = std::clamp((s - ring_s[j]) / (ring_s[j + 1] - ring_s[j]), 0.0, 1.0);
+  auto centre = [&](const Points& p, size_t ring) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    const int* nodes = model.flight_ring_inner.data() + ring * static_cast<size_t>(around);
+    for (int i = 0; i < around; ++i) c += p.row(nodes[i]).transpose();
+    return Eigen::Vector3d(c / around);
+  };
+  const Eigen::Vector3d rest0 = centre(model.mesh.rest, j), rest1 = centre(model.mesh.rest, j + 1);
+  const Eigen::Vector3d now0 = centre(x, j), now1 = centre(x, j + 1);
+  const Eigen::Vector3d eye = f.point + (1.0 - w) * (now0 - rest0) + w * (now1 - rest1);
+  const Eigen::Quaterniond turn = Eigen::Quaterniond::FromTwoVectors(rest1 - rest0, now1 - now0);
+  return render::CameraPose{eye, turn * (travel * f.tangent), turn * f.normal};
 }
 
 // Camera framing from the rest geometry: the mesh's bounding box, and the lumen's axis, radius and length from
@@ -101,8 +125,9 @@ render::FrameView session_frame_view(const Model& model, const State& state, int
     view.camera = render::CameraPose{pose.position, pose.rotation * -Eigen::Vector3d::UnitY(),
                                      pose.rotation * Eigen::Vector3d::UnitZ()};
   }
-  // The colonoscopy view: the endoscope on the centreline, where the flight is after the frames done.
-  if (model.render.centreline_flight) view.camera = centreline_camera(model, state.frame, frames);
+  // The colonoscopy view: the endoscope on the centreline, where the flight is after the frames done, carried by the
+  // deformed lumen.
+  if (model.render.centreline_flight) view.camera = centreline_camera(model, state.x, state.frame, frames);
   view.contact = state.in_contact.data();
   view.force_scale = model.render.force_scale;
   for (size_t p = 0; p < state.samples.size(); ++p) {

@@ -50,6 +50,11 @@ SessionResult run_session_on(const Model& model, Inputs& inputs, const SessionOp
 // looking along the centreline's tangent there in the direction of travel, up along its normal (the frame the tube's
 // rings are swept with). The model must have a centreline flight (render.centreline_flight); frames >= 1.
 render::CameraPose centreline_camera(const Model& model, int frame, int frames);
+// The same camera carried by the deformed lumen at positions x (n_nodes x 3, metres): the eye moves with the centres
+// of the tube's rings on either side (the mean of each ring's inner-wall nodes: its displacement interpolated along
+// the arc length), and the view turns by the least rotation that takes the rest chord between those two centres to
+// the deformed one. At rest positions it is the rest camera; under a rigid translation, the same translated.
+render::CameraPose centreline_camera(const Model& model, const Points& x, int frame, int frames);
 
 // The renderer's framing of the model: from its rest geometry (render::frame_organ over the inner wall), with a
 // centreline flight's lumen radius the narrowest ring's along the flight.

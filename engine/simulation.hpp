@@ -119,6 +119,11 @@ struct Model {
   std::vector<physics::CentrelineFrame> flight_frames;
   std::vector<double> flight_arc;
   double flight_lumen_radius = 0.0;
+  // The tube's rings, which the camera follows as the lumen deforms: each ring's arc length (metres, increasing)
+  // and its inner-wall nodes (flight_ring_inner: rings x flight_ring_around node ids, ring-major).
+  std::vector<double> flight_ring_s;
+  std::vector<int> flight_ring_inner;
+  int flight_ring_around = 0;
   // collision.coupling "carried": the augmentation penalty of the contacts carried into the corotational solve,
   // kCouplingStiffnessScale times the mean diagonal of K over the colliding walls' free DOFs, N/m (0 otherwise).
   double coupling_stiffness = 0.0;

@@ -338,6 +338,30 @@ TEST(CentrelineCamera, EyeRidesTheCentrelineOnTheTubesRings) {
 // Along the whole flight (every frame of 40 from 205 to 395 mm) the eye is inside the lumen: on the lumen side of
 // the nearest inner-wall triangle, at least half the flight's lumen radius from the wall (so the near plane, a small
 // fraction of it, never cuts the wall), and on the centreline (brute force over the file's segments).
+namespace {
+
+// The eye's distance to the nearest triangle of the inner wall at positions x, and whether it is on that triangle's
+// lumen side (the inner wall faces the lumen); brute force over the triangles.
+struct WallClearance {
+  double distance = std::numeric_limits<double>::infinity();
+  bool lumen_side = false;
+};
+WallClearance wall_clearance(const lumen::Tris& inner, const lumen::Points& x, const Eigen::Vector3d& eye) {
+  WallClearance out;
+  for (int t = 0; t < inner.rows(); ++t) {
+    const Eigen::Vector3d a = x.row(inner(t, 0)), b = x.row(inner(t, 1)), c = x.row(inner(t, 2));
+    const Eigen::Vector3d w = lumen::collision::closest_on_triangle(eye, a, b, c);
+    const Eigen::Vector3d q = w[0] * a + w[1] * b + w[2] * c;
+    if ((eye - q).norm() < out.distance) {
+      out.distance = (eye - q).norm();
+      out.lumen_side = (eye - q).dot((b - a).cross(c - a)) > 0.0;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 TEST(CentrelineCamera, EyeStaysInsideTheLumen) {
   constexpr int kFrames = 40;
   const auto model = compile_file(colon_variant("inside", json::parse(R"(["ends"])"),
@@ -350,20 +374,9 @@ TEST(CentrelineCamera, EyeStaysInsideTheLumen) {
   const lumen::Points& x = model->mesh.rest;
   for (int k = 0; k <= kFrames; ++k) {
     const Eigen::Vector3d eye = lumen::engine::centreline_camera(*model, k, kFrames).eye;
-    double wall = std::numeric_limits<double>::infinity();
-    Eigen::Vector3d toward_eye = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::Zero();
-    for (int t = 0; t < inner.rows(); ++t) {
-      const Eigen::Vector3d a = x.row(inner(t, 0)), b = x.row(inner(t, 1)), c = x.row(inner(t, 2));
-      const Eigen::Vector3d w = lumen::collision::closest_on_triangle(eye, a, b, c);
-      const Eigen::Vector3d q = w[0] * a + w[1] * b + w[2] * c;
-      if ((eye - q).norm() < wall) {
-        wall = (eye - q).norm();
-        toward_eye = eye - q;
-        normal = (b - a).cross(c - a);  // the inner wall faces the lumen
-      }
-    }
-    EXPECT_GT(wall, 0.5 * radius) << "frame " << k;
-    EXPECT_GT(toward_eye.dot(normal), 0.0) << "frame " << k;
+    const WallClearance wall = wall_clearance(inner, x, eye);
+    EXPECT_GT(wall.distance, 0.5 * radius) << "frame " << k;
+    EXPECT_TRUE(wall.lumen_side) << "frame " << k;
     double centreline = std::numeric_limits<double>::infinity();
     for (size_t i = 0; i + 1 < line.size(); ++i) {
       const Eigen::Vector3d d = line[i + 1] - line[i];
@@ -372,6 +385,56 @@ TEST(CentrelineCamera, EyeStaysInsideTheLumen) {
     }
     EXPECT_LE(centreline, 1e-12) << "frame " << k;
   }
+}
+
+// The flight carried by the deformed lumen (the session's view at state.x). A rigid translation of the organ moves
+// the eye by the same and keeps the view. A sideways bulge of the bowel, 1.5 lumen radii at the flight's middle
+// (each ring moved whole along its own up direction, a Gaussian of 20 mm along the arc length), puts the rest
+// camera outside the lumen there; the carried camera stays inside on every frame: on the lumen side of the nearest
+// deformed inner-wall triangle, more than half the lumen radius from it.
+TEST(CentrelineCamera, EyeFollowsTheDeformedLumen) {
+  constexpr int kFrames = 40;
+  const auto model = compile_file(colon_variant("deformed", json::parse(R"(["ends"])"),
+                                                json::parse(R"({"centreline": {"from": 205.0, "to": 395.0}})"),
+                                                kFrames));
+  const lumen::Points& rest = model->mesh.rest;
+  const Eigen::Vector3d shift(0.004, -0.002, 0.003);
+  const lumen::Points moved = rest.rowwise() + shift.transpose();
+  for (int k = 0; k <= kFrames; ++k) {
+    const lumen::render::CameraPose at_rest = lumen::engine::centreline_camera(*model, k, kFrames);
+    const lumen::render::CameraPose carried = lumen::engine::centreline_camera(*model, moved, k, kFrames);
+    EXPECT_LE((carried.eye - at_rest.eye - shift).norm(), 1e-12) << "frame " << k;
+    EXPECT_LE((carried.forward - at_rest.forward).norm(), 1e-12) << "frame " << k;
+    EXPECT_LE((carried.up - at_rest.up).norm(), 1e-12) << "frame " << k;
+    // At rest positions the carried camera is the rest one.
+    const lumen::render::CameraPose same = lumen::engine::centreline_camera(*model, rest, k, kFrames);
+    EXPECT_LE((same.eye - at_rest.eye).norm() + (same.forward - at_rest.forward).norm(), 1e-12) << "frame " << k;
+  }
+  // The bulge: ring j (nodes as tube_node) moved by 1.5 r g(s_j) along (its first inner node - its centre).
+  const double radius = model->flight_lumen_radius;
+  const int rings = static_cast<int>(rest.rows()) / (kAround * (kLayers + 1));
+  lumen::Points bulged = rest;
+  for (int j = 0; j < rings; ++j) {
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (int i = 0; i < kAround; ++i) centre += rest.row(tube_node(i, j, 0)).transpose();
+    centre /= kAround;
+    const Eigen::Vector3d up = (rest.row(tube_node(0, j, 0)).transpose() - centre).normalized();
+    const double s_mm = kRingStartMm + kRingStepMm * j, d = (s_mm - 300.0) / 20.0;
+    const Eigen::Vector3d move = 1.5 * radius * std::exp(-d * d) * up;
+    for (int k = 0; k <= kLayers; ++k)
+      for (int i = 0; i < kAround; ++i) bulged.row(tube_node(i, j, k)) += move.transpose();
+  }
+  const lumen::Tris& inner = model->inner_wall();
+  for (int k = 0; k <= kFrames; ++k) {
+    const Eigen::Vector3d eye = lumen::engine::centreline_camera(*model, bulged, k, kFrames).eye;
+    const WallClearance wall = wall_clearance(inner, bulged, eye);
+    EXPECT_GT(wall.distance, 0.5 * radius) << "frame " << k;
+    EXPECT_TRUE(wall.lumen_side) << "frame " << k;
+  }
+  // The rest camera at the bulge (frame 20: 300 mm) is not inside the moved lumen.
+  const Eigen::Vector3d stale_eye = lumen::engine::centreline_camera(*model, kFrames / 2, kFrames).eye;
+  const WallClearance stale = wall_clearance(inner, bulged, stale_eye);
+  EXPECT_FALSE(stale.lumen_side && stale.distance > 0.5 * radius);
 }
 
 // A frame rendered from inside the lumen shows its wall: at the flight's start, middle and end more than 95 % of the
