@@ -34,11 +34,15 @@ def main():
             out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
             runs.append(json.loads(out))
         r0 = runs[0]
-        row = {"scene": r0["scene"], "nodes": r0["mesh"]["nodes"], "tets": r0["mesh"]["tets"],
+        row = {"scene": r0["scene"], "mesh_source": r0["mesh"].get("source", ""),
+               "nodes": r0["mesh"]["nodes"], "tets": r0["mesh"]["tets"],
                "inner_triangles": r0["mesh"]["inner_triangles"], "frames": r0["frames"], "runs": a.runs,
                "render": r0["render"]["enabled"], "width": r0["render"]["width"], "height": r0["render"]["height"],
                "over_budget_frames_max": max(r["over_budget_frames"] for r in runs),
-               "fallback_frames_max": max(r.get("fallback_frames", 0) for r in runs)}
+               "fallback_frames_max": max(r.get("fallback_frames", 0) for r in runs),
+               # The mesh: its build time at load (median over runs) and its worst dihedral angle.
+               "mesh_build_ms": round(statistics.median(r["mesh"].get("build_ms", float("nan")) for r in runs), 3),
+               "min_dihedral_deg": r0["mesh"].get("min_dihedral_deg", {}).get("min", float("nan"))}
         for s in STAGES:
             for st in STATS:
                 row[f"{s}_{st}"] = round(statistics.median(r["stages"][s][st] for r in runs), 4)
