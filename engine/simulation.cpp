@@ -87,15 +87,14 @@ void set_flight(const Scene& scene, const physics::SweptTube& tube, Model& m) {
   for (size_t j = first > 0 ? first - 1 : 0; j <= std::min(last, s.size() - 1); ++j)
     narrowest = std::min(narrowest, tube.rings[j].inner_radius);
   m.flight_lumen_radius = narrowest;
-  // Each ring's inner-wall nodes: layer 0 of make_structured_tube's numbering, (j (layers + 1) + 0) around + i.
+  // Each ring's inner-wall nodes (layer 0), ring-major.
   const int around = scene.swept_tube.segments_around, layers = scene.swept_tube.layers;
   m.flight_ring_s = s;
   m.flight_ring_around = around;
-  m.flight_ring_inner.resize(s.size() * static_cast<size_t>(around));
-  for (size_t j = 0; j < s.size(); ++j)
+  m.flight_ring_inner.clear();
+  for (int j = 0; j < static_cast<int>(s.size()); ++j)
     for (int i = 0; i < around; ++i)
-      m.flight_ring_inner[j * static_cast<size_t>(around) + static_cast<size_t>(i)] =
-          static_cast<int>(j) * (layers + 1) * around + i;
+      m.flight_ring_inner.push_back(physics::structured_tube_node(around, layers, i, j, 0));
 }
 
 // The generated linear mesh of the scene's mesh source, with the build facts kept in the model (generator time,

@@ -63,7 +63,7 @@ TetMesh make_structured_tube(const std::vector<TubeRing>& rings, int segments_ar
   const int nr = layers;                                 // cells through the wall
   const int n_nodes = na * (nl + 1) * (nr + 1);
   // Node id of grid point (i around, j along, k layer); i is taken modulo na.
-  auto node = [&](int i, int j, int k) { return (j * (nr + 1) + k) * na + (i % na); };
+  auto node = [&](int i, int j, int k) { return structured_tube_node(na, nr, i % na, j, k); };
 
   TetMesh mesh;
   mesh.rest.resize(n_nodes, 3);

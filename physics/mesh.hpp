@@ -92,6 +92,11 @@ struct TubeRing {
 // size or not increasing in [0, 2 pi).
 TetMesh make_structured_tube(const std::vector<TubeRing>& rings, int segments_around, int layers,
                              const std::vector<double>& angles = {});
+// Node id in make_structured_tube's numbering of angle step i (0 .. around - 1), ring j, layer k (0 = inner wall ..
+// layers = outer wall).
+inline int structured_tube_node(int around, int layers, int i, int j, int k) {
+  return (j * (layers + 1) + k) * around + i;
+}
 
 // Grading of a structured tube's cells in one direction (around or along): cells shrink toward the foci, their
 // size growing geometrically with the distance d to the nearest focus, h(d) ~ ratio^(d / d_max) (d_max: the

@@ -260,7 +260,7 @@ struct StudyOptions {
   int max_corotational_tets = 30000;
   std::string reference_csv, reference_out;  // the CalculiX reference sweep (both set) or none
   std::string closure_out;                    // the sweep past closure against the reference's contact rows
-  std::string coupling = "correct";           // the closure sweep's corotational contact coupling: "correct" | "carried"
+  std::string coupling = "correct";           // the closure sweep's corotational coupling: "correct" | "carried"
   std::string closure_models = "all";         // the closure sweep's models: "linear" | "corotational" | "all"
   std::string closure_mesh;                   // the closure sweep's one mesh ("24x14x1"; empty: all)
   double closure_force = 0.03;                // the closure sweep's force per tip, newtons (a reference row's)
@@ -352,9 +352,9 @@ struct ReferenceTip {
   double tip_m = 0.0;  // area-weighted mean over the tip's disc of the displacement along the pinch, metres
   int dofs = 0;
   // Past closure (rows with contact; NaN where the row has none): the full tube's contact force between the
-  // upper and lower inner wall (newtons) and its contact area on one side (m^2).
-  double contact_force_n = std::nan(""), contact_area_m2 = std::nan("");
-  double opening_m = std::nan("");  // the inner wall's opening between the tips (NaN where the row has none), metres
+  // upper and lower inner wall (newtons), its contact area on one side (m^2), the lumen's opening under the tips
+  // (metres, <= 0 closed).
+  double contact_force_n = std::nan(""), contact_area_m2 = std::nan(""), opening_m = std::nan("");
 };
 using ReferenceTable = std::map<std::pair<double, std::string>, ReferenceTip>;
 
@@ -493,29 +493,41 @@ void closure_sweep(const StudyOptions& opt) {
                              " N has no contact_force_N or contact_area_m2");
   constexpr double kGradeAround = 6.0, kGradeAlong = 12.0;
   constexpr int kGradedTipPoints = 61;
+  // The sweep's meshes (uniform, then graded toward the tips); the configurations of the asked models on the asked
+  // mesh (refused when it is none of the sweep's).
+  const std::vector<Config> meshes = {{{20, 26, 3}, "tet4", "", 0.0},
+                                      {{10, 13, 1}, "tet10", "", 0.0},
+                                      {{24, 14, 1}, "tet10", "", 0.0, kGradeAround, kGradeAlong, kGradedTipPoints},
+                                      {{32, 20, 2}, "tet10", "", 0.0, kGradeAround, kGradeAlong, kGradedTipPoints}};
+  auto mesh_name = [](const Level& l) {
+    return std::to_string(l.around) + "x" + std::to_string(l.along) + "x" + std::to_string(l.layers);
+  };
   std::vector<Config> configs;
   for (const char* model : {"linear", "corotational"}) {
     if (opt.closure_models != "all" && opt.closure_models != model) continue;
-    const double tolerance = std::string(model) == "linear" ? 0.0 : 1e-4;
-    configs.push_back({{20, 26, 3}, "tet4", model, tolerance});
-    configs.push_back({{10, 13, 1}, "tet10", model, tolerance});
-    configs.push_back({{24, 14, 1}, "tet10", model, tolerance, kGradeAround, kGradeAlong, kGradedTipPoints});
-    configs.push_back({{32, 20, 2}, "tet10", model, tolerance, kGradeAround, kGradeAlong, kGradedTipPoints});
+    for (Config c : meshes) {
+      if (!opt.closure_mesh.empty() && opt.closure_mesh != mesh_name(c.level)) continue;
+      c.model = model;
+      c.tolerance = c.model == "linear" ? 0.0 : 1e-4;
+      configs.push_back(c);
+    }
+  }
+  if (configs.empty()) {
+    std::string names;
+    for (const Config& c : meshes) names += (names.empty() ? "" : ", ") + mesh_name(c.level);
+    throw std::runtime_error("--closure-mesh: names no mesh of the closure sweep (" + names + ") (value \"" +
+                             opt.closure_mesh + "\")");
   }
   std::string csv =
       "force_n,reference_tip_mm,reference_contact_force_n,reference_contact_area_mm2,reference_dofs,around,along,"
-      "layers,grade_around,grade_along,tip_points,nodes,tets,element,model,coupling,tolerance,frames,tip_mean_mm,tip_err,"
-      "opening_mm,reference_opening_mm,contact_force_n,contact_force_err,contact_area_mm2,contact_area_err,"
-      "total_median_ms,total_p99_ms,"
-      "physics_median_ms,physics_p99_ms,response_median_ms,response_p99_ms,over_budget,not_converged,fallbacks,"
-      "failures,max_inverted,reported_residual,implied_contact_force_n,implied_residual\n";
+      "layers,grade_around,grade_along,tip_points,nodes,tets,element,model,coupling,tolerance,frames,tip_mean_mm,"
+      "tip_err,opening_mm,reference_opening_mm,contact_force_n,contact_force_err,contact_area_mm2,contact_area_err,"
+      "total_median_ms,total_p99_ms,physics_median_ms,physics_p99_ms,response_median_ms,response_p99_ms,over_budget,"
+      "not_converged,fallbacks,failures,max_inverted,reported_residual,implied_contact_force_n,implied_residual\n";
   char line[1024];  // one CSV row
   for (const Config& c : configs) {
-    const std::string mesh = std::to_string(c.level.around) + "x" + std::to_string(c.level.along) + "x" +
-                             std::to_string(c.level.layers);
-    if (!opt.closure_mesh.empty() && opt.closure_mesh != mesh) continue;
-    std::fprintf(stderr, "closure %g N %dx%dx%d %s %s ...", force, c.level.around, c.level.along,
-                 c.level.layers, c.element.c_str(), c.model.c_str());
+    std::fprintf(stderr, "closure %g N %s %s %s ...", force, mesh_name(c.level).c_str(), c.element.c_str(),
+                 c.model.c_str());
     engine::Scene scene = squeeze_scene(c, force, opt.frames, opt.fps);
     if (c.model == "corotational" && opt.coupling == "carried")
       scene.collision.coupling = engine::ContactCoupling::kCarried;
@@ -528,16 +540,14 @@ void closure_sweep(const StudyOptions& opt) {
     const double area_err = (area_one_side - ref.contact_area_m2) / ref.contact_area_m2;
     std::snprintf(line, sizeof line,
                   "%g,%.6g,%.6g,%.6g,%d,%d,%d,%d,%g,%g,%d,%d,%d,%s,%s,%s,%g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,"
-                  "%.4f,"
-                  "%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld,%ld,%.6g,%.6g,%.6g\n",
+                  "%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld,%ld,%.6g,%.6g,%.6g\n",
                   force, 1e3 * ref.tip_m, ref.contact_force_n, 1e6 * ref.contact_area_m2, ref.dofs,
                   c.level.around, c.level.along, c.level.layers, c.grade_around, c.grade_along, c.tip_points, o.nodes,
-                  o.tets, c.element.c_str(), c.model.c_str(), coupling, c.tolerance, opt.frames, 1e3 * o.tip_mean, tip_err,
-                  1e3 * o.opening, 1e3 * ref.opening_m, o.contact_force, force_err, 1e6 * area_one_side, area_err,
-                  o.total.median_ms,
-                  o.total.p99_ms, o.physics.median_ms, o.physics.p99_ms, o.response.median_ms, o.response.p99_ms,
-                  o.over_budget, o.not_converged, o.fallbacks, o.failures, o.max_inverted, o.reported_residual,
-                  o.implied_force, o.implied_residual);
+                  o.tets, c.element.c_str(), c.model.c_str(), coupling, c.tolerance, opt.frames, 1e3 * o.tip_mean,
+                  tip_err, 1e3 * o.opening, 1e3 * ref.opening_m, o.contact_force, force_err, 1e6 * area_one_side,
+                  area_err, o.total.median_ms, o.total.p99_ms, o.physics.median_ms, o.physics.p99_ms,
+                  o.response.median_ms, o.response.p99_ms, o.over_budget, o.not_converged, o.fallbacks, o.failures,
+                  o.max_inverted, o.reported_residual, o.implied_force, o.implied_residual);
     csv += line;
     engine::write_text_file(opt.closure_out, csv);  // after every configuration
     std::fprintf(stderr,
@@ -545,9 +555,8 @@ void closure_sweep(const StudyOptions& opt) {
                  "area %.2f mm^2 (%+.1f %%), total %.1f / %.1f ms, fallbacks %ld; equilibrium residual %.3g "
                  "reported, %.3g fitted, fitted force %.2f mN\n",
                  1e3 * o.tip_mean, 100.0 * tip_err, 1e3 * o.opening, 1e3 * ref.opening_m, 1e3 * o.contact_force,
-                 100.0 * force_err, 1e6 * area_one_side,
-                 100.0 * area_err, o.total.median_ms, o.total.p99_ms, o.fallbacks, o.reported_residual, o.implied_residual,
-                 1e3 * o.implied_force);
+                 100.0 * force_err, 1e6 * area_one_side, 100.0 * area_err, o.total.median_ms, o.total.p99_ms,
+                 o.fallbacks, o.reported_residual, o.implied_residual, 1e3 * o.implied_force);
   }
 }
 
