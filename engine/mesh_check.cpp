@@ -17,9 +17,16 @@ nlohmann::json percentiles_json(const physics::QualityPercentiles& p) {
 }
 
 // Milliseconds to one decimal, for the mesh line.
-std::string value_ms(double ms) {
+std::string one_decimal(double v) {
   char text[32];
-  std::snprintf(text, sizeof text, "%.1f", ms);
+  std::snprintf(text, sizeof text, "%.1f", v);
+  return text;
+}
+
+// A length to three significant digits, for the mesh line.
+std::string three_digits(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g", v);
   return text;
 }
 
@@ -52,16 +59,22 @@ std::string mesh_quality_line(const Model& model, const physics::MeshQuality& q)
   // many of its surface's vertices were moved to untangle fold-overs, a surface pair names both files and its mesher's
   // time and added nodes.
   const std::string from = model.mesh_file.empty() ? std::string() : " from " + model.mesh_file;
+  // A surface wall remeshed to a target edge says from how many of its file's triangles, and in how long.
+  const std::string remeshed =
+      model.remesh_target_edge > 0.0
+          ? ", its " + std::to_string(model.remesh_file_triangles) + " file triangles remeshed to a target edge of " +
+                three_digits(1e3 * model.remesh_target_edge) + " mm in " + one_decimal(model.remesh_ms) + " ms"
+          : std::string();
   const std::string suffix =
       model.mesh_type == MeshType::kSweptTube
           ? ", " + std::to_string(model.clamped_rings) + " rings clamped at bends" +
                 (from.empty() ? std::string() : ", radius sampled" + from)
       : model.mesh_type == MeshType::kSurfaceWall
           ? from + ", " + std::to_string(model.clamped_vertices) + " vertices' offsets clamped below the thickness, " +
-                std::to_string(model.untangled_vertices) + " vertices moved to untangle fold-overs"
+                std::to_string(model.untangled_vertices) + " vertices moved to untangle fold-overs" + remeshed
       : model.mesh_type == MeshType::kSurfacePair
           ? from + " and " + model.mesh_outer_file + ", tetrahedralised by " + physics::kPairMesherName + " in " +
-                value_ms(model.mesher_ms) + " ms (" + std::to_string(model.mesher_added_nodes) +
+                one_decimal(model.mesher_ms) + " ms (" + std::to_string(model.mesher_added_nodes) +
                 " nodes added inside the wall)"
           : from;
   char line[400];

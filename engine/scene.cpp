@@ -332,13 +332,15 @@ void read_swept_tube(const Reader& r, const json& m, const std::filesystem::path
 
 // A wall grown from a closed surface file (mesh.type "surface_wall"), relative to the scene file, grown at load.
 void read_surface_wall(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& scene) {
-  r.only_keys(m, "mesh", {"type", "element", "surface", "units", "thickness", "direction", "layers"});
+  r.only_keys(m, "mesh", {"type", "element", "surface", "units", "thickness", "direction", "layers", "target_edge"});
   SurfaceWallSpec& spec = scene.surface_wall.spec;
   spec.metres_per_unit = read_metres_per_unit(r, m);
   spec.file = scene_relative(r, r.require(m, "mesh", "surface"), "mesh.surface", dir);
   spec.thickness = spec.metres_per_unit * r.positive(r.require(m, "mesh", "thickness"), "mesh.thickness");
   spec.direction = r.choice<WallDirection>(r.require(m, "mesh", "direction"), "mesh.direction", kWallDirectionNames);
   if (m.contains("layers")) spec.layers = r.integer_in(m.at("layers"), "mesh.layers", 1, 256);
+  if (m.contains("target_edge"))
+    spec.target_edge = spec.metres_per_unit * r.positive(m.at("target_edge"), "mesh.target_edge");
   const auto t0 = Clock::now();
   scene.surface_wall.wall = grow_surface_wall(spec);
   scene.mesh_load_ms = ms_since(t0);

@@ -117,6 +117,9 @@ physics::TetMesh generate_mesh(const Scene& scene, Model& m) {
     m.mesh_file = scene.surface_wall.spec.file;
     m.clamped_vertices = scene.surface_wall.wall.clamped_vertices;
     m.untangled_vertices = scene.surface_wall.wall.untangled_vertices;
+    m.remesh_target_edge = scene.surface_wall.spec.target_edge;
+    m.remesh_file_triangles = scene.surface_wall.wall.file_triangles;
+    m.remesh_ms = scene.surface_wall.wall.remesh_ms;
     return scene.surface_wall.wall.mesh;
   }
   if (scene.mesh_type == MeshType::kSurfacePair) {

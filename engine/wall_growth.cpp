@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <exception>
 #include <limits>
+#include <string>
 #include <vector>
 
 #include "collision/intersect.hpp"
@@ -15,6 +17,7 @@
 #include "engine/scene.hpp"
 #include "engine/surface_file.hpp"
 #include "physics/mesh_quality.hpp"
+#include "physics/surface_remesh.hpp"
 #include "physics/surface_wall.hpp"
 
 namespace lumen::engine {
@@ -199,6 +202,14 @@ std::vector<double> valid_offsets(const SurfaceWallSpec& spec, const SurfaceMesh
   }
 }
 
+// Refuses a surface (`what`: the file's, or its remeshed copy) with an intersecting triangle pair by the exact check.
+void require_no_self_intersection(const SurfaceWallSpec& spec, const SurfaceMesh& s, const std::string& what) {
+  const std::vector<std::array<int, 2>> self = collision::intersecting_pairs(s.points, s.tris);
+  if (!self.empty())
+    throw InputError(spec.file + ": " + what + " intersects itself: triangles " + std::to_string(self[0][0]) + " and " +
+                     std::to_string(self[0][1]) + " intersect (" + std::to_string(self.size()) + " intersecting pairs)");
+}
+
 // Refuses the wall when a tet of its layers is inverted or flat, naming the surface triangle it stands on.
 void require_valid_prisms(const SurfaceWallSpec& spec, const physics::TetMesh& mesh) {
   const physics::MeshQuality q = physics::mesh_quality(mesh.rest, mesh.tets);
@@ -218,10 +229,28 @@ SurfaceWall grow_surface_wall(const SurfaceWallSpec& spec) {
   SurfaceMesh s = read_closed_surface(spec.file, spec.metres_per_unit);
   SurfaceWall wall;
   wall.untangled_vertices = untangle_flat_folds(s);
-  const std::vector<std::array<int, 2>> self = collision::intersecting_pairs(s.points, s.tris);
-  if (!self.empty())
-    throw InputError(spec.file + ": the surface intersects itself: triangles " + std::to_string(self[0][0]) + " and " +
-                     std::to_string(self[0][1]) + " intersect (" + std::to_string(self.size()) + " intersecting pairs)");
+  require_no_self_intersection(spec, s, "the surface");
+  wall.file_vertices = static_cast<int>(s.points.rows());
+  wall.file_triangles = static_cast<int>(s.tris.rows());
+  // The resolution the scene asks for: the surface remeshed to the target edge (on itself, so checked again).
+  if (spec.target_edge > 0.0) {
+    const double estimate = physics::remesh_triangle_estimate(s.points, s.tris, spec.target_edge);
+    if (!(estimate <= physics::kRemeshMaxTriangles))
+      throw InputError(spec.file + ": mesh.target_edge " + length_text(spec, spec.target_edge) + " would remesh the "
+                       "surface into about " + value_text(estimate) + " triangles (at most " +
+                       value_text(physics::kRemeshMaxTriangles) + ")");
+    const auto tr = Clock::now();
+    physics::RemeshedSurface r;
+    try {
+      r = physics::remesh_isotropic(s.points, s.tris, spec.target_edge);
+    } catch (const std::exception& e) {
+      throw InputError(spec.file + ": mesh.target_edge: " + e.what());
+    }
+    s.points = std::move(r.points);
+    s.tris = std::move(r.tris);
+    wall.remesh_ms = ms_since(tr);
+    require_no_self_intersection(spec, s, "the surface remeshed to a target edge of " + length_text(spec, spec.target_edge));
+  }
   const auto t0 = Clock::now();
   wall.vertices = static_cast<int>(s.points.rows());
   wall.triangles = static_cast<int>(s.tris.rows());

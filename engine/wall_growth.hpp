@@ -32,6 +32,7 @@ struct SurfaceWallSpec {
   double thickness = 0.0;                          // metres, > 0
   WallDirection direction = WallDirection::kOutward;
   int layers = 1;                                  // prisms through the wall, >= 1
+  double target_edge = 0.0;                        // metres: the surface remeshed to this edge first (0: as read)
 };
 
 // The grown wall and how it was grown.
@@ -42,6 +43,9 @@ struct SurfaceWall {
   int clamped_vertices = 0;   // vertices whose offset is less than the thickness (the gap clamp or the shrinking)
   int shrink_rounds = 0;      // rounds of shrinking the offsets around intersecting triangles
   int untangled_vertices = 0; // vertices of the surface moved to untangle planar fold-overs (before growing)
+  int file_vertices = 0;      // of the surface as read (before remeshing; = vertices without a target edge)
+  int file_triangles = 0;
+  double remesh_ms = 0.0;     // the isotropic remeshing to the target edge, milliseconds (0 without one)
   double min_offset = 0.0;    // the thinnest wall at a vertex, metres
   double grow_ms = 0.0;       // normals, gaps, offsets, the intersection checks and the prisms, milliseconds
 };
@@ -49,7 +53,9 @@ struct SurfaceWall {
 // Reads the surface (engine/surface_file.hpp read_closed_surface: closed, edge-manifold, consistently oriented,
 // no degenerate triangle; reversed if it faces inwards), untangles planar fold-overs (a vertex whose triangles lie
 // in one plane but do not all face one way moves to the mean of its neighbours when that unfolds them: the
-// aneurysm's flat end cap has one), refuses a surface that intersects itself (the exact check),
+// aneurysm's flat end cap has one), refuses a surface that intersects itself (the exact check), with a target edge
+// remeshes it (physics::remesh_isotropic) and refuses the result if it intersects itself ("FILE: the surface
+// remeshed to a target edge of E m intersects itself: triangles I and J ..."),
 // offsets every vertex along its smoothed normal (outward: +, inward: -) by the thickness clamped to
 // kWallGapFraction of its ray-cast gap (directions: smoothed normals, or a vertex's own where the smoothed one
 // leans past kMinNormalCosine from a triangle), then while the two walls together (the surface and its offset)

@@ -4,7 +4,7 @@ set -euo pipefail
 pkgs=(build-essential cmake pkg-config libeigen3-dev libsuitesparse-dev libosmesa6-dev
       libassimp-dev libexpat1-dev libpng-dev libavcodec-dev libavformat-dev libavutil-dev libswscale-dev
       nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev python3 python3-meshio python3-matplotlib
-      calculix-ccx libopenigtlink-dev openigtlink-examples libnglib-dev clang libclang-rt-dev)
+      calculix-ccx libopenigtlink-dev openigtlink-examples libnglib-dev libcgal-dev clang libclang-rt-dev)
 missing=()
 for p in "${pkgs[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
 if [ ${#missing[@]} -gt 0 ]; then
