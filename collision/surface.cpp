@@ -171,6 +171,17 @@ CollisionSurface::CollisionSurface(const TrisRef& t, int n) : n_points_(n) {
     }
     tri_edges_[static_cast<std::size_t>(slots[s].second)] = static_cast<int>(edges_.size() / 2) - 1;
   }
+  // Feature owners: each vertex and edge goes to the first triangle (in id order) that has it.
+  owned_.assign(static_cast<std::size_t>(n_tris_), 0);
+  std::vector<char> vertex_taken(static_cast<std::size_t>(n_points_), 0), edge_taken(edges_.size() / 2, 0);
+  for (int i = 0; i < n_tris_; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      char& v = vertex_taken[static_cast<std::size_t>(tris_[static_cast<std::size_t>(3 * i + j)])];
+      if (!v) v = 1, owned_[static_cast<std::size_t>(i)] |= static_cast<std::uint8_t>(1u << j);
+      char& e = edge_taken[static_cast<std::size_t>(tri_edges_[static_cast<std::size_t>(3 * i + j)])];
+      if (!e) e = 1, owned_[static_cast<std::size_t>(i)] |= static_cast<std::uint8_t>(8u << j);
+    }
+  }
   for (int v : tris_) used_vertices_.push_back(v);
   std::sort(used_vertices_.begin(), used_vertices_.end());
   used_vertices_.erase(std::unique(used_vertices_.begin(), used_vertices_.end()), used_vertices_.end());
@@ -424,21 +435,25 @@ struct SelfDetector {
     return (static_cast<std::uint64_t>(e) << s.edge_bits()) | static_cast<std::uint64_t>(g);
   }
 
-  // Candidate features of an overlapping triangle pair: vertices against the other face and edge pairs,
-  // skipping those that share a vertex (so neighbours still test their remaining features).
+  // Candidate features of an overlapping triangle pair: the vertices each owns against the other face and the
+  // pairs of edges they own, skipping those that share a vertex (so neighbours still test their remaining
+  // features). Owned features only: every feature pair comes from exactly one triangle pair, its owners'.
   void add_candidates(int ta, int tb) {
     ++w.bv_overlaps;
     if (w.classify) w.overlap_pairs.emplace_back(ta, tb);
     const int* A = s.triangle(ta);
     const int* B = s.triangle(tb);
+    const unsigned own_a = s.owned_features(ta), own_b = s.owned_features(tb);
     for (int i = 0; i < 3; ++i) {
-      if (!has_vertex(B, A[i]) && wanted(&A[i], 1, B, 3)) w.vf_keys.push_back(vf_key(A[i], tb));
-      if (!has_vertex(A, B[i]) && wanted(&B[i], 1, A, 3)) w.vf_keys.push_back(vf_key(B[i], ta));
+      if ((own_a >> i & 1u) && !has_vertex(B, A[i]) && wanted(&A[i], 1, B, 3)) w.vf_keys.push_back(vf_key(A[i], tb));
+      if ((own_b >> i & 1u) && !has_vertex(A, B[i]) && wanted(&B[i], 1, A, 3)) w.vf_keys.push_back(vf_key(B[i], ta));
     }
     for (int i = 0; i < 3; ++i) {
+      if (!(own_a >> (3 + i) & 1u)) continue;
       const int ea = s.triangle_edge(ta, i);
       const int* va = s.edge(ea);
       for (int j = 0; j < 3; ++j) {
+        if (!(own_b >> (3 + j) & 1u)) continue;
         const int eb = s.triangle_edge(tb, j);
         const int* vb = s.edge(eb);
         if (va[0] == vb[0] || va[0] == vb[1] || va[1] == vb[0] || va[1] == vb[1]) continue;
@@ -455,12 +470,14 @@ struct SelfDetector {
     auto has = [](const std::vector<std::uint64_t>& v, std::uint64_t key) {
       return std::binary_search(v.begin(), v.end(), key);
     };
+    const unsigned own_a = s.owned_features(ta), own_b = s.owned_features(tb);
     for (int i = 0; i < 3; ++i) {
-      if (!has_vertex(B, A[i]) && has(w.hit_vf, vf_key(A[i], tb))) return true;
-      if (!has_vertex(A, B[i]) && has(w.hit_vf, vf_key(B[i], ta))) return true;
+      if ((own_a >> i & 1u) && !has_vertex(B, A[i]) && has(w.hit_vf, vf_key(A[i], tb))) return true;
+      if ((own_b >> i & 1u) && !has_vertex(A, B[i]) && has(w.hit_vf, vf_key(B[i], ta))) return true;
     }
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) {
+        if (!(own_a >> (3 + i) & 1u) || !(own_b >> (3 + j) & 1u)) continue;
         const int ea = s.triangle_edge(ta, i);
         const int eb = s.triangle_edge(tb, j);
         if (has(w.hit_ee, ee_key(std::min(ea, eb), std::max(ea, eb)))) return true;
@@ -485,7 +502,7 @@ struct SelfDetector {
     }
   }
 
-  // Deduplicate the candidates and run each feature pair's elementary test once, in sorted order.
+  // Sort the candidates (and drop repeats) and run each feature pair's elementary test once, in sorted order.
   void run_features(const PointsRef& x0, const PointsRef& x1, double gap, std::vector<Contact>& out,
                     CollisionStats* stats) {
     sort_unique(w.vf_keys, w.sort_tmp, s.point_bits() + s.tri_bits());
@@ -661,7 +678,7 @@ struct PairDetector {
     }
   }
 
-  // Deduplicate the candidates and run each feature pair's elementary test once, in sorted order.
+  // Sort the candidates (and drop repeats) and run each feature pair's elementary test once, in sorted order.
   void run_features(const PointsRef& xa0, const PointsRef& xa1, const PointsRef& xb0, const PointsRef& xb1,
                     double gap, std::vector<PairContact>& out, CollisionStats* stats) {
     sort_unique(wa.vf_keys, wa.sort_tmp, a.point_bits() + b.tri_bits());

@@ -107,6 +107,10 @@ class CollisionSurface {
   // Edge id of side j of triangle t: (v0 v1), (v1 v2), (v2 v0).
   int triangle_edge(int t, int j) const { return tri_edges_[static_cast<std::size_t>(3 * t + j)]; }
   const std::vector<int>& used_vertices() const { return used_vertices_; }  // referenced by triangles, ascending
+  // The features triangle t owns (each vertex and edge is owned by the lowest-numbered triangle that has it):
+  // bit j (0..2) its corner j, bit 3 + j its side j. Self-collision tests a feature pair only from the triangle
+  // pair of its owners (a feature's swept box lies inside its owner's), so each pair is generated once.
+  std::uint8_t owned_features(int t) const { return owned_[static_cast<std::size_t>(t)]; }
   const BvhTopology& bvh() const { return bvh_; }
   // Bit widths of triangle, edge and point ids (for compact sorted feature keys).
   int tri_bits() const { return tri_bits_; }
@@ -120,6 +124,7 @@ class CollisionSurface {
   std::vector<int> edges_;          // unique edges, n_edges x 2 vertex ids (first < second), sorted
   std::vector<int> tri_edges_;      // edge ids of each triangle, n_tris x 3
   std::vector<int> used_vertices_;  // vertices referenced by the triangles, ascending
+  std::vector<std::uint8_t> owned_; // per triangle, the features it owns (owned_features)
   int tri_bits_ = 0, edge_bits_ = 0, point_bits_ = 0;
   BvhTopology bvh_;
   bool built_ = false;

@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "collision/ccd.hpp"
 #include "collision/kdop.hpp"
 #include "collision/self_collision.hpp"
 #include "collision/surface.hpp"
@@ -400,7 +401,8 @@ TEST(SelfCollision, RefitOverManyFramesMatchesBruteForce) {
 }
 
 // Each candidate feature pair is run exactly once; the set equals a direct enumeration of the feature
-// pairs (not sharing a vertex) of which some pair of containing triangles has overlapping swept k-DOPs.
+// pairs (not sharing a vertex) whose owners (the lowest-numbered triangle having the vertex or edge) have
+// overlapping swept k-DOPs; and the contacts are those of every feature pair (no boxes at all).
 template <int K>
 void check_features_tested_once(unsigned seed) {
   const double r = 0.01, len = 0.04;
@@ -442,9 +444,8 @@ void check_features_tested_once(unsigned seed) {
   for (int v = 0; v < np; ++v) {
     for (int f = 0; f < nt; ++f) {
       if (in_tri(f, v)) continue;
-      bool cand = false;
-      for (int t : vertex_tris[static_cast<std::size_t>(v)]) cand = cand || overlap(t, f);
-      if (cand) want.insert({0, v, tris(f, 0), tris(f, 1), tris(f, 2)});
+      if (vertex_tris[static_cast<std::size_t>(v)].empty()) continue;
+      if (overlap(vertex_tris[static_cast<std::size_t>(v)].front(), f)) want.insert({0, v, tris(f, 0), tris(f, 1), tris(f, 2)});
     }
   }
   // Edge-edge pairs: unique edges (sorted ids), no shared vertex, some containing triangles overlap.
@@ -467,11 +468,7 @@ void check_features_tested_once(unsigned seed) {
       const auto [a, b] = edges[e];
       const auto [c, d] = edges[g];
       if (a == c || a == d || b == c || b == d) continue;
-      bool cand = false;
-      for (int ta : edge_tris[e]) {
-        for (int tb : edge_tris[g]) cand = cand || overlap(ta, tb);
-      }
-      if (cand) want.insert({1, a, b, c, d});
+      if (overlap(edge_tris[e].front(), edge_tris[g].front())) want.insert({1, a, b, c, d});
     }
   }
 
@@ -483,6 +480,27 @@ void check_features_tested_once(unsigned seed) {
   }
   EXPECT_EQ(got, want) << "k = " << K;
   EXPECT_EQ(st.feature_tests, static_cast<long>(want.size()));
+  // The contacts are every feature pair's: each vertex against each face without it, each pair of edges without a
+  // shared vertex, by the elementary tests alone.
+  std::set<ContactKey> every;
+  const auto at = [](const Points& x, int i) { return Vec3(x(i, 0), x(i, 1), x(i, 2)); };
+  for (int v = 0; v < np; ++v)
+    for (int f = 0; f < nt; ++f) {
+      if (vertex_tris[static_cast<std::size_t>(v)].empty() || in_tri(f, v)) continue;
+      const int face[3] = {tris(f, 0), tris(f, 1), tris(f, 2)};
+      if (vertex_face_ccd(at(x0, v), at(x0, face[0]), at(x0, face[1]), at(x0, face[2]), at(x1, v), at(x1, face[0]),
+                          at(x1, face[1]), at(x1, face[2]), gap, nullptr))
+        every.insert(ContactKey{0, v, face[0], face[1], face[2]});
+    }
+  for (std::size_t e = 0; e < edges.size(); ++e)
+    for (std::size_t g = e + 1; g < edges.size(); ++g) {
+      const int ev[2] = {edges[e].first, edges[e].second}, gv[2] = {edges[g].first, edges[g].second};
+      if (ev[0] == gv[0] || ev[0] == gv[1] || ev[1] == gv[0] || ev[1] == gv[1]) continue;
+      if (edge_edge_ccd(at(x0, ev[0]), at(x0, ev[1]), at(x0, gv[0]), at(x0, gv[1]), at(x1, ev[0]), at(x1, ev[1]),
+                        at(x1, gv[0]), at(x1, gv[1]), gap, nullptr))
+        every.insert(ContactKey{1, ev[0], ev[1], gv[0], gv[1]});
+    }
+  EXPECT_EQ(contact_set(out), every) << "k = " << K;
   // Deduplication matters: the triangle pairs alone would have run more elementary tests.
   EXPECT_LT(st.feature_tests, 15 * st.bv_overlaps);
   EXPECT_GT(st.contacts, 0);
