@@ -85,6 +85,10 @@ TEST(Scenes, WholeColonOnSupportsMovesWhereItIsPressedWithoutIntersection) {
   EXPECT_GT(moved.norm(), 1e-4);
 }
 
+// The whole real colon on its supports pinched shut in the sigmoid by two displacement-driven probes (the sigmoid
+// segment's pinch): the walls meet (contacts from frame 63) and no frame holds an inner-wall intersection.
+TEST(Scenes, WholeColonPinchedShutNeverIntersects) { expect_never_intersects("colon-whole-pinch.json"); }
+
 // A tube read from a gmsh file (data/volume-tube.msh, mesh.type "volume") pinched by two probes.
 TEST(Scenes, VolumeTubePinchNeverIntersects) { expect_never_intersects("volume-tube-pinch.json"); }
 
