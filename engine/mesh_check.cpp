@@ -59,10 +59,10 @@ std::string mesh_quality_line(const Model& model, const physics::MeshQuality& q)
   // many of its surface's vertices were moved to untangle fold-overs, a surface pair names both files and its mesher's
   // time and added nodes.
   const std::string from = model.mesh_file.empty() ? std::string() : " from " + model.mesh_file;
-  // A surface wall remeshed to a target edge says from how many of its file's triangles, and in how long.
+  // A surface wall or pair remeshed to a target edge says from how many of its files' triangles, and in how long.
   const std::string remeshed =
       model.remesh_target_edge > 0.0
-          ? ", its " + std::to_string(model.remesh_file_triangles) + " file triangles remeshed to a target edge of " +
+          ? ", " + std::to_string(model.remesh_file_triangles) + " file triangles remeshed to a target edge of " +
                 three_digits(1e3 * model.remesh_target_edge) + " mm in " + one_decimal(model.remesh_ms) + " ms"
           : std::string();
   const std::string suffix =
@@ -75,7 +75,7 @@ std::string mesh_quality_line(const Model& model, const physics::MeshQuality& q)
       : model.mesh_type == MeshType::kSurfacePair
           ? from + " and " + model.mesh_outer_file + ", tetrahedralised by " + physics::kPairMesherName + " in " +
                 one_decimal(model.mesher_ms) + " ms (" + std::to_string(model.mesher_added_nodes) +
-                " nodes added inside the wall)"
+                " nodes added inside the wall)" + remeshed
           : from;
   char line[400];
   std::snprintf(line, sizeof line,

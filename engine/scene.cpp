@@ -349,12 +349,14 @@ void read_surface_wall(const Reader& r, const json& m, const std::filesystem::pa
 // The wall between two closed surface files (mesh.type "surface_pair"), relative to the scene file, tetrahedralised
 // at load.
 void read_surface_pair(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& scene) {
-  r.only_keys(m, "mesh", {"type", "element", "inner", "outer", "units", "max_edge", "optimise_steps"});
+  r.only_keys(m, "mesh", {"type", "element", "inner", "outer", "units", "max_edge", "optimise_steps", "target_edge"});
   SurfacePairSpec& spec = scene.surface_pair.spec;
   spec.metres_per_unit = read_metres_per_unit(r, m);
   spec.inner_file = scene_relative(r, r.require(m, "mesh", "inner"), "mesh.inner", dir);
   spec.outer_file = scene_relative(r, r.require(m, "mesh", "outer"), "mesh.outer", dir);
   if (m.contains("max_edge")) spec.size.max_edge = spec.metres_per_unit * r.positive(m.at("max_edge"), "mesh.max_edge");
+  if (m.contains("target_edge"))
+    spec.target_edge = spec.metres_per_unit * r.positive(m.at("target_edge"), "mesh.target_edge");
   if (m.contains("optimise_steps"))
     spec.size.optimise_steps =
         r.integer_in(m.at("optimise_steps"), "mesh.optimise_steps", 0, physics::kPairMesherMaxOptimiseSteps);

@@ -312,11 +312,12 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
   if (model.mesh_type == MeshType::kSurfaceWall) {
     r["mesh"]["clamped_vertices"] = model.clamped_vertices;
     r["mesh"]["untangled_vertices"] = model.untangled_vertices;
-    if (model.remesh_target_edge > 0.0) {
-      r["mesh"]["target_edge_m"] = model.remesh_target_edge;
-      r["mesh"]["file_triangles"] = model.remesh_file_triangles;
-      r["mesh"]["remesh_ms"] = model.remesh_ms;
-    }
+  }
+  // A surface wall or pair remeshed to a target edge: the target, the files' triangles before, and the time.
+  if (model.remesh_target_edge > 0.0) {
+    r["mesh"]["target_edge_m"] = model.remesh_target_edge;
+    r["mesh"]["file_triangles"] = model.remesh_file_triangles;
+    r["mesh"]["remesh_ms"] = model.remesh_ms;
   }
   if (model.mesh_type == MeshType::kSurfacePair) {
     r["mesh"]["outer_file"] = model.mesh_outer_file;

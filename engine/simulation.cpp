@@ -128,6 +128,9 @@ physics::TetMesh generate_mesh(const Scene& scene, Model& m) {
     m.mesher_ms = scene.surface_pair.pair.mesher_ms;
     m.mesher_added_nodes = scene.surface_pair.pair.added_nodes;
     m.surface_check_ms = scene.surface_pair.pair.check_ms;
+    m.remesh_target_edge = scene.surface_pair.spec.target_edge;
+    m.remesh_file_triangles = scene.surface_pair.pair.inner_triangles + scene.surface_pair.pair.outer_triangles;
+    m.remesh_ms = scene.surface_pair.pair.remesh_ms;
     return scene.surface_pair.pair.mesh;
   }
   const physics::HollowCylinderSpec& c = scene.mesh;

@@ -85,8 +85,8 @@ struct Model {
   int clamped_rings = 0;
   int clamped_vertices = 0;    // a surface wall's vertices whose offset is less than the thickness
   int untangled_vertices = 0;  // a surface wall's surface vertices moved to untangle planar fold-overs
-  double remesh_target_edge = 0.0;  // a surface wall's target edge, metres (0: its file's triangles as read)
-  int remesh_file_triangles = 0;    // with a target edge: the file's triangles before remeshing
+  double remesh_target_edge = 0.0;  // a surface wall's or pair's target edge, metres (0: the files' triangles)
+  int remesh_file_triangles = 0;    // with a target edge: the file's (a pair's: both files') triangles before
   double remesh_ms = 0.0;           // with a target edge: the remeshing's time, milliseconds
   // The mesh source's file: a volume mesh's, a surface wall's surface, a swept tube's radius surface, a surface
   // pair's inner surface; "" otherwise.

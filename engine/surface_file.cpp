@@ -5,9 +5,11 @@
 #include <array>
 #include <cassert>
 #include <cctype>
+#include <exception>
 #include <filesystem>
 #include <map>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include <assimp/Importer.hpp>
@@ -16,6 +18,7 @@
 
 #include "engine/input.hpp"
 #include "engine/scene.hpp"
+#include "physics/surface_remesh.hpp"
 
 namespace lumen::engine {
 namespace {
@@ -170,6 +173,26 @@ SurfaceMesh reversed(const SurfaceMesh& mesh) {
   SurfaceMesh r = mesh;
   r.tris.col(1).swap(r.tris.col(2));
   return r;
+}
+
+std::string length_in_units(double metres, double metres_per_unit) {
+  const bool millimetres = metres_per_unit == kMetresPerMillimetre;
+  return value_text(metres / metres_per_unit) + (millimetres ? " mm" : " m");
+}
+
+SurfaceMesh remesh_surface(const SurfaceMesh& mesh, double target_edge, const std::string& file,
+                           const std::string& target_text) {
+  const double estimate = physics::remesh_triangle_estimate(mesh.points, mesh.tris, target_edge);
+  if (!(estimate <= physics::kRemeshMaxTriangles))
+    throw InputError(file + ": mesh.target_edge " + target_text + " would remesh the surface into about " +
+                     value_text(estimate) + " triangles (at most " + value_text(physics::kRemeshMaxTriangles) + ")");
+  physics::RemeshedSurface r;
+  try {
+    r = physics::remesh_isotropic(mesh.points, mesh.tris, target_edge);
+  } catch (const std::exception& e) {
+    throw InputError(file + ": mesh.target_edge: " + e.what());
+  }
+  return SurfaceMesh{std::move(r.points), std::move(r.tris)};
 }
 
 }  // namespace lumen::engine

@@ -47,5 +47,13 @@ SurfaceMesh read_closed_surface(const std::string& file, double metres_per_unit)
 
 // The surface with every triangle's orientation reversed (its last two vertices swapped).
 SurfaceMesh reversed(const SurfaceMesh& mesh);
+// A length (metres) in the scene's mesh.units with the unit's name ("2.5 mm" or "0.0025 m").
+std::string length_in_units(double metres, double metres_per_unit);
+// The surface (read from `file`) remeshed to edges of about target_edge metres (physics::remesh_isotropic, the
+// scene's mesh.target_edge, which `target_text` spells in the scene's units, e.g. "1 mm"). Refuses with InputError
+// "FILE: mesh.target_edge T would remesh the surface into about N triangles (at most 2000000)" before any work, and
+// names the file in CGAL's failures.
+SurfaceMesh remesh_surface(const SurfaceMesh& mesh, double target_edge, const std::string& file,
+                           const std::string& target_text);
 
 }  // namespace lumen::engine

@@ -77,14 +77,22 @@ double winding_number(const SurfaceMesh& s, const Eigen::Vector3d& p) {
 SurfacePair mesh_surface_pair(const SurfacePairSpec& spec) {
   // Each surface read and checked on its own, then both together.
   const auto t0 = Clock::now();
-  const SurfaceMesh in = read_closed_surface(spec.inner_file, spec.metres_per_unit);
-  const SurfaceMesh out = read_closed_surface(spec.outer_file, spec.metres_per_unit);
-  require_no_intersections(spec, in, out);
-  require_enclosed(spec, in, out);
+  SurfaceMesh in = read_closed_surface(spec.inner_file, spec.metres_per_unit);
+  SurfaceMesh out = read_closed_surface(spec.outer_file, spec.metres_per_unit);
   SurfacePair pair;
-  pair.check_ms = ms_since(t0);
   pair.inner_triangles = static_cast<int>(in.tris.rows());
   pair.outer_triangles = static_cast<int>(out.tris.rows());
+  // The resolution the scene asks for: both surfaces remeshed to the target edge, then checked as read ones are.
+  if (spec.target_edge > 0.0) {
+    const auto tr = Clock::now();
+    const std::string target = length_in_units(spec.target_edge, spec.metres_per_unit);
+    in = remesh_surface(in, spec.target_edge, spec.inner_file, target);
+    out = remesh_surface(out, spec.target_edge, spec.outer_file, target);
+    pair.remesh_ms = ms_since(tr);
+  }
+  require_no_intersections(spec, in, out);
+  require_enclosed(spec, in, out);
+  pair.check_ms = ms_since(t0) - pair.remesh_ms;
   // The volume between them.
   try {
     physics::PairMesh m = physics::tetrahedralise_pair(in.points, in.tris, out.points, out.tris, spec.size);

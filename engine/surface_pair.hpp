@@ -16,6 +16,7 @@ struct SurfacePairSpec {
   std::string outer_file;        // the outer wall's surface, absolute path
   double metres_per_unit = 1.0;  // the files' (and max_edge's) unit
   physics::PairMeshSize size;    // metres
+  double target_edge = 0.0;      // metres: both surfaces remeshed to this edge first (0: as read)
 };
 
 // The tetrahedralised wall and how it was made.
@@ -26,6 +27,7 @@ struct SurfacePair {
   int added_nodes = 0;        // nodes Netgen added inside the wall
   double check_ms = 0.0;      // reading both files and their checks (closed, intersections, enclosure), ms
   double mesher_ms = 0.0;     // Netgen's time, milliseconds
+  double remesh_ms = 0.0;     // both surfaces remeshed to the target edge, milliseconds (0 without one)
 };
 
 // The winding number of point p about a closed, outward surface (the sum of its triangles' solid angles seen from

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <exception>
 #include <limits>
 #include <string>
 #include <vector>
@@ -17,7 +16,6 @@
 #include "engine/scene.hpp"
 #include "engine/surface_file.hpp"
 #include "physics/mesh_quality.hpp"
-#include "physics/surface_remesh.hpp"
 #include "physics/surface_wall.hpp"
 
 namespace lumen::engine {
@@ -162,10 +160,7 @@ void shrink_around(const SurfaceMesh& s, const std::vector<int>& triangles, std:
 }
 
 // A length of the spec (metres) in the scene's mesh.units with the unit's name ("2.5 mm" or "0.0025 m").
-std::string length_text(const SurfaceWallSpec& spec, double metres) {
-  const bool millimetres = spec.metres_per_unit == kMetresPerMillimetre;
-  return value_text(metres / spec.metres_per_unit) + (millimetres ? " mm" : " m");
-}
+std::string length_text(const SurfaceWallSpec& spec, double metres) { return length_in_units(metres, spec.metres_per_unit); }
 
 // The message refusing a wall whose offsets still make the walls intersect or a prism invert.
 std::string refusal(const SurfaceWallSpec& spec, const std::vector<std::array<int, 2>>& pairs,
@@ -234,20 +229,8 @@ SurfaceWall grow_surface_wall(const SurfaceWallSpec& spec) {
   wall.file_triangles = static_cast<int>(s.tris.rows());
   // The resolution the scene asks for: the surface remeshed to the target edge (on itself, so checked again).
   if (spec.target_edge > 0.0) {
-    const double estimate = physics::remesh_triangle_estimate(s.points, s.tris, spec.target_edge);
-    if (!(estimate <= physics::kRemeshMaxTriangles))
-      throw InputError(spec.file + ": mesh.target_edge " + length_text(spec, spec.target_edge) + " would remesh the "
-                       "surface into about " + value_text(estimate) + " triangles (at most " +
-                       value_text(physics::kRemeshMaxTriangles) + ")");
     const auto tr = Clock::now();
-    physics::RemeshedSurface r;
-    try {
-      r = physics::remesh_isotropic(s.points, s.tris, spec.target_edge);
-    } catch (const std::exception& e) {
-      throw InputError(spec.file + ": mesh.target_edge: " + e.what());
-    }
-    s.points = std::move(r.points);
-    s.tris = std::move(r.tris);
+    s = remesh_surface(s, spec.target_edge, spec.file, length_text(spec, spec.target_edge));
     wall.remesh_ms = ms_since(tr);
     require_no_self_intersection(spec, s, "the surface remeshed to a target edge of " + length_text(spec, spec.target_edge));
   }
