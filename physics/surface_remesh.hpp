@@ -7,7 +7,8 @@
 namespace lumen::physics {
 
 // Rounds of split, collapse, flip and relaxation (measured on the shipped aneurysm and colon surfaces: 3 rounds
-// bring every angle above 23 degrees and the median edge within 10 % of the target in 0.1-0.7 s).
+// bring the median edge within 10 % of the target in 0.1-0.7 s, and every angle above 23 degrees when no crease is
+// kept; with the aneurysm's creases kept, 99 % of its angles are above 39 degrees and the smallest is 13.6).
 inline constexpr int kRemeshIterations = 3;
 // Edges whose two triangles' normals differ by more than this (degrees) are a crease the remeshing keeps.
 inline constexpr double kRemeshCreaseDeg = 60.0;
@@ -21,8 +22,8 @@ struct RemeshedSurface {
 };
 
 // The closed, edge-manifold surface (x, tris) remeshed to edges of about target_edge (CGAL: edges longer than 4/3
-// of it split, shorter than 4/5 collapsed), kRemeshIterations rounds, with the orientation kept and every vertex on
-// the input surface. Throws std::invalid_argument when target_edge is not positive and finite, a triangle names a
+// of it split, shorter than 4/5 collapsed), kRemeshIterations rounds, with the orientation kept, every vertex on
+// the input surface and the creases sharper than kRemeshCreaseDeg kept as creases. Throws std::invalid_argument when target_edge is not positive and finite, a triangle names a
 // vertex out of range, the surface is not closed and manifold (naming the first triangle that does not fit), or the
 // estimated output exceeds kRemeshMaxTriangles (naming the estimate); std::runtime_error when CGAL fails.
 RemeshedSurface remesh_isotropic(const Points& x, const Tris& tris, double target_edge);
