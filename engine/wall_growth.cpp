@@ -225,7 +225,6 @@ SurfaceWall grow_surface_wall(const SurfaceWallSpec& spec) {
   SurfaceWall wall;
   wall.untangled_vertices = untangle_flat_folds(s);
   require_no_self_intersection(spec, s, "the surface");
-  wall.file_vertices = static_cast<int>(s.points.rows());
   wall.file_triangles = static_cast<int>(s.tris.rows());
   // The resolution the scene asks for: the surface remeshed to the target edge (on itself, so checked again).
   if (spec.target_edge > 0.0) {

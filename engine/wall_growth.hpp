@@ -43,8 +43,7 @@ struct SurfaceWall {
   int clamped_vertices = 0;   // vertices whose offset is less than the thickness (the gap clamp or the shrinking)
   int shrink_rounds = 0;      // rounds of shrinking the offsets around intersecting triangles
   int untangled_vertices = 0; // vertices of the surface moved to untangle planar fold-overs (before growing)
-  int file_vertices = 0;      // of the surface as read (before remeshing; = vertices without a target edge)
-  int file_triangles = 0;
+  int file_triangles = 0;     // of the surface as read (before remeshing; = triangles without a target edge)
   double remesh_ms = 0.0;     // the isotropic remeshing to the target edge, milliseconds (0 without one)
   double min_offset = 0.0;    // the thinnest wall at a vertex, metres
   double grow_ms = 0.0;       // normals, gaps, offsets, the intersection checks and the prisms, milliseconds

@@ -24,6 +24,7 @@
 #include "support/files.hpp"
 #include "support/scene_files.hpp"
 #include "support/sphere.hpp"
+#include "support/surface_measures.hpp"
 #include "support/build.hpp"
 
 namespace fs = std::filesystem;
@@ -409,23 +410,10 @@ TEST(SurfaceWall, AneurysmRemeshedToATargetEdgeGrowsAnIntersectionFreeWall) {
   EXPECT_LT(w.triangles, 14186 / 3);
   EXPECT_GT(w.remesh_ms, 0.0);
   const lumen::Tris& inner = w.mesh.surface(lumen::physics::kInnerWall);
-  // Sorted edge lengths and interior angles (degrees) of a surface.
-  auto edges_and_angles = [](const lumen::Points& x, const lumen::Tris& tris) {
-    std::pair<std::vector<double>, std::vector<double>> ea;
-    for (Eigen::Index t = 0; t < tris.rows(); ++t)
-      for (int k = 0; k < 3; ++k) {
-        const Eigen::Vector3d a = x.row(tris(t, k)), b = x.row(tris(t, (k + 1) % 3)), c = x.row(tris(t, (k + 2) % 3));
-        ea.first.push_back((b - a).norm());
-        ea.second.push_back(std::acos(std::clamp((b - a).normalized().dot((c - a).normalized()), -1.0, 1.0)) * 180.0 /
-                            static_cast<double>(EIGEN_PI));
-      }
-    std::sort(ea.first.begin(), ea.first.end());
-    std::sort(ea.second.begin(), ea.second.end());
-    return ea;
-  };
-  const auto [edges, angles] = edges_and_angles(w.mesh.rest, inner);
+  const std::vector<double> edges = lumen::test::sorted_side_lengths(w.mesh.rest, inner);
+  const std::vector<double> angles = lumen::test::sorted_angles_deg(w.mesh.rest, inner);
   const lumen::engine::SurfaceMesh read = lumen::engine::read_closed_surface(spec.file, spec.metres_per_unit);
-  const auto [file_edges, file_angles] = edges_and_angles(read.points, read.tris);
+  const std::vector<double> file_angles = lumen::test::sorted_angles_deg(read.points, read.tris);
   EXPECT_NEAR(edges[edges.size() / 2], spec.target_edge, 0.2 * spec.target_edge);
   EXPECT_GT(angles.front(), 2.0 * file_angles.front());
   EXPECT_GT(angles[angles.size() / 100], 30.0);

@@ -25,6 +25,7 @@
 #include "support/files.hpp"
 #include "support/scene_files.hpp"
 #include "support/sphere.hpp"
+#include "support/surface_measures.hpp"
 
 namespace fs = std::filesystem;
 using lumen::engine::InputError;
@@ -304,23 +305,11 @@ TEST(SurfacePair, RemeshedToATargetEdgeBothWallsHaveThatResolution) {
   double enclosed_difference = 0.0;
   for (const char* wall : {lumen::physics::kInnerWall, lumen::physics::kOuterWall}) {
     const lumen::Tris& t = mesh.surface(wall);
-    std::vector<double> edges;
-    double min_angle = 180.0, six_volume = 0.0;
-    for (Eigen::Index i = 0; i < t.rows(); ++i) {
-      const Eigen::Vector3d p[3] = {mesh.rest.row(t(i, 0)), mesh.rest.row(t(i, 1)), mesh.rest.row(t(i, 2))};
-      six_volume += p[0].dot(p[1].cross(p[2]));
-      for (int k = 0; k < 3; ++k) {
-        const Eigen::Vector3d a = p[k], b = p[(k + 1) % 3], c = p[(k + 2) % 3];
-        edges.push_back((b - a).norm());
-        min_angle = std::min(min_angle, std::acos(std::clamp((b - a).normalized().dot((c - a).normalized()), -1.0, 1.0)) *
-                                            180.0 / static_cast<double>(EIGEN_PI));
-      }
-    }
-    std::sort(edges.begin(), edges.end());
+    const std::vector<double> edges = lumen::test::sorted_side_lengths(mesh.rest, t);
     EXPECT_NEAR(edges[edges.size() / 2], 0.002, 0.0004) << wall;
-    EXPECT_GT(min_angle, 20.0) << wall;
+    EXPECT_GT(lumen::test::sorted_angles_deg(mesh.rest, t).front(), 20.0) << wall;
     // Walls face out of the wall's volume: the outer encloses it positively, the inner (facing the lumen) negatively.
-    enclosed_difference += six_volume / 6.0;
+    enclosed_difference += lumen::test::enclosed_volume(mesh.rest, t);
   }
   double tets_volume = 0.0;
   for (Eigen::Index t = 0; t < mesh.tets.rows(); ++t) tets_volume += lumen::physics::tet_volume(mesh.rest, mesh.tets, static_cast<int>(t));

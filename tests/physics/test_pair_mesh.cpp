@@ -13,6 +13,7 @@
 #include "physics/pair_mesh.hpp"
 #include "physics/volume_mesh.hpp"
 #include "support/sphere.hpp"
+#include "support/surface_measures.hpp"
 
 namespace {
 
@@ -40,12 +41,7 @@ Pair spheres() {
 }
 
 // The volume a closed outward surface encloses, by the divergence theorem (the cones from the origin).
-double enclosed(const lumen::Points& x, const lumen::Tris& t) {
-  double six_v = 0.0;
-  for (Eigen::Index i = 0; i < t.rows(); ++i)
-    six_v += x.row(t(i, 0)).dot(x.row(t(i, 1)).cross(x.row(t(i, 2))));
-  return six_v / 6.0;
-}
+using lumen::test::enclosed_volume;
 
 Triangle corners(const lumen::Points& x, int a, int b, int c) {
   Triangle t;
@@ -81,7 +77,7 @@ TEST(TetrahedralisePair, ConcentricSpheresFillExactlyTheShellAndKeepTheirTriangl
     EXPECT_GT(v, 0.0) << "tet " << e;
     volume += v;
   }
-  const double shell = enclosed(p.outer, p.outer_tris) - enclosed(p.inner, p.inner_tris);
+  const double shell = enclosed_volume(p.outer, p.outer_tris) - enclosed_volume(p.inner, p.inner_tris);
   EXPECT_NEAR(volume, shell, kVolumeRoundOff * shell);
   EXPECT_EQ(lumen::physics::mesh_quality(t.rest, t.tets).degenerate_tets, 0);
   // Boundary = inputs, by positions; walls tagged by the sphere they came from.
@@ -133,7 +129,7 @@ TEST(TetrahedralisePair, MaxEdgeRefinesTheInsideKeepingTheSurfaces) {
   EXPECT_GT(fine.mesh.tets.rows(), coarse.mesh.tets.rows());
   double volume = 0.0;
   for (int e = 0; e < fine.mesh.tets.rows(); ++e) volume += lumen::physics::tet_volume(fine.mesh.rest, fine.mesh.tets, e);
-  const double shell = enclosed(p.outer, p.outer_tris) - enclosed(p.inner, p.inner_tris);
+  const double shell = enclosed_volume(p.outer, p.outer_tris) - enclosed_volume(p.inner, p.inner_tris);
   EXPECT_NEAR(volume, shell, kVolumeRoundOff * shell);
   EXPECT_EQ(lumen::physics::boundary_faces(fine.mesh.tets).rows(), p.inner_tris.rows() + p.outer_tris.rows());
 }

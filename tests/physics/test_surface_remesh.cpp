@@ -11,45 +11,15 @@
 #include "physics/surface_remesh.hpp"
 #include "support/files.hpp"
 #include "support/sphere.hpp"
+#include "support/surface_measures.hpp"
 
 using namespace lumen::physics;
 using lumen::Points;
 using lumen::Tris;
 
-namespace {
-
-constexpr double kRadToDeg = 180.0 / static_cast<double>(EIGEN_PI);
-
-// Volume enclosed by a closed surface (divergence theorem).
-double remesh_enclosed(const Points& x, const Tris& tris) {
-  double six = 0.0;
-  for (Eigen::Index t = 0; t < tris.rows(); ++t)
-    six += x.row(tris(t, 0)).dot(x.row(tris(t, 1)).cross(x.row(tris(t, 2))));
-  return six / 6.0;
-}
-
-// The smallest interior angle of any triangle, degrees.
-double min_angle_deg(const Points& x, const Tris& tris) {
-  double worst = 180.0;
-  for (Eigen::Index t = 0; t < tris.rows(); ++t)
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector3d a = x.row(tris(t, k)), b = x.row(tris(t, (k + 1) % 3)), c = x.row(tris(t, (k + 2) % 3));
-      worst = std::min(worst, std::acos(std::clamp((b - a).normalized().dot((c - a).normalized()), -1.0, 1.0)) * kRadToDeg);
-    }
-  return worst;
-}
-
-// Every edge length, sorted.
-std::vector<double> sorted_edges(const Points& x, const Tris& tris) {
-  std::vector<double> l;
-  for (Eigen::Index t = 0; t < tris.rows(); ++t)
-    for (int k = 0; k < 3; ++k)
-      if (tris(t, k) < tris(t, (k + 1) % 3)) l.push_back((x.row(tris(t, k)) - x.row(tris(t, (k + 1) % 3))).norm());
-  std::sort(l.begin(), l.end());
-  return l;
-}
-
-}  // namespace
+using lumen::test::enclosed_volume;
+using lumen::test::sorted_angles_deg;
+using lumen::test::sorted_side_lengths;
 
 // A UV sphere of radius 1 (40 rings of 80: slivers of 4.5 degrees at the poles) remeshed to edges of 0.15: closed
 // and consistently oriented (each directed edge once, its reverse once), every angle above 20 degrees, the median
@@ -61,7 +31,7 @@ TEST(SurfaceRemesh, MakesASliveredUvSphereIsotropicOnItsOwnSurface) {
   Points x;
   Tris tris;
   lumen::test::make_uv_sphere(1.0, 40, 80, x, tris);
-  ASSERT_LT(min_angle_deg(x, tris), 5.0);  // the input's polar slivers
+  ASSERT_LT(sorted_angles_deg(x, tris).front(), 5.0);  // the input's polar slivers
   const double h = 0.15;
   const RemeshedSurface r = remesh_isotropic(x, tris, h);
   ASSERT_GT(r.tris.rows(), 100);
@@ -73,8 +43,8 @@ TEST(SurfaceRemesh, MakesASliveredUvSphereIsotropicOnItsOwnSurface) {
     EXPECT_EQ(count, 1) << e.first << "-" << e.second;
     EXPECT_EQ(directed.count({e.second, e.first}), 1u) << e.first << "-" << e.second;
   }
-  EXPECT_GT(min_angle_deg(r.points, r.tris), 20.0);
-  const std::vector<double> l = sorted_edges(r.points, r.tris);
+  EXPECT_GT(sorted_angles_deg(r.points, r.tris).front(), 20.0);
+  const std::vector<double> l = sorted_side_lengths(r.points, r.tris);
   EXPECT_NEAR(l[l.size() / 2], h, 0.2 * h);
   EXPECT_LT(l[l.size() * 99 / 100], 4.0 / 3.0 * h);
   // On the input surface: no point of an input triangle is nearer the centre than its plane's distance.
@@ -95,14 +65,14 @@ TEST(SurfaceRemesh, MakesASliveredUvSphereIsotropicOnItsOwnSurface) {
     EXPECT_GT(d, 0.0) << t;
     nearest_plane = std::min(nearest_plane, d);
   }
-  const double v_in = remesh_enclosed(x, tris), v_out = remesh_enclosed(r.points, r.tris);
+  const double v_in = enclosed_volume(x, tris), v_out = enclosed_volume(r.points, r.tris);
   EXPECT_LE(v_out, v_in * (1.0 + 1e-12));
   EXPECT_GE(v_out, 4.0 / 3.0 * static_cast<double>(EIGEN_PI) * std::pow(nearest_plane, 3));
   EXPECT_GT(nearest_plane, 0.98);
   std::printf("UV sphere %ld triangles (min angle %.1f deg) -> %ld triangles, min angle %.1f deg, edges median %.4f "
               "p99 %.4f (target %.2f), volume ratio %.5f\n",
-              static_cast<long>(tris.rows()), min_angle_deg(x, tris), static_cast<long>(r.tris.rows()),
-              min_angle_deg(r.points, r.tris), l[l.size() / 2], l[l.size() * 99 / 100], h, v_out / v_in);
+              static_cast<long>(tris.rows()), sorted_angles_deg(x, tris).front(), static_cast<long>(r.tris.rows()),
+              sorted_angles_deg(r.points, r.tris).front(), l[l.size() / 2], l[l.size() * 99 / 100], h, v_out / v_in);
 }
 
 // Coarser targets make fewer triangles, in proportion to the area over the target squared (the estimate).

@@ -10,6 +10,7 @@
 #include "physics/surface_wall.hpp"
 #include "physics/swept_tube.hpp"
 #include "support/sphere.hpp"
+#include "support/surface_measures.hpp"
 
 using namespace lumen::physics;
 using lumen::Points;
@@ -20,12 +21,7 @@ namespace {
 constexpr double kPi = static_cast<double>(EIGEN_PI);
 
 // Volume enclosed by a closed surface (divergence theorem), independent of the tets.
-double enclosed(const Points& x, const Tris& tris) {
-  double six = 0.0;
-  for (Eigen::Index t = 0; t < tris.rows(); ++t)
-    six += x.row(tris(t, 0)).dot(x.row(tris(t, 1)).cross(x.row(tris(t, 2))));
-  return six / 6.0;
-}
+using lumen::test::enclosed_volume;
 
 }  // namespace
 
@@ -48,7 +44,7 @@ TEST(PrismWall, ConformingPositiveTetsFillTheVolumeBetweenTheSurfaces) {
     EXPECT_GT(v, 0.0) << t;
     sum += v;
   }
-  EXPECT_NEAR(sum, enclosed(outer, tris) - enclosed(x, tris), 1e-12 * enclosed(outer, tris));
+  EXPECT_NEAR(sum, enclosed_volume(outer, tris) - enclosed_volume(x, tris), 1e-12 * enclosed_volume(outer, tris));
   // Faces: interior ones twice (opposite orientations), the rest exactly the inner and outer walls.
   std::map<std::array<int, 3>, int> faces;
   for (int t = 0; t < m.tets.rows(); ++t)
@@ -75,8 +71,8 @@ TEST(PrismWall, ConformingPositiveTetsFillTheVolumeBetweenTheSurfaces) {
   EXPECT_EQ(boundary, walls);
   EXPECT_EQ(m.surface(kEndCaps).rows(), 0);
   // The walls face out of the volume: the inner wall into the sphere (negative enclosed volume), the outer out.
-  EXPECT_LT(enclosed(m.rest, m.surface(kInnerWall)), 0.0);
-  EXPECT_GT(enclosed(m.rest, m.surface(kOuterWall)), 0.0);
+  EXPECT_LT(enclosed_volume(m.rest, m.surface(kInnerWall)), 0.0);
+  EXPECT_GT(enclosed_volume(m.rest, m.surface(kOuterWall)), 0.0);
 }
 
 // On a sphere, area-weighted vertex normals are radial at the poles and within the latitude step's tilt elsewhere;
