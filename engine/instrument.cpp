@@ -10,7 +10,8 @@
 namespace lumen::engine {
 namespace {
 
-constexpr double kPi = static_cast<double>(EIGEN_PI);
+using physics::kPi;
+
 // Most sides, rings or bands a shape may ask for (a resolution past it is a typo, not a mesh).
 constexpr int kMaxResolution = 4096;
 

@@ -17,7 +17,8 @@
 namespace lumen::engine {
 namespace {
 
-constexpr double kPi = static_cast<double>(EIGEN_PI);
+using physics::kPi;
+
 
 }  // namespace
 
@@ -232,6 +233,12 @@ void add_fixed_sets(const Scene& scene, Model& m) {
       throw InputError(scene.path + ": fixed[" + std::to_string(i) + "]: selects no node of the mesh");
     hold(nodes);
   }
+  // A mesh held at every node has nothing left to solve (e.g. a tube one ring long held by its ends).
+  std::vector<int> held = m.fixed_nodes;
+  sort_unique(held);
+  if (!held.empty() && static_cast<int>(held.size()) == m.mesh.n_nodes())
+    throw InputError(scene.path + ": fixed: holds every node of the mesh (" + std::to_string(held.size()) +
+                     " nodes), nothing is left to move");
 }
 
 // Twisted end ring: turned about the centreline tangent through its centre (the generator's centreline frame).

@@ -5,6 +5,8 @@
 #include <array>
 #include <cassert>
 #include <cctype>
+#include <cstdint>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <map>
@@ -17,6 +19,7 @@
 #include <assimp/scene.h>
 
 #include "engine/input.hpp"
+#include "engine/isolated.hpp"
 #include "engine/scene.hpp"
 #include "physics/surface_remesh.hpp"
 
@@ -89,6 +92,10 @@ void collect_triangles(const aiScene& scene, const aiNode& node, const aiMatrix4
                          std::to_string(face.mNumIndices) + " vertices: not a triangle (points and lines enclose nothing)");
       std::array<int, 3> tri;
       for (int c = 0; c < 3; ++c) {
+        if (face.mIndices[c] >= mesh.mNumVertices)
+          throw InputError(file + ": mesh " + std::to_string(node.mMeshes[k]) + " face " + std::to_string(f) +
+                           " names vertex " + std::to_string(face.mIndices[c]) + " of " +
+                           std::to_string(mesh.mNumVertices));
         const aiVector3D p = to_root * mesh.mVertices[face.mIndices[c]];
         const std::array<double, 3> key = {p.x, p.y, p.z};
         const auto [it, added] = ids.emplace(key, static_cast<int>(points.size()));
@@ -102,9 +109,8 @@ void collect_triangles(const aiScene& scene, const aiNode& node, const aiMatrix4
     collect_triangles(scene, *node.mChildren[c], to_root, file, ids, points, tris);
 }
 
-}  // namespace
-
-SurfaceMesh read_surface_file(const std::string& file, double metres_per_unit, const std::string& what) {
+// The surface as assimp reads it (read_surface_file's work, run in the child process).
+SurfaceMesh import_surface(const std::string& file, double metres_per_unit, const std::string& what) {
   Assimp::Importer importer;
   const aiScene* scene = importer.ReadFile(file, aiProcess_Triangulate);
   if (!scene || !scene->mRootNode)
@@ -123,6 +129,49 @@ SurfaceMesh read_surface_file(const std::string& file, double metres_per_unit, c
   for (size_t t = 0; t < tris.size(); ++t)
     for (int j = 0; j < 3; ++j) m.tris(static_cast<Eigen::Index>(t), j) = tris[t][static_cast<size_t>(j)];
   return m;
+}
+
+// A surface as bytes across the pipe: the row counts (int64), then the points' and the triangles' raw arrays.
+std::string encode(const SurfaceMesh& m) {
+  const std::int64_t rows[2] = {m.points.rows(), m.tris.rows()};
+  std::string bytes(reinterpret_cast<const char*>(rows), sizeof rows);
+  bytes.append(reinterpret_cast<const char*>(m.points.data()), sizeof(double) * static_cast<size_t>(m.points.size()));
+  bytes.append(reinterpret_cast<const char*>(m.tris.data()), sizeof(int) * static_cast<size_t>(m.tris.size()));
+  return bytes;
+}
+
+SurfaceMesh decode(const std::string& bytes) {
+  std::int64_t rows[2];
+  assert(bytes.size() >= sizeof rows);
+  std::memcpy(rows, bytes.data(), sizeof rows);
+  SurfaceMesh m;
+  m.points.resize(rows[0], 3);
+  m.tris.resize(rows[1], 3);
+  const size_t point_bytes = sizeof(double) * static_cast<size_t>(m.points.size());
+  assert(bytes.size() == sizeof rows + point_bytes + sizeof(int) * static_cast<size_t>(m.tris.size()));
+  std::memcpy(m.points.data(), bytes.data() + sizeof rows, point_bytes);
+  std::memcpy(m.tris.data(), bytes.data() + sizeof rows + point_bytes, sizeof(int) * static_cast<size_t>(m.tris.size()));
+  return m;
+}
+
+}  // namespace
+
+SurfaceMesh read_surface_file(const std::string& file, double metres_per_unit, const std::string& what,
+                              double timeout_s) {
+  // assimp in a child process: its crash or endless loop on a malformed file becomes this file's refusal.
+  const IsolatedRun run = run_isolated([&] { return encode(import_surface(file, metres_per_unit, what)); }, timeout_s);
+  switch (run.end) {
+    case IsolatedRun::End::kDone:
+      return decode(run.text);
+    case IsolatedRun::End::kThrew:
+      throw InputError(run.text);
+    case IsolatedRun::End::kCrashed:
+      throw InputError(file + ": cannot read " + what + ": the reader (assimp) crashed on it (" + run.text + ")");
+    case IsolatedRun::End::kTimedOut:
+      break;
+  }
+  throw InputError(file + ": cannot read " + what + ": the reader (assimp) did not finish within " +
+                   value_text(timeout_s) + " s");
 }
 
 void require_surface_format(const std::string& file) {
@@ -161,10 +210,10 @@ double enclosed_volume(const SurfaceMesh& mesh) {
   return six_v / 6.0;
 }
 
-SurfaceMesh read_closed_surface(const std::string& file, double metres_per_unit) {
+SurfaceMesh read_closed_surface(const std::string& file, double metres_per_unit, double timeout_s) {
   require_file(file, "surface file");
   require_surface_format(file);
-  SurfaceMesh m = read_surface_file(file, metres_per_unit, "surface");
+  SurfaceMesh m = read_surface_file(file, metres_per_unit, "surface", timeout_s);
   require_closed_surface(m, file);
   return enclosed_volume(m) < 0.0 ? reversed(m) : m;
 }

@@ -19,11 +19,18 @@ struct SurfaceMesh {
   Tris tris;      // m x 3
 };
 
-// Read a surface file through assimp (faces triangulated, nothing else changed): every triangle in file order
-// (through the node transforms), vertices at identical positions merged (ids in order of first use by the faces),
-// positions times metres_per_unit. Refuses (InputError "FILE: ...", naming `what`) an unreadable or empty file and
-// a face that is not a triangle.
-SurfaceMesh read_surface_file(const std::string& file, double metres_per_unit, const std::string& what);
+// How long a surface file's reader may take before it is stopped and the file refused (seconds). The largest
+// shipped surfaces read in well under a second.
+inline constexpr double kSurfaceReadTimeoutS = 60.0;
+
+// Read a surface file through assimp (faces triangulated, nothing else changed):
+// every triangle in file order (through the node transforms), vertices at identical positions merged (ids in order
+// of first use by the faces), positions times metres_per_unit. assimp runs in a child process (engine/isolated.hpp).
+// Refuses (InputError "FILE: ...", naming `what`) an unreadable or empty file, a face that is not a triangle, and a
+// file on which assimp crashes ("... the reader (assimp) crashed on it (signal 6 (Aborted))") or runs longer than
+// timeout_s ("... did not finish within 60 s").
+SurfaceMesh read_surface_file(const std::string& file, double metres_per_unit, const std::string& what,
+                              double timeout_s = kSurfaceReadTimeoutS);
 
 // The formats the organ's surface sources read (mesh.type "surface_wall" and "surface_pair", a swept tube's radius
 // from_surface): refuses another file extension, InputError "FILE: unsupported surface format \".EXT\" (OBJ, STL,
@@ -43,7 +50,8 @@ double enclosed_volume(const SurfaceMesh& mesh);
 // from_surface): refuses a missing file ("FILE: no such surface file"), another format (require_surface_format),
 // what read_surface_file and require_closed_surface refuse (naming the file); a consistently inward-facing surface
 // is reversed so that it faces outwards. Positions times metres_per_unit.
-SurfaceMesh read_closed_surface(const std::string& file, double metres_per_unit);
+SurfaceMesh read_closed_surface(const std::string& file, double metres_per_unit,
+                                double timeout_s = kSurfaceReadTimeoutS);
 
 // The surface with every triangle's orientation reversed (its last two vertices swapped).
 SurfaceMesh reversed(const SurfaceMesh& mesh);

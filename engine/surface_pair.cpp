@@ -13,10 +13,11 @@
 namespace lumen::engine {
 namespace {
 
+using physics::kPi;
+
 using StackedPoints = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using StackedTris = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
-constexpr double kPi = static_cast<double>(EIGEN_PI);
 
 // Refuses an intersecting triangle pair of the two surfaces together (each with itself, or one with the other).
 void require_no_intersections(const SurfacePairSpec& spec, const SurfaceMesh& in, const SurfaceMesh& out) {

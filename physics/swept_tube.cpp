@@ -13,7 +13,6 @@ namespace lumen::physics {
 
 namespace {
 
-constexpr double kPi = static_cast<double>(EIGEN_PI);
 // Consecutive points closer than this fraction of the whole polyline's length count as repeated.
 constexpr double kRepeatedPointFraction = 1e-9;
 // A normal whose part normal to its tangent is shorter than this fraction of it is (nearly) parallel to it.

@@ -26,8 +26,11 @@ cmake --build "$root/build" -j"$(nproc)"
 if [ -f "$root/build-asan/CMakeCache.txt" ] && ! grep -q '^CMAKE_CXX_COMPILER:[A-Z]*=.*clang++' "$root/build-asan/CMakeCache.txt"; then
   rm -rf "$root/build-asan"
 fi
+# The same tree carries libFuzzer's coverage (LUMEN_FUZZ) and builds the fuzz target, lumen_fuzz.
 cmake -S "$root" -B "$root/build-asan" -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
-  -DCMAKE_BUILD_TYPE=Debug -DLUMEN_SANITIZE=ON -DLUMEN_WERROR=ON $unity \
+  -DCMAKE_BUILD_TYPE=Debug -DLUMEN_SANITIZE=ON -DLUMEN_FUZZ=ON -DLUMEN_WERROR=ON $unity \
   -DLUMEN_BUILD_BENCHMARKS=OFF -DCMAKE_CXX_FLAGS_DEBUG="$line_tables" >/dev/null
-cmake --build "$root/build-asan" -j"$(nproc)" --target lumen_unit_tests
+cmake --build "$root/build-asan" -j"$(nproc)" --target lumen_unit_tests lumen_fuzz
 (cd "$root/build-asan" && ctest --output-on-failure -j"$(nproc)" -L unit)
+# Every file reader fuzzed for a bounded time (6 s each, two at a time: under a minute); a finding fails the run.
+"$root/tools/fuzz.sh" "$root/build-asan" 6

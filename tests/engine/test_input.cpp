@@ -5,15 +5,12 @@
 #include <fstream>
 
 #include "engine/input.hpp"
+#include "support/files.hpp"
 
 using namespace lumen::engine;
 
 namespace {
-std::string write_temp(const std::string& name, const std::string& text) {
-  const auto path = std::filesystem::temp_directory_path() / ("lumen_test_" + name);
-  std::ofstream(path) << text;
-  return path.string();
-}
+using lumen::test::write_temp;
 std::string replay_error_of(const std::string& path) {
   try {
     ReplaySource s(path);

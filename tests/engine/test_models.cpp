@@ -136,7 +136,7 @@ TEST(Models, SolverKeysBoundTheCorotationalSolve) {
 // numerical failure: reported, the last good frame kept exactly, nothing non-finite committed; once the
 // factorisation the guard asked for is in, the frames converge again.
 TEST(Models, ADivergingCorotationalFrameIsReportedAndTheLastGoodFrameKept) {
-  constexpr double kSoftening = 1e-2;
+  constexpr double kSoftening = 1e-6;
   std::string text = scene_text("corotational", 0.02);
   const std::string key = "\"fps\": 40}";
   text.replace(text.find(key), key.size(), R"("fps": 40, "solver": {"method": "chord", "background_factorisation": true}})");

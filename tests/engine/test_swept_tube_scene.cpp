@@ -216,6 +216,15 @@ TEST(FixedNodeSets, BoxAndPlaneSelectTheNodesInsideAndOnTheNormalsSide) {
   scene["fixed"] = json::parse(R"([{"box": [[1, 1, 1], [2, 2, 2]]}])");
   EXPECT_EQ(lumen::test::message_of<InputError>([&] { lumen::engine::compile_model(lumen::engine::parse_scene(scene.dump(), "f.json")); }),
             "f.json: fixed[0]: selects no node of the mesh");
+  scene["fixed"] = json::parse(R"([{"box": [[-1, -1, -1], [1, 1, 1]]}])");
+  EXPECT_EQ(lumen::test::message_of<InputError>([&] { lumen::engine::compile_model(lumen::engine::parse_scene(scene.dump(), "f.json")); }),
+            "f.json: fixed: holds every node of the mesh (396 nodes), nothing is left to move");
+  // One ring of cells held by its ends: every node too (it ran into the solver's internal error before).
+  json one_ring = scene;
+  one_ring["mesh"]["segments_along"] = 1;
+  one_ring["fixed"] = json::parse(R"(["ends"])");
+  EXPECT_EQ(lumen::test::message_of<InputError>([&] { lumen::engine::compile_model(lumen::engine::parse_scene(one_ring.dump(), "f.json")); }),
+            "f.json: fixed: holds every node of the mesh (72 nodes), nothing is left to move");
   scene["fixed"] = json::parse(R"([{"box": [[1, 1, 1], [0, 2, 2]]}])");
   EXPECT_EQ(lumen::test::message_of<InputError>([&] { lumen::engine::parse_scene(scene.dump(), "f.json"); }),
             "f.json: fixed[0].box: the first corner must be the low one (x0 <= x1, y0 <= y1, z0 <= z1) (value "

@@ -18,7 +18,6 @@
 namespace lumen::physics {
 namespace {
 
-constexpr double kPi = static_cast<double>(EIGEN_PI);
 
 // A centreline of n samples c(k), optionally with tangents t(k).
 template <class Point>
