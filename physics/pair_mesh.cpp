@@ -135,6 +135,10 @@ void require_kept_surface(const Tets& tets, const std::vector<Face>& input) {
 PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const Points& outer, const Tris& outer_tris,
                              const PairMeshSize& size) {
   const int ni = static_cast<int>(inner.rows()), no = static_cast<int>(outer.rows());
+  // An empty surface would reach Netgen with nothing to mesh (it crashed there, measured with both empty).
+  if (inner_tris.rows() == 0 || outer_tris.rows() == 0)
+    detail::fail("tetrahedralise_pair: the " + std::string(inner_tris.rows() == 0 ? "inner" : "outer") +
+                 " surface has no triangles");
   if ((inner_tris.rows() > 0 && (inner_tris.minCoeff() < 0 || inner_tris.maxCoeff() >= ni)) ||
       (outer_tris.rows() > 0 && (outer_tris.minCoeff() < 0 || outer_tris.maxCoeff() >= no)))
     detail::fail("tetrahedralise_pair: a triangle names a vertex outside its surface");

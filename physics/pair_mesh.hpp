@@ -47,7 +47,8 @@ class PairMesherError : public std::runtime_error {
 // Throws PairMesherError "Netgen failed: <what it said>" when Netgen throws (its exception's words), "Netgen failed:
 // <its result code> with N tets (its log ends: <its last two lines>)" when it returns a failure, and "Netgen did not
 // keep the input surface: ..." when a boundary face of its tets is not an input triangle (or the reverse), an input
-// vertex moved, or a tet is inverted or flat; std::invalid_argument when a triangle names a vertex out of range.
+// vertex moved, or a tet is inverted or flat; std::invalid_argument when a surface has no triangles or a triangle
+// names a vertex out of range.
 PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const Points& outer, const Tris& outer_tris,
                              const PairMeshSize& size);
 

@@ -4,8 +4,8 @@
 #   tools/fuzz.sh BUILD [SECONDS]  SECONDS per reader (default 10); LUMEN_FUZZ_READERS="scene obj" for some
 # Two readers run at a time. The surface readers run assimp in a child process per input (engine/isolated.hpp), so
 # they try tens of inputs a second where the others try thousands.
-# Each reader starts from its kept inputs, tests/fuzz/inputs/<reader>/ (read only: what the run adds to the corpus
-# goes to a scratch folder). A finding (crash, sanitizer report, leak, exhausted memory, timeout, or an exception the
+# Each reader starts from a copy of its kept inputs, tests/fuzz/inputs/<reader>/, but the endless ones (timeout-*),
+# in a scratch folder (what the run adds to the corpus goes there too). A finding (crash, sanitizer report, leak, exhausted memory, timeout, or an exception the
 # reader does not document) is copied to tests/fuzz/inputs/<reader>/ under libFuzzer's name and printed in base64;
 # the script exits 1. Fix the reader and commit the input: FuzzInputs.KeptBadInputsAreRefusedNamingTheFile then
 # replays it in both of CI's builds.
@@ -22,10 +22,12 @@ trap 'rm -rf "$scratch"' EXIT
 fuzz_one() {
   local reader="$1" corpus="$scratch/$1"
   mkdir -p "$corpus"
+  # The kept inputs but the endless ones (each of their mutations would cost the run a timeout).
+  find "$root/tests/fuzz/inputs/$reader" -maxdepth 1 -type f ! -name 'timeout-*' -exec cp {} "$corpus/" \;
   local start=$SECONDS
   if LUMEN_FUZZ_READER="$reader" "$fuzzer" -max_total_time="$seconds" -seed=1 -timeout=10 -malloc_limit_mb=1024 \
        -rss_limit_mb=3072 -print_final_stats=1 -artifact_prefix="$corpus/" \
-       "$corpus" "$root/tests/fuzz/inputs/$reader" >"$scratch/$reader.log" 2>&1; then
+       "$corpus" >"$scratch/$reader.log" 2>&1; then
     echo "$reader: $(grep -Eo 'stat::number_of_executed_units: *[0-9]+' "$scratch/$reader.log" | grep -Eo '[0-9]+$') inputs," \
          "$(grep -Eo 'cov: [0-9]+' "$scratch/$reader.log" | tail -1 | grep -Eo '[0-9]+') edges, no finding" \
          "in $((SECONDS - start)) s"

@@ -163,4 +163,10 @@ TEST(TetrahedralisePair, NetgenFailureIsReportedWithItsWords) {
   lumen::Tris bad = out_t;
   bad(3, 1) = 8;
   EXPECT_THROW(lumen::physics::tetrahedralise_pair(in, in_t, out, bad, {}), std::invalid_argument);
+  // An empty surface is refused before Netgen runs (Netgen crashed on two empty ones).
+  const lumen::Points none(0, 3);
+  const lumen::Tris no_tris(0, 3);
+  EXPECT_THROW(lumen::physics::tetrahedralise_pair(none, no_tris, out, out_t, {}), std::invalid_argument);
+  EXPECT_THROW(lumen::physics::tetrahedralise_pair(in, in_t, none, no_tris, {}), std::invalid_argument);
+  EXPECT_THROW(lumen::physics::tetrahedralise_pair(none, no_tris, none, no_tris, {}), std::invalid_argument);
 }
