@@ -19,7 +19,6 @@ namespace {
 
 using physics::kPi;
 
-
 }  // namespace
 
 double twist_degrees(const TwistSpec& twist, double t) {
@@ -233,11 +232,13 @@ void add_fixed_sets(const Scene& scene, Model& m) {
       throw InputError(scene.path + ": fixed[" + std::to_string(i) + "]: selects no node of the mesh");
     hold(nodes);
   }
-  // A mesh held at every node has nothing left to solve (e.g. a tube one ring long held by its ends).
-  std::vector<int> held = m.fixed_nodes;
-  sort_unique(held);
-  if (!held.empty() && static_cast<int>(held.size()) == m.mesh.n_nodes())
-    throw InputError(scene.path + ": fixed: holds every node of the mesh (" + std::to_string(held.size()) +
+}
+
+// Refuse held node sets (sorted, unique) that take every node: nothing would be left to solve (e.g. a tube one ring
+// of cells long held by its ends).
+void require_free_nodes(const Scene& scene, const Model& m) {
+  if (static_cast<int>(m.fixed_nodes.size()) == m.mesh.n_nodes())
+    throw InputError(scene.path + ": fixed: holds every node of the mesh (" + std::to_string(m.fixed_nodes.size()) +
                      " nodes), nothing is left to move");
 }
 
@@ -401,6 +402,7 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   add_fixed_sets(scene, *m);
   add_twist(scene, *m);
   sort_unique(m->fixed_nodes);
+  require_free_nodes(scene, *m);
   attach_probes(scene, *m);
   build_collision_topology(scene, *m);
   compile_instruments(scene, *m);

@@ -18,7 +18,6 @@ using physics::kPi;
 using StackedPoints = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using StackedTris = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
-
 // Refuses an intersecting triangle pair of the two surfaces together (each with itself, or one with the other).
 void require_no_intersections(const SurfacePairSpec& spec, const SurfaceMesh& in, const SurfaceMesh& out) {
   const Eigen::Index ni = in.points.rows(), ti = in.tris.rows();

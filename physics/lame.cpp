@@ -56,7 +56,7 @@ LameResult lame_error(const LameSetup& setup) {
   spec.layers = setup.layers;
   spec.length = setup.length > 0.0
                     ? setup.length
-                    : setup.segments_along * static_cast<double>(EIGEN_PI) *
+                    : setup.segments_along * kPi *
                           (setup.inner_radius + setup.outer_radius) / setup.segments_around;
   const TetMesh mesh = make_hollow_cylinder(spec);
   const double a = spec.inner_radius, b = spec.outer_radius;

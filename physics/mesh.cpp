@@ -37,7 +37,7 @@ void validate(const HollowCylinderSpec& s) {
   if (s.bend_radius != 0.0) {
     if (!(s.bend_radius > s.outer_radius) || !std::isfinite(s.bend_radius))
       fail_spec("bend_radius", "must be 0 (straight) or finite and > outer_radius", s.bend_radius);
-    if (!(s.length / s.bend_radius < 2.0 * static_cast<double>(EIGEN_PI)))
+    if (!(s.length / s.bend_radius < kTwoPi))
       fail_spec("bend_radius", "must make the arc angle length / bend_radius < 2 pi", s.bend_radius);
   }
 }

@@ -107,7 +107,7 @@ struct CellGrading {
   double ratio = 1.0;         // largest / smallest cell, in [1, kMaxGradingRatio]
 };
 constexpr double kMaxGradingRatio = 100.0;
-constexpr double kTwoPi = 2.0 * static_cast<double>(EIGEN_PI);  // a full turn around a ring, radians
+constexpr double kTwoPi = 2.0 * kPi;  // a full turn around a ring, radians
 
 // The cells + 1 grid coordinates of [0, extent] under `grading` (first 0, last extent, increasing): uniform
 // extent * i / cells when grading.ratio is 1; otherwise the equidistribution of the density 1 / h(d) (above),

@@ -139,8 +139,8 @@ PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const 
   if (inner_tris.rows() == 0 || outer_tris.rows() == 0)
     detail::fail("tetrahedralise_pair: the " + std::string(inner_tris.rows() == 0 ? "inner" : "outer") +
                  " surface has no triangles");
-  if ((inner_tris.rows() > 0 && (inner_tris.minCoeff() < 0 || inner_tris.maxCoeff() >= ni)) ||
-      (outer_tris.rows() > 0 && (outer_tris.minCoeff() < 0 || outer_tris.maxCoeff() >= no)))
+  if (inner_tris.minCoeff() < 0 || inner_tris.maxCoeff() >= ni || outer_tris.minCoeff() < 0 ||
+      outer_tris.maxCoeff() >= no)
     detail::fail("tetrahedralise_pair: a triangle names a vertex outside its surface");
   assert(size.max_edge >= 0.0 && size.optimise_steps >= 0 && size.optimise_steps <= kPairMesherMaxOptimiseSteps);
   // Both surfaces as one point array (inner, then outer) and their triangles facing out of the volume.

@@ -122,7 +122,7 @@ std::vector<int> find_walls(const std::vector<Face>& faces, const Points& x, con
   std::vector<double> volume;
   if (components.size() == 1) {
     // An open tube: patches split at the rims.
-    const double cos_feature = std::cos(kFeatureAngleDeg * static_cast<double>(EIGEN_PI) / 180.0);
+    const double cos_feature = std::cos(kFeatureAngleDeg * kPi / 180.0);
     patches = connected_faces(faces, file, [&](int f, int g) {
       return unit_normal(faces[f], x).dot(unit_normal(faces[g], x)) >= cos_feature;
     });

@@ -112,8 +112,6 @@ Outcome read_input(Reader reader, const std::string& bytes, const std::string& f
   } catch (const std::invalid_argument& e) {
     if (reader != Reader::kMsh && reader != Reader::kVtu && reader != Reader::kVtk) throw;
     return refused(e.what(), file, folder);
-  } catch (const std::logic_error&) {
-    throw;
   } catch (const std::runtime_error& e) {
     if (reader != Reader::kCcd) throw;
     return refused(e.what(), file, folder);

@@ -36,8 +36,8 @@ struct Outcome {
 };
 
 // Feed `bytes` to `reader` as the file `folder`/input.<ext> (written there for the readers that take a path).
-// A refusal must be the reader's documented error type and name the file; anything else (another exception, a
-// refusal that does not name the file) throws std::logic_error, which the fuzz target lets escape (a finding).
+// A refusal must be the reader's documented error type and name the file: another exception propagates as it is, a
+// refusal that does not name the file throws std::logic_error; the fuzz target lets either escape (a finding).
 // Crashes, sanitizer reports and exhausted memory end the process, as they would a session.
 Outcome read_input(Reader reader, const std::string& bytes, const std::string& folder);
 

@@ -18,7 +18,6 @@ using lumen::Tris;
 
 namespace {
 
-
 // Volume enclosed by a closed surface (divergence theorem), independent of the tets.
 using lumen::test::enclosed_volume;
 
