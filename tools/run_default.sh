@@ -4,4 +4,6 @@ set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 "$root/tools/setup.sh"
 "$root/tools/build.sh"
-"$root/build/lumen" run "$root/scenes/paper-press.json" --out "$root/out/paper-press" "$@"
+# The default scene: the walls meeting, self-collision on (issue 9 will make it its accurate configuration once
+# that runs at frame rate).
+"$root/build/lumen" run "$root/scenes/full-closure-tet10.json" --out "$root/out/full-closure-tet10" "$@"
