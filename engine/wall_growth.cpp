@@ -178,10 +178,26 @@ std::string refusal(const SurfaceWallSpec& spec, const std::vector<std::array<in
          "with the radius from the surface, mesh.type \"swept_tube\" with mesh.radius {\"from_surface\": ...})";
 }
 
+// Refuses a wall that the surface's own gaps clamp below kMinClampedThicknessFraction of its thickness at a vertex,
+// naming the thinnest vertex, the room there and how many vertices are so clamped.
+void require_room_for_the_wall(const SurfaceWallSpec& spec, const std::vector<double>& offset) {
+  const double floor = kMinClampedThicknessFraction * spec.thickness;
+  const auto thinnest = std::min_element(offset.begin(), offset.end());
+  if (*thinnest >= floor) return;
+  const long count = std::count_if(offset.begin(), offset.end(), [&](double o) { return o < floor; });
+  throw InputError(spec.file + ": a wall of " + length_text(spec, spec.thickness) + " grown " +
+                   direction_name(spec.direction) + " is thicker than the surface's gaps allow: at vertex " +
+                   std::to_string(thinnest - offset.begin()) + " the surface across it leaves room for " +
+                   length_text(spec, *thinnest) + " (" + std::to_string(count) + " vertices get less than half the " +
+                   "thickness); make mesh.thickness smaller, or for a tubular organ sweep a tube along its centreline "
+                   "with the radius from the surface, mesh.type \"swept_tube\" with mesh.radius {\"from_surface\": ...}");
+}
+
 // Offsets for which the surface and its offset have no intersecting triangle pair and every prism between them is
 // positive (shrinking around the triangles where not); refuses the surface when kWallShrinkRounds are not enough.
 std::vector<double> valid_offsets(const SurfaceWallSpec& spec, const SurfaceMesh& s, const Points& dirs, int& rounds) {
   std::vector<double> offset = gap_clamped_offsets(s, dirs, spec.thickness);
+  require_room_for_the_wall(spec, offset);
   const StackedTris tris = stacked_tris(s);
   const int nt = static_cast<int>(s.tris.rows());
   for (rounds = 0;; ++rounds) {

@@ -19,6 +19,9 @@ inline constexpr double kMinNormalCosine = 0.1;
 // vertices are scaled by this, for at most kWallShrinkRounds rounds (then the surface is refused).
 inline constexpr double kWallShrinkFactor = 0.5;
 inline constexpr int kWallShrinkRounds = 8;
+// A wall whose gap clamp leaves a vertex less than this fraction of the thickness is thicker than the surface's
+// gaps allow: refused, naming the vertex (a clamp above it is a local thinning, counted in clamped_vertices).
+inline constexpr double kMinClampedThicknessFraction = 0.5;
 
 // Which way the wall grows from the surface: outward (the surface is the inner wall, the lumen's) or inward
 // (the surface is the outer wall).
@@ -62,7 +65,10 @@ struct SurfaceWall {
 // shrinks the offsets of those triangles' vertices by kWallShrinkFactor, and builds the prism wall (inner: the
 // surface if outward, else the offset). Throws InputError naming the file: for a non-positive or non-finite
 // thickness or layers < 1, what the reader refuses, "FILE: the surface intersects itself: triangles I and J
-// intersect (K intersecting pairs)", "FILE: a wall of T m grown outward cannot be made intersection-free: triangle
+// intersect (K intersecting pairs)", "FILE: a wall of T m grown inward is thicker than the surface's gaps allow: at
+// vertex V the surface across it leaves room for R m (K vertices get less than half the thickness); make
+// mesh.thickness smaller, or ... \"swept_tube\" ...", "FILE: a
+// wall of T m grown outward cannot be made intersection-free: triangle
 // I of the surface and triangle J of the offset wall still intersect after 8 rounds of shrinking the offset around
 // them (K intersecting pairs; ... mesh.type \"swept_tube\" with mesh.radius {\"from_surface\": ...})", "FILE: a wall of
 // T m grown outward has an inverted or zero-volume prism over triangle I after 8 rounds ...", and (layers > 1)

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -247,6 +248,82 @@ TEST(SurfaceWall, SphereShellHasTheAnalyticVolumeAndThickness) {
   }
 }
 
+// A closed box [-a, a] x [-b, b] x [-c, c] (file units), each face an n x n grid of cells split in two, outward.
+void write_box(const fs::path& file, double a, double b, double c, int n) {
+  std::vector<Eigen::Vector3d> v;
+  std::map<std::array<long, 3>, int> index;  // grid coordinates (0..n per axis) -> vertex
+  auto vertex = [&](std::array<long, 3> g) {
+    const auto [it, added] = index.emplace(g, static_cast<int>(v.size()));
+    if (added) v.emplace_back(a * (2.0 * g[0] / n - 1.0), b * (2.0 * g[1] / n - 1.0), c * (2.0 * g[2] / n - 1.0));
+    return it->second;
+  };
+  std::vector<std::array<int, 3>> f;
+  for (int axis = 0; axis < 3; ++axis)
+    for (int side = 0; side < 2; ++side) {
+      const int u = (axis + 1) % 3, w = (axis + 2) % 3;  // (u, w, axis) right-handed
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+          std::array<long, 3> g[4];
+          const int di[4] = {0, 1, 1, 0}, dj[4] = {0, 0, 1, 1};
+          for (int k = 0; k < 4; ++k) {
+            g[k][axis] = side ? n : 0;
+            g[k][u] = i + di[k];
+            g[k][w] = j + dj[k];
+          }
+          int q[4];
+          for (int k = 0; k < 4; ++k) q[k] = vertex(g[k]);
+          // Counter-clockwise about +axis on the far side, clockwise on the near one: outward either way.
+          if (side) f.push_back({q[0], q[1], q[2]}), f.push_back({q[0], q[2], q[3]});
+          else f.push_back({q[0], q[2], q[1]}), f.push_back({q[0], q[3], q[2]});
+        }
+    }
+  write_obj(file, v, f);
+}
+
+// The gap clamp against a slab's own thickness. A 40 x 40 x 4 mm box grown 2 mm inward: the rays from the broad
+// faces meet the opposite face 4 mm away, so their vertices are clamped to kWallGapFraction of that, 1.8 mm, above
+// half the thickness: the wall is built, thinner there, and counts them (the rim's, crowded by the side walls'
+// offsets, are shrunk further). Grown 5 mm inward it would be clamped to
+// the same 1.8 mm, under half of 5: refused, naming the file, the thinnest vertex and its room; lumen run exits 2
+// and writes nothing.
+TEST(SurfaceWall, GapClampThinsAWallAndRefusesOneThickerThanTheGapsAllow) {
+  const fs::path d = lumen::test::fresh_temp_dir("lumen_organ_", "slab_gap");
+  write_box(d / "slab.obj", 20.0, 20.0, 2.0, 20);
+  const double room = lumen::engine::kWallGapFraction * 0.004;  // the clamp across the slab, metres
+  const lumen::engine::Scene s = lumen::engine::load_scene(write_scene(d, wall_scene("slab.obj", 2.0, "inward")));
+  const lumen::engine::SurfaceWall& w = s.surface_wall.wall;
+  // The broad faces' vertices away from the rim (|x|, |y| <= 10 mm, beyond the normal smoothing's reach from the
+  // rim's turned normals): along -z or +z, 1.8 mm. (Grown inward, the
+  // offset is the inner wall: rows [0, nv) of the mesh, the file's surface rows [nv, 2 nv).)
+  const Eigen::Index nv = w.vertices;
+  int broad = 0;
+  for (Eigen::Index v = 0; v < nv; ++v) {
+    const Eigen::RowVector3d x = w.mesh.rest.row(nv + v), y = w.mesh.rest.row(v);
+    if (std::abs(std::abs(x.z()) - 0.002) > 1e-9 || std::abs(x.x()) > 0.0101 || std::abs(x.y()) > 0.0101) continue;
+    ++broad;
+    EXPECT_NEAR((y - x).norm(), room, 1e-9) << "vertex " << v << " at " << x;
+    EXPECT_NEAR(std::abs(y.z()), 0.002 - room, 1e-9) << "vertex " << v;
+  }
+  EXPECT_EQ(broad, 2 * 11 * 11);
+  EXPECT_GE(w.clamped_vertices, broad);
+  EXPECT_LE(w.min_offset, room);  // (less at the rim, where the offsets were shrunk apart)
+  // Too thick: refused, the room named in millimetres.
+  const std::string scene = write_scene(d, wall_scene("slab.obj", 5.0, "inward"));
+  const std::string msg = load_error(scene);
+  const std::string head = (d / "slab.obj").string() + ": a wall of 5 mm grown inward is thicker than the surface's "
+                           "gaps allow: at vertex ";
+  ASSERT_NE(msg.find(head), std::string::npos) << msg;
+  const size_t at = msg.find("leaves room for ");
+  ASSERT_NE(at, std::string::npos) << msg;
+  EXPECT_LE(std::stod(msg.substr(at + 16)) * 1e-3, room * (1.0 + 1e-6)) << msg;
+  EXPECT_NE(msg.find(" vertices get less than half the thickness); make mesh.thickness smaller, or for a tubular "
+                     "organ sweep a tube"), std::string::npos) << msg;
+  std::string text;
+  EXPECT_EQ(run_lumen(scene, d / "out", text), 2) << text;
+  EXPECT_NE(text.find(head), std::string::npos) << text;
+  EXPECT_TRUE(!fs::exists(d / "out") || fs::is_empty(d / "out"));
+}
+
 // Every refusal of a surface wall, one message each naming the file (or the scene's key), the problem and where.
 TEST(SurfaceWall, RefusesBadSurfacesNamingFileProblemAndWhere) {
   const fs::path d = lumen::test::fresh_temp_dir("lumen_organ_", "wall_bad");
@@ -472,7 +549,8 @@ TEST(SurfaceWall, UntangledFoldOverIsCountedInTheReportAndTheMeshLine) {
 }
 
 // The CT colon (20,000 triangles, haustral folds, creases sharper than 90 degrees): growing a 2.5 mm wall from it
-// along vertex normals is refused, and the message says so and points to the swept tube.
+// along vertex normals is refused: across the folds between haustra the surface leaves room for a fraction of a
+// millimetre (a vertex with 0.22 mm), and the message says so and points to the swept tube.
 TEST(SurfaceWall, CtColonIsRefusedSayingWhy) {
   lumen::engine::SurfaceWallSpec spec;
   spec.file = kOrgans + "gca-EdinGCA_3D_00090-large_intestine_20k.ply";
@@ -480,7 +558,7 @@ TEST(SurfaceWall, CtColonIsRefusedSayingWhy) {
   spec.thickness = 0.0025;
   const std::string msg = lumen::test::message_of<InputError>([&] { lumen::engine::grow_surface_wall(spec); });
   std::printf("colon 2.5 mm outward: %s\n", msg.c_str());
-  EXPECT_NE(msg.find(spec.file + ": a wall of 2.5 mm grown outward cannot be made intersection-free: "), std::string::npos)
-      << msg;
+  EXPECT_NE(msg.find(spec.file + ": a wall of 2.5 mm grown outward is thicker than the surface's gaps allow: at vertex "),
+            std::string::npos) << msg;
   EXPECT_NE(msg.find("mesh.type \"swept_tube\" with mesh.radius {\"from_surface\": ...}"), std::string::npos) << msg;
 }
