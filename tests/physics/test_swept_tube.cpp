@@ -120,6 +120,40 @@ TEST(SweptTube, StraightCentrelineIsTheHollowCylinder) {
   }
 }
 
+// Given tangents and normals are the frames the rings are built in, not the computed ones: on the straight line,
+// tangents tilted 10 degrees from it and normals turned 30 degrees about it put every node of ring j at
+// c(s_j) + r (cos th N + sin th B), with T the given tangent, N the given normal made normal to T and B = T x N
+// (brute force over every node). The computed frames (tangent +z, normal +x) would miss by centimetres.
+TEST(SweptTube, GivenTangentsAndNormalsAreTheRingsFrames) {
+  const HollowCylinderSpec c;
+  const double tilt = 10.0 * kPi / 180.0, turn = 30.0 * kPi / 180.0;
+  Centreline line = straight(0.0, 0.2, 13);
+  line.tangents = Points::Zero(13, 3);
+  line.normals = Points::Zero(13, 3);
+  for (int k = 0; k < 13; ++k) {
+    line.tangents.row(k) << std::sin(tilt), 0.0, std::cos(tilt);
+    line.normals.row(k) << std::cos(turn), std::sin(turn), 0.0;
+  }
+  const Eigen::Vector3d T(std::sin(tilt), 0.0, std::cos(tilt));
+  const Eigen::Vector3d n(std::cos(turn), std::sin(turn), 0.0);
+  const Eigen::Vector3d N = (n - n.dot(T) * T).normalized(), B = T.cross(N);
+  const double s0 = 0.023;
+  const SweptTube tube = make_swept_tube(paper_spec(line, s0));
+  double worst = 0.0;
+  for (int j = 0; j <= c.segments_along; ++j)
+    for (int k = 0; k <= c.layers; ++k)
+      for (int i = 0; i < c.segments_around; ++i) {
+        const double r = c.inner_radius + (c.outer_radius - c.inner_radius) * k / c.layers;
+        const double th = 2.0 * kPi * i / c.segments_around;
+        const Eigen::Vector3d centre(0.0, 0.0, s0 + c.length * j / c.segments_along);
+        const Eigen::Vector3d truth = centre + r * (std::cos(th) * N + std::sin(th) * B);
+        const int v = (j * (c.layers + 1) + k) * c.segments_around + i;
+        worst = std::max(worst, (tube.mesh.rest.row(v).transpose() - truth).norm());
+      }
+  EXPECT_LE(worst, 1e-12);
+  EXPECT_EQ(inverted_tets(tube.mesh), 0);
+}
+
 // On an arc (tilted out of the coordinate planes), the rotation-minimising frames are the arc's own: the normal
 // toward the centre of curvature, in the arc's plane, the binormal the plane's normal. Interior samples have exact
 // chord-sum tangents; the end tangents are one chord's, half a step off, so there the normal is checked to stay in
