@@ -267,19 +267,27 @@ void add_twist(const Scene& scene, Model& m) {
   m.fixed_nodes.insert(m.fixed_nodes.end(), pm.nodes.begin(), pm.nodes.end());
 }
 
-// Probe attachment points on the outer wall; a point far from the wall is refused (the one check that needs the
+// Probe attachment points on either wall, the nearer one (the outer wall for a probe pressing from outside, the
+// inner wall for one pushing from the lumen); a point far from both is refused (the one check that needs the
 // mesh, so it is made here, at the boundary, before anything is factorised).
 void attach_probes(const Scene& scene, Model& m) {
   for (size_t i = 0; i < scene.probes.size(); ++i) {
     const ProbeSpec& p = scene.probes[i];
-    const SurfacePoint sp = snap_to_surface(m.mesh.rest, m.outer_wall(), p.point);
+    const SurfacePoint outer = snap_to_surface(m.mesh.rest, m.outer_wall(), p.point);
+    const SurfacePoint inner = snap_to_surface(m.mesh.rest, m.inner_wall(), p.point);
+    const double to_outer = (point_of(m.mesh.rest, outer) - p.point).norm();
+    const double to_inner = (point_of(m.mesh.rest, inner) - p.point).norm();
+    const bool on_inner = to_inner < to_outer;
+    const SurfacePoint& sp = on_inner ? inner : outer;
     const Eigen::Vector3d q = point_of(m.mesh.rest, sp);
-    // The wall's own thickness there (the distance to the nearest inner-wall point), not the scene's radii.
-    const double thickness = (point_of(m.mesh.rest, snap_to_surface(m.mesh.rest, m.inner_wall(), q)) - q).norm();
+    // The wall's own thickness there (the distance to the nearest point of the other wall), not the scene's radii.
+    const double thickness =
+        (point_of(m.mesh.rest, snap_to_surface(m.mesh.rest, on_inner ? m.outer_wall() : m.inner_wall(), q)) - q).norm();
     const double tolerance = kProbeSnapWallFraction * thickness + 1e-9;
     if ((q - p.point).norm() > tolerance)
-      throw InputError(scene.path + ": probes[" + std::to_string(i) + "].point: not on the organ's outer wall (" +
-                       std::to_string((q - p.point).norm()) + " m away; value [" + std::to_string(p.point.x()) + ", " +
+      throw InputError(scene.path + ": probes[" + std::to_string(i) + "].point: not on the organ's walls (" +
+                       std::to_string(to_outer) + " m from the outer wall, " + std::to_string(to_inner) +
+                       " m from the inner; value [" + std::to_string(p.point.x()) + ", " +
                        std::to_string(p.point.y()) + ", " + std::to_string(p.point.z()) + "])");
     m.probe_points.push_back(sp);
     m.probe_held.push_back(p.drive == ProbeDrive::Displacement);

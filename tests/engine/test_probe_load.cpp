@@ -1,10 +1,12 @@
 // A probe's force at a surface point: the point found is the nearest on the outer wall (against dense
-// sampling), and the nodal forces sum to the probe force with zero moment about the point.
+// sampling), and the nodal forces sum to the probe force with zero moment about the point; probes snap to the
+// nearer wall, and a point off both is refused.
 #include <gtest/gtest.h>
 
 #include <random>
 
 #include "engine/simulation.hpp"
+#include "physics/fem.hpp"
 
 using namespace lumen;
 
@@ -140,9 +142,9 @@ TEST(ProbeLoad, HeldProbeReactionIncludesTheContact) {
   EXPECT_LT(held.last.reactions[1].y(), 0.0);
 }
 
-// A probe point must lie on the outer wall, within a quarter of the wall's local thickness (3 mm here: the
-// distance from its outer-wall point to the inner wall, found on the mesh): 0.5 mm off is snapped, 1 mm off is
-// refused naming the probe, the distance and the value.
+// A probe point must lie on a wall, within a quarter of the wall's local thickness (3 mm here: the distance from
+// its outer-wall point to the inner wall, found on the mesh): 0.5 mm off the outer wall is snapped, 1 mm off is
+// refused naming the probe, the distances to both walls and the value.
 TEST(ProbeLoad, PointOffTheWallIsRefusedByTheLocalWallThickness) {
   auto scene_with = [](const std::string& point) {
     return engine::parse_scene(R"({"name": "off",
@@ -159,7 +161,46 @@ TEST(ProbeLoad, PointOffTheWallIsRefusedByTheLocalWallThickness) {
     engine::compile_model(scene_with("[0.0, 0.014, 0.05]"));
     FAIL() << "a point 1 mm off the wall was accepted";
   } catch (const engine::InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("off.json: probes[0].point: not on the organ's outer wall (0.001"),
+    EXPECT_NE(std::string(e.what()).find("off.json: probes[0].point: not on the organ's walls (0.001000 m from the "
+                                         "outer wall, 0.004000 m from the inner; value [0.000000, 0.014000, 0.050000])"),
               std::string::npos) << e.what();
   }
+  // Inside the wall, 1.5 mm from both: refused too.
+  EXPECT_THROW(engine::compile_model(scene_with("[0.0, 0.0115, 0.05]")), engine::InputError);
+}
+
+// A probe on the inner wall (a point in the lumen side, as an instrument tip pushing outwards from inside): it
+// snaps to the inner wall's node there, and its force moves that node by K^-1 f of a direct solve on the same
+// mesh (the independent twin), outwards.
+TEST(ProbeLoad, APointOnTheInnerWallPushesItFromTheLumen) {
+  const engine::Scene scene = engine::parse_scene(R"({"name": "inside",
+    "mesh": {"type": "hollow_cylinder", "inner_radius": 0.01, "outer_radius": 0.013, "length": 0.1,
+             "segments_around": 12, "segments_along": 10, "layers": 2},
+    "material": {"model": "linear", "young_modulus": 5000.0, "poisson_ratio": 0.45},
+    "fixed": ["ends"],
+    "probes": [{"point": [0.0, 0.0102, 0.05], "track": [{"t": 0, "force": [0, 0, 0]}, {"t": 1, "force": [0, 0.004, 0]}]}],
+    "frames": 40, "fps": 40})", "inside.json");
+  auto model = engine::compile_model(scene);
+  const engine::SurfacePoint& sp = model->probe_points[0];
+  const Eigen::Vector3d q = engine::point_of(model->mesh.rest, sp);
+  EXPECT_LT((q - Eigen::Vector3d(0.0, 0.01, 0.05)).norm(), 1e-12) << q.transpose();  // the inner ring node
+  const auto& inner = model->inner_wall();
+  for (int k = 0; k < 3; ++k)
+    if (sp.weight[k] != 0.0)
+      EXPECT_TRUE((inner.array() == sp.node[k]).any()) << "node " << sp.node[k] << " is not on the inner wall";
+  engine::Inputs inputs = engine::make_inputs(scene);
+  engine::State state = engine::make_state(*model);
+  engine::FrameRecord rec;
+  for (int i = 0; i < 40; ++i) engine::step(*model, inputs, state, rec);
+  // Twin: the linear solve of the nodal force on the same mesh and supports.
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * model->mesh.n_nodes()), u;
+  physics::add_point_force(sp, Eigen::Vector3d(0, 0.004, 0), f);
+  const physics::StaticSolver direct(physics::assemble_stiffness(model->mesh, physics::LinearMaterial{5000.0, 0.45}),
+                                     model->fixed_nodes);
+  direct.solve(f, u);
+  Eigen::Vector3d moved = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) moved += sp.weight[k] * u.segment<3>(3 * sp.node[k]);
+  ASSERT_EQ(rec.probe_displacement.size(), 1u);
+  EXPECT_LT((rec.probe_displacement[0] - moved).norm(), 1e-9 * moved.norm());
+  EXPECT_GT(moved.y(), 1e-4);  // outwards, a real displacement
 }

@@ -1,0 +1,93 @@
+#!/usr/bin/env python3
+"""Mesh build time at load (issue 11: "building the mesh, centreline or surface to tets, takes at most 2 s for
+50,000 tets, reported in report.json"): shipped organ scenes with their resolution raised past 50,000 tets, each
+run R times as `lumen run SCENE --no-render --frames 1`; the CSV gives report.json's mesh.build_ms (median over the
+runs, and every run), the tets and the worst dihedral angle.
+
+usage: tools/bench_mesh_build.py [--runs 3] [--out docs/bench_mesh_build.csv] [--lumen build/lumen]
+"""
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from csv_out import write_csv  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+# (case, shipped scene, overrides of its "mesh" object): each past 50,000 tets.
+CASES = [
+    ("whole colon swept: 16 around and 2 mm rings", "scenes/colon-whole-press.json",
+     {"segments_around": 16, "segment_length": 2.0}),
+    ("whole colon swept: 24 around and 2 mm rings", "scenes/colon-whole-press.json",
+     {"segments_around": 24, "segment_length": 2.0}),
+    ("full aneurysm wall grown 0.5 mm in 2 layers", "scenes/aneurysm-wall-press.json", {"layers": 2}),
+    ("full aneurysm wall grown 0.5 mm in 3 layers", "scenes/aneurysm-wall-press.json", {"layers": 3}),
+]
+
+# Keys of "mesh" that name files relative to the scene (made absolute in the copy written elsewhere).
+FILE_KEYS = ("centreline", "surface", "inner", "outer", "file")
+
+
+def scene_copy(path, overrides, folder):
+    with open(os.path.join(ROOT, path)) as f:
+        scene = json.load(f)
+    base = os.path.dirname(os.path.join(ROOT, path))
+    mesh = scene["mesh"]
+    for key in FILE_KEYS:
+        if isinstance(mesh.get(key), str):
+            mesh[key] = os.path.normpath(os.path.join(base, mesh[key]))
+    mesh.update(overrides)
+    scene["probes"] = []  # (their points sit on the shipped mesh's outer wall; only the build is timed)
+    scene.pop("instruments", None)
+    out = os.path.join(folder, os.path.basename(path))
+    with open(out, "w") as f:
+        json.dump(scene, f)
+    return out
+
+
+def run_once(lumen, scene, folder):
+    out = os.path.join(folder, "out")
+    proc = subprocess.run([lumen, "run", scene, "--no-render", "--frames", "1", "--out", out],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    if proc.returncode != 0:
+        sys.exit(f"bench_mesh_build: {scene}: lumen exited {proc.returncode}:\n{proc.stdout}")
+    with open(os.path.join(out, "report.json")) as f:
+        return json.load(f)["mesh"]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--out", default=os.path.join(ROOT, "docs", "bench_mesh_build.csv"))
+    ap.add_argument("--lumen", default=os.path.join(ROOT, "build", "lumen"))
+    args = ap.parse_args()
+    rows = []
+    for case, path, overrides in CASES:
+        with tempfile.TemporaryDirectory(prefix="lumen_build_") as folder:
+            scene = scene_copy(path, overrides, folder)
+            meshes = [run_once(args.lumen, scene, folder) for _ in range(args.runs)]
+        times = [m["build_ms"] for m in meshes]
+        m = meshes[0]
+        rows.append({
+            "case": case, "scene": path,
+            "overrides": " ".join(f"{k}={v}" for k, v in overrides.items()),
+            "source": m["source"], "tets": m["tets"], "nodes": m["nodes"],
+            "build_ms_median": round(statistics.median(times), 1),
+            "build_ms_runs": " ".join(f"{t:.1f}" for t in times),
+            "min_dihedral_deg": round(m["min_dihedral_deg"]["min"], 2),
+        })
+        print(f"{case}: {m['tets']} tets, build {statistics.median(times):.1f} ms (runs {rows[-1]['build_ms_runs']})")
+    comments = [f"made by: tools/bench_mesh_build.py --runs {args.runs}",
+                "build_ms: report.json mesh.build_ms (reading the files and making the tets; for a surface wall the "
+                "growth with its exact intersection checks), median of the runs; lumen run --no-render --frames 1",
+                f"machine: {os.uname().machine}, {os.cpu_count()} cores"]
+    write_csv(args.out, comments, rows)
+
+
+if __name__ == "__main__":
+    main()
