@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 
 #include <nlohmann/json.hpp>
 
 #include "engine/session.hpp"
+#include "support/files.hpp"
 #include "support/instruments.hpp"
 #include "support/tube.hpp"
 
@@ -36,8 +38,8 @@ json press_scene(double depth, int press_frames, int frames) {
   return s;
 }
 
-lumen::test::CheckedRun run_checked(const json& scene_json) {
-  return lumen::test::run_checked(parse_scene(scene_json.dump(), "tool.json"));
+lumen::test::CheckedRun run_checked(const json& scene_json, const std::string& path = "tool.json") {
+  return lumen::test::run_checked(parse_scene(scene_json.dump(), path));
 }
 
 }  // namespace
@@ -198,4 +200,49 @@ TEST(InstrumentSession, AProbeInsideTheLumenPressesTheInnerWallWithoutPenetratin
   double highest_rise = 0.0;
   for (int v : inner) highest_rise = std::max(highest_rise, c.final_x(v, 1) - c.model->mesh.rest(v, 1));
   EXPECT_GT(highest_rise, 0.5 * kPastWall);
+}
+
+// The same press on an organ mesh that is not the cylinder: a swept tube with haustra (8 mm lumen, 1.5 mm deep
+// sacculations every 20 mm, 2.5 mm wall; a straight centreline file in millimetres), pressed 3 mm at a bulge
+// (outer wall 12 mm from the axis). The tool never penetrates (exact intersection count, brute-force clearance),
+// the wall is pushed in by millimetres, and the force on the tool is minus the organ's elastic response K u.
+TEST(InstrumentSession, ProbePressOnASweptTubeWithHaustraNeverPenetrates) {
+  const std::filesystem::path d = lumen::test::fresh_temp_dir("lumen_tool_", "swept");
+  json line;
+  line["n"] = 11;
+  for (int k = 0; k <= 10; ++k) line["points"].push_back({0.0, 0.0, 10.0 * k});
+  std::ofstream(d / "line.json") << line.dump();
+  json s = json::parse(R"({
+    "name": "tool-swept",
+    "mesh": {"type": "swept_tube", "centreline": "line.json", "units": "mm", "range": [20.0, 80.0],
+             "radius": 8.0, "wall_thickness": 2.5, "segments_around": 16, "segment_length": 2.5, "layers": 2,
+             "haustra": {"depth": 1.5, "pitch": 20.0}},
+    "material": {"model": "linear", "young_modulus": 5000.0, "poisson_ratio": 0.45, "density": 1050.0},
+    "fixed": ["ends"], "probes": [], "frames": 24, "fps": 40,
+    "instruments": [{"name": "probe", "shape": {"type": "sphere_probe", "tip_radius": 0.003, "shaft_radius": 0.002,
+                                                "shaft_length": 0.04}}],
+    "collision": {"self": true, "gap": 0.0001}
+  })");
+  // The tip from 0.5 mm above the bulge's outer wall (12 mm from the axis) to 3 mm below it in 20 frames.
+  s["instruments"][0]["track"] = {{{"t", 0.0}, {"position", {0.0, 0.012 + 0.0005, 0.05}}},
+                                  {{"t", 0.5}, {"position", {0.0, 0.012 - 0.003, 0.05}}}};
+  std::ofstream(d / "s.json") << s.dump();
+  const lumen::test::CheckedRun c = run_checked(s, (d / "s.json").string());
+  int touching = 0;
+  for (size_t i = 0; i < c.result.frames.size(); ++i) {
+    const FrameRecord& f = c.result.frames[i];
+    EXPECT_EQ(f.instrument_intersecting_pairs, 0) << "frame " << f.frame;
+    EXPECT_EQ(f.intersecting_pairs, 0) << "frame " << f.frame;
+    EXPECT_FALSE(f.numerical_failure) << "frame " << f.frame;
+    EXPECT_GE(c.clearance[i].min_tool_vertex, 0.25 * kGap) << "frame " << f.frame;
+    EXPECT_EQ(c.clearance[i].organ_nodes_inside_tool, 0) << "frame " << f.frame;
+    ASSERT_EQ(f.instruments.size(), 1u);
+    if (f.fallback || f.instruments[0].contacts == 0) continue;
+    ++touching;
+    EXPECT_LE((f.instruments[0].force + c.elastic[i].force).norm(), 1e-6 * c.elastic[i].force.norm() + 1e-12)
+        << "frame " << f.frame;
+    EXPECT_GT(f.instruments[0].force.y(), 0.0) << "frame " << f.frame;
+  }
+  EXPECT_GT(touching, 8);
+  EXPECT_GT(c.result.frames.back().max_displacement, 0.002);
 }
