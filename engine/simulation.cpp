@@ -357,13 +357,17 @@ std::unique_ptr<physics::Integrator> make_integrator(const Scene& scene, const M
   if (scene.material.model == MaterialModel::kCorotational && quadratic)
     return std::make_unique<physics::CorotationalQuasiStatic>(*quadratic, material, m.fixed_nodes,
                                                               corotational_options(scene), m.prescribed);
+  // The surrounding tissue's springs to rest on the outer wall (their diagonal stiffness, N/m per DOF).
+  const Eigen::VectorXd support =
+      scene.support.enabled()
+          ? Eigen::VectorXd(physics::support_stiffness(m.mesh.rest, m.outer_wall(), scene.support.stiffness).diagonal())
+          : Eigen::VectorXd();
   if (scene.material.model == MaterialModel::kCorotational)
     return std::make_unique<physics::CorotationalQuasiStatic>(m.mesh, material, m.fixed_nodes,
-                                                              corotational_options(scene), m.prescribed);
+                                                              corotational_options(scene), m.prescribed, support);
   Eigen::SparseMatrix<double> K = quadratic ? physics::assemble_stiffness(*quadratic, material)
                                             : physics::assemble_stiffness(m.mesh, material);
-  // The surrounding tissue's springs to rest on the outer wall.
-  if (scene.support.enabled()) K += physics::support_stiffness(m.mesh.rest, m.outer_wall(), scene.support.stiffness);
+  if (support.size()) K += Eigen::SparseMatrix<double>(Eigen::VectorXd(support).asDiagonal());
   return std::make_unique<physics::LinearQuasiStatic>(K, m.fixed_nodes, m.probe_points, m.probe_held, m.prescribed);
 }
 

@@ -95,8 +95,10 @@ Eigen::Matrix3d proper_rotation(const Eigen::Matrix3d& F, bool* inverted) {
 // ---------------------------------------------------------------------------------------------------------------
 // CorotationalElements
 
-CorotationalElements::CorotationalElements(const TetMesh& mesh, const LinearMaterial& material)
+CorotationalElements::CorotationalElements(const TetMesh& mesh, const LinearMaterial& material,
+                                           const Eigen::VectorXd& support)
     : n_nodes_(mesh.n_nodes()), tets_(mesh.tets), material_(material) {
+  set_support(support);
   const LameParameters lame = lame_parameters(material);  // validates the material
   lambda_ = lame.lambda;
   mu_ = lame.mu;
@@ -123,8 +125,10 @@ CorotationalElements::CorotationalElements(const TetMesh& mesh, const LinearMate
   build_node_elements();
 }
 
-CorotationalElements::CorotationalElements(const QuadraticMesh& mesh, const LinearMaterial& material)
+CorotationalElements::CorotationalElements(const QuadraticMesh& mesh, const LinearMaterial& material,
+                                           const Eigen::VectorXd& support)
     : n_nodes_(mesh.n_nodes()), order_(ElementOrder::kQuadratic), material_(material) {
+  set_support(support);
   const LameParameters lame = lame_parameters(material);  // validates the material
   lambda_ = lame.lambda;
   mu_ = lame.mu;
@@ -167,6 +171,29 @@ void CorotationalElements::build_node_elements() {
   std::vector<int> fill(node_tet_start_.begin(), node_tet_start_.end() - 1);
   for (int t = 0; t < nt; ++t)
     for (int a = 0; a < per_element; ++a) node_tet_[fill[node(t, a)]++] = t;
+}
+
+void CorotationalElements::set_support(const Eigen::VectorXd& support) {
+  if (support.size() == 0) return;
+  detail::check_vector("CorotationalElements", "support", support, n_dofs());
+  for (Eigen::Index d = 0; d < support.size(); ++d)
+    if (!(support[d] >= 0.0))
+      detail::fail_must("CorotationalElements", "support[" + std::to_string(d) + "]", "be >= 0", support[d]);
+  support_ = support;
+}
+
+void CorotationalElements::add_support(const Eigen::VectorXd& v, Eigen::VectorXd& y) const {
+  if (support_.size()) y.array() += support_.array() * v.array();
+}
+
+Eigen::SparseMatrix<double> CorotationalElements::with_support(Eigen::SparseMatrix<double> K) const {
+  if (!support_.size()) return K;
+  Eigen::SparseMatrix<double> S(n_dofs(), n_dofs());
+  std::vector<Eigen::Triplet<double>> diagonal;
+  for (int d = 0; d < n_dofs(); ++d)
+    if (support_[d] != 0.0) diagonal.emplace_back(d, d, support_[d]);
+  S.setFromTriplets(diagonal.begin(), diagonal.end());
+  return K + S;
 }
 
 void CorotationalElements::require_linear(const char* where) const {
@@ -212,7 +239,10 @@ void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::v
                                           Eigen::VectorXd& f) const {
   check_rotations("CorotationalElements::elastic_forces", R);
   if (u.size() != n_dofs()) detail::fail_must("CorotationalElements::elastic_forces", "u.size()", "be 3n", u.size());
-  if (order_ == ElementOrder::kQuadratic) return quadratic_forces(u, R, f);
+  if (order_ == ElementOrder::kQuadratic) {
+    quadratic_forces(u, R, f);
+    return add_support(u, f);
+  }
   f.setZero(n_dofs());
   for (int t = 0; t < n_tets(); ++t) {
     // Strain of the unrotated element, eps = sym(R^T F) - I, its stress, and the nodal forces V R sigma grad N_a.
@@ -223,13 +253,17 @@ void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::v
     for (int a = 0; a < 3; ++a) f.segment<3>(3 * tets_(t, a + 1)) += P.col(a);
     f.segment<3>(3 * tets_(t, 0)) -= P.rowwise().sum();
   }
+  add_support(u, f);
 }
 
 void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p,
                                           Eigen::VectorXd& y) const {
   check_rotations("CorotationalElements::warped_product", R);
   if (p.size() != n_dofs()) detail::fail_must("CorotationalElements::warped_product", "p.size()", "be 3n", p.size());
-  if (order_ == ElementOrder::kQuadratic) return quadratic_product(R, p, y);
+  if (order_ == ElementOrder::kQuadratic) {
+    quadratic_product(R, p, y);
+    return add_support(p, y);
+  }
   y.setZero(n_dofs());
   for (int t = 0; t < n_tets(); ++t) {
     // R K_e R^T p_e: strain of the unrotated displacement gradient R^T (Dp Dm^-1), stress, rotated nodal forces.
@@ -242,6 +276,7 @@ void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R,
     for (int a = 0; a < 3; ++a) y.segment<3>(3 * tets_(t, a + 1)) += P.col(a);
     y.segment<3>(3 * tets_(t, 0)) -= P.rowwise().sum();
   }
+  add_support(p, y);
 }
 
 void CorotationalElements::check_rotations(const char* where, const std::vector<Eigen::Matrix3d>& R) const {
@@ -276,13 +311,13 @@ Eigen::Matrix<double, 12, 12> CorotationalElements::warped_element(const Eigen::
 
 Eigen::SparseMatrix<double> CorotationalElements::warped_stiffness(const std::vector<Eigen::Matrix3d>& R) const {
   check_rotations("CorotationalElements::warped_stiffness", R);
-  if (order_ == ElementOrder::kQuadratic) return quadratic_stiffness(R);
+  if (order_ == ElementOrder::kQuadratic) return with_support(quadratic_stiffness(R));
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(static_cast<size_t>(n_tets()) * 144);
   for (int t = 0; t < n_tets(); ++t) scatter_element_matrix(warped_element(R[t], t), tets_.row(t), triplets);
   Eigen::SparseMatrix<double> K(n_dofs(), n_dofs());
   K.setFromTriplets(triplets.begin(), triplets.end());
-  return K;
+  return with_support(std::move(K));
 }
 
 void CorotationalElements::twist_modes(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R,
@@ -349,14 +384,15 @@ Eigen::SparseMatrix<double> CorotationalElements::tangent_stiffness(const std::v
   }
   Eigen::SparseMatrix<double> K(n_dofs(), n_dofs());
   K.setFromTriplets(triplets.begin(), triplets.end());
-  return K;
+  return with_support(std::move(K));
 }
 
 double CorotationalElements::elastic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const {
   check_rotations("CorotationalElements::elastic_energy", R);
   detail::check_vector("CorotationalElements::elastic_energy", "u", u, n_dofs());
-  if (order_ == ElementOrder::kQuadratic) return quadratic_energy(u, R);
-  double energy = 0.0;
+  const double springs = support_.size() ? 0.5 * support_.dot(u.cwiseProduct(u)) : 0.0;  // the supports' springs
+  if (order_ == ElementOrder::kQuadratic) return quadratic_energy(u, R) + springs;
+  double energy = springs;
   for (int t = 0; t < n_tets(); ++t) {
     // V (mu eps:eps + lambda/2 tr(eps)^2) with the unrotated strain.
     const Eigen::Matrix3d S = R[t].transpose() * gradient(u, t);
@@ -709,15 +745,15 @@ PcgResult solve_truncated_pcg(const WarpedSystem& system, const StaticSolver& pr
 // CorotationalModel and the quasi-static solve
 
 CorotationalModel::CorotationalModel(const TetMesh& mesh, const LinearMaterial& material,
-                                     const std::vector<int>& fixed_nodes)
-    : elements_(mesh, material),
-      K_(assemble_stiffness(mesh, material)),
+                                     const std::vector<int>& fixed_nodes, const Eigen::VectorXd& support)
+    : elements_(mesh, material, support),
+      K_(elements_.with_support(assemble_stiffness(mesh, material))),
       fixed_nodes_(fixed_nodes),
       solver_(K_, fixed_nodes) {}
 
 CorotationalModel::CorotationalModel(const QuadraticMesh& mesh, const LinearMaterial& material,
-                                     const std::vector<int>& fixed_nodes)
-    : elements_(mesh, material),
+                                     const std::vector<int>& fixed_nodes, const Eigen::VectorXd& support)
+    : elements_(mesh, material, support),
       // (The elements' stored K_e unrotated: assemble_stiffness(mesh) would evaluate every K_e a second time.)
       K_(elements_.warped_stiffness(std::vector<Eigen::Matrix3d>(elements_.n_tets(), Eigen::Matrix3d::Identity()))),
       fixed_nodes_(fixed_nodes),

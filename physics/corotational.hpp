@@ -51,10 +51,15 @@ struct TwistModes {
 //   rotations' derivative is left out of the tangent entirely (no twist modes: warped steps only).
 class CorotationalElements {
  public:
-  // Throws std::invalid_argument for an invalid material, node index or a non-positive rest volume.
-  CorotationalElements(const TetMesh& mesh, const LinearMaterial& material);
+  // Throws std::invalid_argument for an invalid material, node index or a non-positive rest volume. support: the
+  // elastic supports' springs to rest (the organ held by the tissue around it, physics/support.hpp), a diagonal
+  // stiffness per DOF (3n, N/m, >= 0; empty: none); they are part of every kernel below: the forces gain S u, the
+  // products S p, the stiffness matrices diag(S), the energy u^T S u / 2.
+  CorotationalElements(const TetMesh& mesh, const LinearMaterial& material,
+                       const Eigen::VectorXd& support = Eigen::VectorXd());
   // The same for 10-node tets (and a Jacobian that is not positive at a quadrature point).
-  CorotationalElements(const QuadraticMesh& mesh, const LinearMaterial& material);
+  CorotationalElements(const QuadraticMesh& mesh, const LinearMaterial& material,
+                       const Eigen::VectorXd& support = Eigen::VectorXd());
 
   int n_nodes() const { return n_nodes_; }
   int n_dofs() const { return 3 * n_nodes_; }
@@ -97,10 +102,15 @@ class CorotationalElements {
   void node_rotations(const std::vector<Eigen::Matrix3d>& R, std::vector<Eigen::Matrix3d>& node_R) const;
   // Throws std::invalid_argument naming `where` unless the elements are 4-node tets (what the twist modes need).
   void require_linear(const char* where) const;
+  // The supports' diagonal stiffness (3n, N/m; empty: none), and K + diag(support).
+  const Eigen::VectorXd& support() const { return support_; }
+  Eigen::SparseMatrix<double> with_support(Eigen::SparseMatrix<double> K) const;
 
  private:
   Eigen::Matrix3d gradient(const Eigen::VectorXd& u, int t) const;  // deformation_gradient without checks
   void build_node_elements();  // node_tet_start_ / node_tet_ from the element nodes
+  void set_support(const Eigen::VectorXd& support);               // validated (std::invalid_argument)
+  void add_support(const Eigen::VectorXd& v, Eigen::VectorXd& y) const;  // y += support .* v
   // The kernels of 10-node tets (same contracts as the public functions).
   void quadratic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R, Eigen::VectorXd& f) const;
   void quadratic_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p, Eigen::VectorXd& y) const;
@@ -132,6 +142,7 @@ class CorotationalElements {
   Points rest10_;                          // n_nodes x 3 rest positions, metres
   LinearMaterial material_;
   double lambda_ = 0.0, mu_ = 0.0;         // Lame parameters, pascals
+  Eigen::VectorXd support_;                // the supports' springs to rest, 3n, N/m (empty: none)
 };
 
 // Contacts carried into the nonlinear equilibrium by an augmented Lagrangian (the method of multipliers): rows
@@ -189,10 +200,13 @@ PcgResult solve_truncated_pcg(const WarpedSystem& system, const StaticSolver& pr
 class CorotationalModel {
  public:
   // fixed_nodes: nodes whose displacement is prescribed (0 unless a solve is given u_fixed); must remove all
-  // rigid motion. Factorises K once (StaticSolver).
-  CorotationalModel(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes);
+  // rigid motion (or the supports must). Factorises K once (StaticSolver). support: as for CorotationalElements
+  // (K includes it).
+  CorotationalModel(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes,
+                    const Eigen::VectorXd& support = Eigen::VectorXd());
   // The same on 10-node tets (K: the elements' warped stiffness at rest, that of assemble_stiffness(mesh)).
-  CorotationalModel(const QuadraticMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes);
+  CorotationalModel(const QuadraticMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes,
+                    const Eigen::VectorXd& support = Eigen::VectorXd());
 
   const CorotationalElements& elements() const { return elements_; }
   // Rest-state stiffness K, 3n x 3n, N/m, and its CHOLMOD factorisation on the free DOFs.

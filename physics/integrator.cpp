@@ -108,8 +108,9 @@ Prediction LinearQuasiStatic::predict(FrameLoads& loads, const Eigen::VectorXd& 
 
 CorotationalQuasiStatic::CorotationalQuasiStatic(const TetMesh& mesh, const LinearMaterial& material,
                                                  const std::vector<int>& fixed_nodes,
-                                                 const CorotationalOptions& options, const PrescribedMotion& prescribed)
-    : model_(mesh, material, fixed_nodes), options_(options), prescribed_(prescribed) {
+                                                 const CorotationalOptions& options, const PrescribedMotion& prescribed,
+                                                 const Eigen::VectorXd& support)
+    : model_(mesh, material, fixed_nodes, support), options_(options), prescribed_(prescribed) {
   validate_options(options_);
 }
 

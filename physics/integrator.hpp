@@ -127,8 +127,10 @@ class LinearQuasiStatic final : public Integrator {
 // Corotational elasticity, quasi-static: f_int(u) = f solved from the last frame's free solution.
 class CorotationalQuasiStatic final : public Integrator {
  public:
+  // support: the elastic supports' diagonal stiffness (CorotationalElements; 3n, N/m; empty: none).
   CorotationalQuasiStatic(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes,
-                          const CorotationalOptions& options, const PrescribedMotion& prescribed);
+                          const CorotationalOptions& options, const PrescribedMotion& prescribed,
+                          const Eigen::VectorXd& support = Eigen::VectorXd());
   // On 10-node tets (the warped tangent only: std::invalid_argument for another options.tangent).
   CorotationalQuasiStatic(const QuadraticMesh& mesh, const LinearMaterial& material,
                           const std::vector<int>& fixed_nodes, const CorotationalOptions& options,

@@ -609,5 +609,41 @@ TEST(CorotationalSolve, RejectsInvalidInput) {
   EXPECT_THROW(CorotationalModel(m, LinearMaterial{-1.0, 0.3}, both_ends(m)), std::invalid_argument);
 }
 
+// Elastic supports are part of every kernel: against the same elements without them, at a deformed state, the
+// forces differ by S u, the products by S p, the stiffness by diag(S), the energy by u^T S u / 2 (exactly, up to
+// round-off); a negative spring is refused by name.
+TEST(CorotationalSupport, EveryKernelGainsTheSpringsExactly) {
+  const TetMesh mesh = small_tube();
+  const int n = 3 * mesh.n_nodes();
+  Eigen::VectorXd S(n), u(n), p(n);
+  for (int d = 0; d < n; ++d) {
+    S[d] = d % 7 == 0 ? 0.0 : 10.0 + d % 5;
+    u[d] = 1e-3 * std::sin(0.7 * d);
+    p[d] = std::cos(1.3 * d);
+  }
+  const CorotationalElements bare(mesh, kTissue), held(mesh, kTissue, S);
+  std::vector<Eigen::Matrix3d> R;
+  bare.rotations(u, R);
+  Eigen::VectorXd f0, f1, y0, y1;
+  bare.elastic_forces(u, R, f0);
+  held.elastic_forces(u, R, f1);
+  EXPECT_LE((f1 - f0 - S.cwiseProduct(u)).norm(), 1e-12 * f1.norm());
+  bare.warped_product(R, p, y0);
+  held.warped_product(R, p, y1);
+  EXPECT_LE((y1 - y0 - S.cwiseProduct(p)).norm(), 1e-12 * y1.norm());
+  const Eigen::MatrixXd K0 = Eigen::MatrixXd(bare.warped_stiffness(R)), K1 = Eigen::MatrixXd(held.warped_stiffness(R));
+  EXPECT_LE((K1 - K0 - Eigen::MatrixXd(S.asDiagonal())).norm(), 1e-12 * K1.norm());
+  EXPECT_NEAR(held.elastic_energy(u, R) - bare.elastic_energy(u, R), 0.5 * S.dot(u.cwiseProduct(u)),
+              1e-12 * held.elastic_energy(u, R));
+  Eigen::VectorXd negative = S;
+  negative[4] = -1.0;
+  try {
+    CorotationalElements(mesh, kTissue, negative);
+    FAIL() << "a negative spring was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("support[4]"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace lumen::physics
