@@ -932,10 +932,10 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   int held = -1;
   for (size_t i = 0; i < s.probes.size() && held < 0; ++i)
     if (s.probes[i].drive == ProbeDrive::Displacement) held = static_cast<int>(i);
-  // Supports are springs on the outer wall's corner nodes, part of the quasi-static models' stiffness (linear and
-  // corotational); the dynamic model and 10-node tets do not take them yet.
-  if (s.support.enabled() && (s.solver.type != SolverType::kQuasiStatic || s.element != ElementType::kTet4))
-    r.fail("support", "needs solver.type \"quasi_static\" and mesh.element \"tet4\"", &root.at("support"));
+  // Supports are springs on the outer wall's corner nodes, part of every 4-node model's stiffness (linear and
+  // corotational, quasi-static and dynamic); 10-node tets do not take them yet.
+  if (s.support.enabled() && s.element != ElementType::kTet4)
+    r.fail("support", "needs mesh.element \"tet4\"", &root.at("support"));
   // Grasped nodes are held the same way, on the rest stiffness, as the only held points of the session.
   for (size_t i = 0; i < s.instruments.size(); ++i) {
     if (!s.instruments[i].grasp.enabled) continue;

@@ -343,6 +343,11 @@ std::unique_ptr<physics::Integrator> make_integrator(const Scene& scene, const M
   physics::LinearMaterial material;
   material.young_modulus = scene.material.young_modulus;
   material.poisson_ratio = scene.material.poisson_ratio;
+  // The surrounding tissue's springs to rest on the outer wall (their diagonal stiffness, N/m per DOF).
+  const Eigen::VectorXd support =
+      scene.support.enabled()
+          ? Eigen::VectorXd(physics::support_stiffness(m.mesh.rest, m.outer_wall(), scene.support.stiffness).diagonal())
+          : Eigen::VectorXd();
   if (scene.solver.type == SolverType::kDynamic) {
     physics::DynamicParams params;
     params.elastic = scene.material.model == MaterialModel::kCorotational ? physics::ElasticModel::kCorotational
@@ -352,16 +357,11 @@ std::unique_ptr<physics::Integrator> make_integrator(const Scene& scene, const M
     params.beta = scene.solver.rayleigh_stiffness;
     params.time_step = m.time_step;
     return std::make_unique<physics::BackwardEuler>(m.mesh, material, m.fixed_nodes, params,
-                                                    corotational_options(scene), m.prescribed);
+                                                    corotational_options(scene), m.prescribed, support);
   }
   if (scene.material.model == MaterialModel::kCorotational && quadratic)
     return std::make_unique<physics::CorotationalQuasiStatic>(*quadratic, material, m.fixed_nodes,
                                                               corotational_options(scene), m.prescribed);
-  // The surrounding tissue's springs to rest on the outer wall (their diagonal stiffness, N/m per DOF).
-  const Eigen::VectorXd support =
-      scene.support.enabled()
-          ? Eigen::VectorXd(physics::support_stiffness(m.mesh.rest, m.outer_wall(), scene.support.stiffness).diagonal())
-          : Eigen::VectorXd();
   if (scene.material.model == MaterialModel::kCorotational)
     return std::make_unique<physics::CorotationalQuasiStatic>(m.mesh, material, m.fixed_nodes,
                                                               corotational_options(scene), m.prescribed, support);

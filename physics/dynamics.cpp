@@ -45,11 +45,11 @@ Eigen::SparseMatrix<double> DynamicModel::system_matrix(const Eigen::SparseMatri
 }
 
 DynamicModel::DynamicModel(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes,
-                           const DynamicParams& params)
+                           const DynamicParams& params, const Eigen::VectorXd& support)
     : params_((validate_params(params), params)),
-      elements_(mesh, material),
+      elements_(mesh, material, support),
       mass_(lumped_mass(elements_, params.density)),
-      K_(assemble_stiffness(mesh, material)),
+      K_(elements_.with_support(assemble_stiffness(mesh, material))),
       fixed_nodes_(fixed_nodes),
       solver_(system_matrix(K_, mass_, params), fixed_nodes) {}
 

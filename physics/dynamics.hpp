@@ -34,15 +34,16 @@ struct DynamicParams {
 // A = (1 + h alpha) M + (h beta + h^2) K on the free DOFs at h = params.time_step.
 class DynamicModel {
  public:
-  // fixed_nodes: nodes held at their state displacement; the others must be in at least one tet.
+  // fixed_nodes: nodes held at their state displacement; the others must be in at least one tet. support: the
+  // elastic supports' diagonal stiffness (CorotationalElements; 3n, N/m; empty: none), in the elements and in K.
   DynamicModel(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes,
-               const DynamicParams& params);
+               const DynamicParams& params, const Eigen::VectorXd& support = Eigen::VectorXd());
 
   const DynamicParams& params() const { return params_; }
   const CorotationalElements& elements() const { return elements_; }
   // Lumped mass, 3n (the same for the three DOFs of a node), kg: density x rest volume / 4 per tet and node.
   const Eigen::VectorXd& mass() const { return mass_; }
-  // Rest stiffness K, 3n x 3n, N/m.
+  // Rest stiffness K (with the supports), 3n x 3n, N/m.
   const Eigen::SparseMatrix<double>& stiffness() const { return K_; }
   // Factorisation of A at h = params().time_step.
   const StaticSolver& solver() const { return solver_; }

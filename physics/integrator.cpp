@@ -147,8 +147,8 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
 
 BackwardEuler::BackwardEuler(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes,
                              const DynamicParams& params, const CorotationalOptions& options,
-                             const PrescribedMotion& prescribed)
-    : model_(mesh, material, fixed_nodes, params),
+                             const PrescribedMotion& prescribed, const Eigen::VectorXd& support)
+    : model_(mesh, material, fixed_nodes, params, support),
       step_solver_(model_.solver().scaled(1.0 / (params.time_step * params.time_step))),
       options_(options),
       prescribed_(prescribed) {

@@ -151,8 +151,10 @@ class CorotationalQuasiStatic final : public Integrator {
 // velocity is the committed motion over the step, v1 = (u1 - u0) / h (0 on fixed DOFs).
 class BackwardEuler final : public Integrator {
  public:
+  // support: the elastic supports' diagonal stiffness (DynamicModel; empty: none).
   BackwardEuler(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes,
-                const DynamicParams& params, const CorotationalOptions& options, const PrescribedMotion& prescribed);
+                const DynamicParams& params, const CorotationalOptions& options, const PrescribedMotion& prescribed,
+                const Eigen::VectorXd& support = Eigen::VectorXd());
   Prediction predict(FrameLoads& loads, const Eigen::VectorXd& prescribed_c, const SimState& state,
                      IntegratorWork& work, Eigen::VectorXd& u1) const override;
   const StaticSolver& contact_solver() const override { return step_solver_; }
