@@ -185,9 +185,10 @@ TEST(ProbeLoad, APointOnTheInnerWallPushesItFromTheLumen) {
   const Eigen::Vector3d q = engine::point_of(model->mesh.rest, sp);
   EXPECT_LT((q - Eigen::Vector3d(0.0, 0.01, 0.05)).norm(), 1e-12) << q.transpose();  // the inner ring node
   const auto& inner = model->inner_wall();
-  for (int k = 0; k < 3; ++k)
-    if (sp.weight[k] != 0.0)
-      EXPECT_TRUE((inner.array() == sp.node[k]).any()) << "node " << sp.node[k] << " is not on the inner wall";
+  for (int k = 0; k < 3; ++k) {
+    if (sp.weight[k] == 0.0) continue;
+    EXPECT_TRUE((inner.array() == sp.node[k]).any()) << "node " << sp.node[k] << " is not on the inner wall";
+  }
   engine::Inputs inputs = engine::make_inputs(scene);
   engine::State state = engine::make_state(*model);
   engine::FrameRecord rec;
