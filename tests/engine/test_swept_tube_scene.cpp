@@ -21,6 +21,7 @@
 #include "engine/session.hpp"
 #include "engine/simulation.hpp"
 #include "support/files.hpp"
+#include "support/model_runs.hpp"
 
 namespace fs = std::filesystem;
 using lumen::engine::InputError;
@@ -301,22 +302,12 @@ namespace {
 // type and peak force (newtons, reached at 0.1 s and held).
 Eigen::Vector3d swept_probe_displacement(const char* model, const char* solver, double force, int frames) {
   json s = swept_scene();
-  s["material"]["model"] = model;
-  s["solver"] = {{"type", solver}};
-  if (std::string(solver) == "dynamic") s["solver"]["rayleigh_mass"] = 2.0;
+  lumen::test::set_model(s, model, solver);
   s["probes"][0]["track"][1]["force"] = {0.0, -force, 0.0};
   s["frames"] = frames;
   const fs::path d = lumen::test::fresh_temp_dir("lumen_swept_", std::string(model) + "_" + solver);
-  const lumen::engine::Scene scene = lumen::engine::load_scene(write_case(d, s, straight_centreline(11, 100.0)));
-  const auto m = lumen::engine::compile_model(scene);
-  lumen::engine::Inputs inputs = lumen::engine::make_inputs(scene);
-  lumen::engine::State state = lumen::engine::make_state(*m);
-  lumen::engine::FrameRecord rec;
-  for (int i = 0; i < frames; ++i) {
-    lumen::engine::step(*m, inputs, state, rec);
-    EXPECT_FALSE(rec.numerical_failure) << model << " " << solver << " frame " << i;
-  }
-  return rec.probe_displacement.at(0);
+  return lumen::test::last_probe_displacement(
+      lumen::engine::load_scene(write_case(d, s, straight_centreline(11, 100.0))));
 }
 
 }  // namespace
@@ -325,26 +316,7 @@ Eigen::Vector3d swept_probe_displacement(const char* model, const char* solver, 
 // linear one as the load shrinks, to second order (10x less load: about 10x less relative difference), and the
 // dynamic runs (backward Euler, Rayleigh mass damping, the load held) settle on their quasi-static answers.
 TEST(SweptTubeScene, EveryModelRunsOnASweptTube) {
-  const double big = 4e-3, small = 4e-4;
-  const Eigen::Vector3d linear_big = swept_probe_displacement("linear", "quasi_static", big, 8);
-  const Eigen::Vector3d corot_big = swept_probe_displacement("corotational", "quasi_static", big, 8);
-  const Eigen::Vector3d linear_small = swept_probe_displacement("linear", "quasi_static", small, 8);
-  const Eigen::Vector3d corot_small = swept_probe_displacement("corotational", "quasi_static", small, 8);
-  ASSERT_GT(linear_big.norm(), 1e-4);  // a real deflection (0.1 mm or more)
-  const double diff_big = (corot_big - linear_big).norm() / linear_big.norm();
-  const double diff_small = (corot_small - linear_small).norm() / linear_small.norm();
-  EXPECT_LT(diff_big, 0.1);
-  EXPECT_GT(diff_big, 0.0);
-  EXPECT_NEAR(diff_small / diff_big, 0.1, 0.05) << diff_small << " vs " << diff_big;
-  // Dynamic, settled after 8 s of simulated time on the held load.
-  const Eigen::Vector3d linear_dynamic = swept_probe_displacement("linear", "dynamic", big, 320);
-  EXPECT_LT((linear_dynamic - linear_big).norm(), 1e-4 * linear_big.norm()) << linear_dynamic.transpose();
-  const Eigen::Vector3d corot_dynamic = swept_probe_displacement("corotational", "dynamic", big, 320);
-  EXPECT_LT((corot_dynamic - corot_big).norm(), 1e-3 * corot_big.norm()) << corot_dynamic.transpose();
-  std::printf("swept tube probe at %.0f mN: linear %.4f mm, corotational %.4f mm (%.2f %%; at a tenth of the load "
-              "%.3f %%), dynamic settled to %.2g / %.2g of them\n",
-              big * 1e3, linear_big.norm() * 1e3, corot_big.norm() * 1e3, 100.0 * diff_big, 100.0 * diff_small,
-              (linear_dynamic - linear_big).norm() / linear_big.norm(), (corot_dynamic - corot_big).norm() / corot_big.norm());
+  lumen::test::expect_every_model_agrees(swept_probe_displacement, 4e-3, "swept tube");
 }
 
 namespace {
