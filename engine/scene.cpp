@@ -1,6 +1,7 @@
 #include "engine/scene.hpp"
 
 #include <algorithm>
+#include <array>
 #include <climits>
 #include <cmath>
 #include <filesystem>
@@ -8,6 +9,7 @@
 #include <limits>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -855,19 +857,22 @@ void read_instruments(const Reader& r, const json& list, const std::filesystem::
 
 // Checks across keys: what the compiled model cannot combine is refused here, naming the first key involved.
 void check_combinations(const Reader& r, const json& root, const Scene& s) {
-  // Quadratic elements take their curved walls from the hollow cylinder's geometry.
-  if (s.element == ElementType::kTet10 && s.mesh_type != MeshType::kHollowCylinder)
-    r.fail("mesh.element", std::string("\"tet10\" needs mesh.type \"hollow_cylinder\" (got \"") + name_of(s.mesh_type) + "\")",
-           &root.at("mesh").at("element"));
+  // The node selections that may name end sets: "fixed" and the supports' "where" (key, entries, their JSON).
+  const json none = json::array();
+  const std::array<std::tuple<std::string, const std::vector<FixedSpec>*, const json*>, 2> selections{{
+      {"fixed", &s.fixed, root.contains("fixed") ? &root.at("fixed") : &none},
+      {"support.where", &s.support.where,
+       root.contains("support") && root.at("support").contains("where") ? &root.at("support").at("where") : &none}}};
   // A volume mesh has no generated centreline: no twist; its end sets exist when its end caps are two pieces.
   if (s.mesh_type == MeshType::kVolume) {
     if (s.twist.enabled())
       r.fail("twist", "needs a generated tube (mesh.type \"hollow_cylinder\" or \"swept_tube\"; got \"volume\")",
              nullptr);
-    for (size_t i = 0; i < s.fixed.size(); ++i)
-      if (s.fixed[i].kind == FixedKind::kNamed && !s.volume.mesh.has_node_set(physics::kStartEnd))
-        r.fail(Reader::index("fixed", i), "the volume mesh " + s.volume.file + " has no end node sets (its end caps "
-               "are not two separate pieces): hold nodes by {\"box\": ...} or {\"plane\": ...}", &root.at("fixed")[i]);
+    for (const auto& [key, list, at] : selections)
+      for (size_t i = 0; i < list->size(); ++i)
+        if ((*list)[i].kind == FixedKind::kNamed && !s.volume.mesh.has_node_set(physics::kStartEnd))
+          r.fail(Reader::index(key, i), "the volume mesh " + s.volume.file + " has no end node sets (its end caps "
+                 "are not two separate pieces): hold nodes by {\"box\": ...} or {\"plane\": ...}", &(*at)[i]);
   }
   // A wall grown from a closed surface, or between two, has no ends: no twist, no end sets.
   if (s.mesh_type == MeshType::kSurfaceWall || s.mesh_type == MeshType::kSurfacePair) {
@@ -878,10 +883,11 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
     if (s.twist.enabled())
       r.fail("twist", std::string("needs a generated tube (mesh.type \"hollow_cylinder\" or \"swept_tube\"; got \"") +
                           name_of(s.mesh_type) + "\")", nullptr);
-    for (size_t i = 0; i < s.fixed.size(); ++i)
-      if (s.fixed[i].kind == FixedKind::kNamed)
-        r.fail(Reader::index("fixed", i), from + " is closed and has no end node sets: hold nodes by {\"box\": ...} "
-               "or {\"plane\": ...}", &root.at("fixed")[i]);
+    for (const auto& [key, list, at] : selections)
+      for (size_t i = 0; i < list->size(); ++i)
+        if ((*list)[i].kind == FixedKind::kNamed)
+          r.fail(Reader::index(key, i), from + " is closed and has no end node sets: hold nodes by {\"box\": ...} "
+                 "or {\"plane\": ...}", &(*at)[i]);
   }
   // Quadratic elements come with the quasi-static models only (linear prefactorised, or corotational).
   if (s.element == ElementType::kTet10 && s.solver.type != SolverType::kQuasiStatic)
@@ -932,10 +938,8 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   int held = -1;
   for (size_t i = 0; i < s.probes.size() && held < 0; ++i)
     if (s.probes[i].drive == ProbeDrive::Displacement) held = static_cast<int>(i);
-  // Supports are springs on the outer wall's corner nodes, part of every 4-node model's stiffness (linear and
-  // corotational, quasi-static and dynamic); 10-node tets do not take them yet.
-  if (s.support.enabled() && s.element != ElementType::kTet4)
-    r.fail("support", "needs mesh.element \"tet4\"", &root.at("support"));
+  // (Supports are springs on the outer wall's nodes, part of every model's stiffness: linear and corotational,
+  // quasi-static and dynamic, 4- and 10-node tets.)
   // Grasped nodes are held the same way, on the rest stiffness, as the only held points of the session.
   for (size_t i = 0; i < s.instruments.size(); ++i) {
     if (!s.instruments[i].grasp.enabled) continue;
@@ -1014,9 +1018,16 @@ Scene parse_scene(const std::string& text, const std::string& path) {
   if (root.contains("twist")) read_twist(r, root.at("twist"), s.twist);
   if (root.contains("support")) {
     const json& sp = root.at("support");
-    if (!sp.is_object()) r.fail("support", "must be an object {\"stiffness_n_per_m3\"}", &sp);
-    r.only_keys(sp, "support", {"stiffness_n_per_m3"});
+    if (!sp.is_object()) r.fail("support", "must be an object {\"stiffness_n_per_m3\", \"where\"}", &sp);
+    r.only_keys(sp, "support", {"stiffness_n_per_m3", "where"});
     s.support.stiffness = r.positive(r.require(sp, "support", "stiffness_n_per_m3"), "support.stiffness_n_per_m3");
+    if (sp.contains("where")) {
+      const json& where = sp.at("where");
+      if (!where.is_array() || where.empty())
+        r.fail("support.where", "must be a non-empty list of node selections (as \"fixed\")", &where);
+      for (size_t i = 0; i < where.size(); ++i)
+        s.support.where.push_back(read_fixed(r, where[i], Reader::index("support.where", i), s));
+    }
   }
   if (root.contains("instruments")) read_instruments(r, root.at("instruments"), dir, s);
   if (root.contains("haptics")) read_haptics(r, root.at("haptics"), s.haptics);

@@ -171,9 +171,12 @@ struct TwistKey {
 };
 
 // Elastic supports (key "support"): the organ held by the tissue around it, springs to rest on its outer wall
-// (physics/support.hpp), stiffness per unit area and unit displacement; 0 = none.
+// (physics/support.hpp), stiffness per unit area and unit displacement; 0 = none. Key "where" limits them to the
+// outer-wall nodes that its entries select (the same entries as "fixed": node-set names, boxes, plane sides, arc
+// lengths along the centreline), e.g. a colon held by its mesentery along one side only.
 struct SupportSpec {
-  double stiffness = 0.0;  // N/m^3 (key stiffness_n_per_m3)
+  double stiffness = 0.0;      // N/m^3 (key stiffness_n_per_m3)
+  std::vector<FixedSpec> where;  // the selected nodes; empty: the whole outer wall
   bool enabled() const { return stiffness > 0.0; }
 };
 

@@ -152,7 +152,11 @@ physics::TetMesh build_mesh(const Scene& scene, std::unique_ptr<physics::Quadrat
   require_valid_tets(linear, scene.path);
   if (scene.element != ElementType::kTet10) return linear;
   const auto t1 = Clock::now();
-  quadratic = std::make_unique<physics::QuadraticMesh>(physics::make_quadratic_cylinder(linear, scene.mesh));
+  // Isoparametric on the generated cylinder (edge nodes on its curved walls); straight-sided on every other mesh
+  // (edge nodes at edge midpoints: the walls as faceted as the 4-node mesh's).
+  quadratic = std::make_unique<physics::QuadraticMesh>(scene.mesh_type == MeshType::kHollowCylinder
+                                                           ? physics::make_quadratic_cylinder(linear, scene.mesh)
+                                                           : physics::make_quadratic(linear));
   physics::TetMesh view = physics::linear_view(*quadratic);
   m.mesh_build_ms += ms_since(t1);
   require_valid_tets(view, scene.path);
@@ -206,32 +210,57 @@ std::vector<int> near_centreline_nodes(const FixedSpec& f, const physics::Centre
   return nodes;
 }
 
-// Node sets held still ("ends": both end sets; a box, a plane side or an arc-length interval of the centreline: the
-// nodes it selects, at least one).
-void add_fixed_sets(const Scene& scene, Model& m) {
-  auto hold = [&](const std::vector<int>& nodes) {
-    m.fixed_nodes.insert(m.fixed_nodes.end(), nodes.begin(), nodes.end());
-  };
-  for (size_t i = 0; i < scene.fixed.size(); ++i) {
-    const FixedSpec& f = scene.fixed[i];
-    if (f.kind == FixedKind::kNamed) {
-      if (f.name == NodeSetName::kEnds || f.name == NodeSetName::kStart) hold(m.mesh.node_set(physics::kStartEnd));
-      if (f.name == NodeSetName::kEnds || f.name == NodeSetName::kStop) hold(m.mesh.node_set(physics::kStopEnd));
-      continue;
+// The nodes one node selection selects ("ends": both end sets; a box, a plane side or an arc-length interval of the
+// centreline: the nodes it selects, at least one, or an InputError naming `key`, e.g. "fixed[2]").
+std::vector<int> selection_nodes(const Scene& scene, const Model& m, const FixedSpec& f, const std::string& key) {
+  std::vector<int> nodes;
+  if (f.kind == FixedKind::kNamed) {
+    if (f.name == NodeSetName::kEnds || f.name == NodeSetName::kStart) {
+      const std::vector<int>& ids = m.mesh.node_set(physics::kStartEnd);
+      nodes.insert(nodes.end(), ids.begin(), ids.end());
     }
-    if (f.kind == FixedKind::kNearCentreline) {
-      const std::vector<int> near = near_centreline_nodes(f, scene.swept_tube.centreline, m);
-      if (near.empty())
-        throw InputError(scene.path + ": fixed[" + std::to_string(i) + "].near_centreline: selects no outer-wall node "
-                         "(none has its nearest centreline point in the interval) (value " + f.given + ")");
-      hold(near);
-      continue;
+    if (f.name == NodeSetName::kEnds || f.name == NodeSetName::kStop) {
+      const std::vector<int>& ids = m.mesh.node_set(physics::kStopEnd);
+      nodes.insert(nodes.end(), ids.begin(), ids.end());
     }
-    const std::vector<int> nodes = selected_nodes(f, m.mesh.rest);
-    if (nodes.empty())
-      throw InputError(scene.path + ": fixed[" + std::to_string(i) + "]: selects no node of the mesh");
-    hold(nodes);
+    return nodes;
   }
+  if (f.kind == FixedKind::kNearCentreline) {
+    nodes = near_centreline_nodes(f, scene.swept_tube.centreline, m);
+    if (nodes.empty())
+      throw InputError(scene.path + ": " + key + ".near_centreline: selects no outer-wall node (none has its nearest "
+                       "centreline point in the interval) (value " + f.given + ")");
+    return nodes;
+  }
+  nodes = selected_nodes(f, m.mesh.rest);
+  if (nodes.empty()) throw InputError(scene.path + ": " + key + ": selects no node of the mesh");
+  return nodes;
+}
+
+// Node sets held still (the entries of "fixed").
+void add_fixed_sets(const Scene& scene, Model& m) {
+  for (size_t i = 0; i < scene.fixed.size(); ++i) {
+    const std::vector<int> nodes = selection_nodes(scene, m, scene.fixed[i], "fixed[" + std::to_string(i) + "]");
+    m.fixed_nodes.insert(m.fixed_nodes.end(), nodes.begin(), nodes.end());
+  }
+}
+
+// The elastic supports' diagonal stiffness (3n, N/m; empty without supports): springs on the outer wall's nodes,
+// k times each node's lumped area, kept only on the nodes support.where selects when it is given (at least one of
+// them on the outer wall, or an InputError).
+Eigen::VectorXd support_diagonal(const Scene& scene, const Model& m) {
+  if (!scene.support.enabled()) return Eigen::VectorXd();
+  Eigen::VectorXd S = physics::support_stiffness(m.mesh.rest, m.outer_wall(), scene.support.stiffness).diagonal();
+  if (scene.support.where.empty()) return S;
+  std::vector<char> selected(static_cast<size_t>(m.mesh.n_nodes()), 0);
+  for (size_t i = 0; i < scene.support.where.size(); ++i)
+    for (int v : selection_nodes(scene, m, scene.support.where[i], "support.where[" + std::to_string(i) + "]"))
+      selected[static_cast<size_t>(v)] = 1;
+  for (int v = 0; v < m.mesh.n_nodes(); ++v)
+    if (!selected[static_cast<size_t>(v)]) S.segment<3>(3 * v).setZero();
+  if (!(S.maxCoeff() > 0.0))
+    throw InputError(scene.path + ": support.where: selects no node of the outer wall (the springs would hold nothing)");
+  return S;
 }
 
 // Refuse held node sets (sorted, unique) that take every node: nothing would be left to solve (e.g. a tube one ring
@@ -344,10 +373,7 @@ std::unique_ptr<physics::Integrator> make_integrator(const Scene& scene, const M
   material.young_modulus = scene.material.young_modulus;
   material.poisson_ratio = scene.material.poisson_ratio;
   // The surrounding tissue's springs to rest on the outer wall (their diagonal stiffness, N/m per DOF).
-  const Eigen::VectorXd support =
-      scene.support.enabled()
-          ? Eigen::VectorXd(physics::support_stiffness(m.mesh.rest, m.outer_wall(), scene.support.stiffness).diagonal())
-          : Eigen::VectorXd();
+  const Eigen::VectorXd support = support_diagonal(scene, m);
   if (scene.solver.type == SolverType::kDynamic) {
     physics::DynamicParams params;
     params.elastic = scene.material.model == MaterialModel::kCorotational ? physics::ElasticModel::kCorotational
@@ -361,7 +387,7 @@ std::unique_ptr<physics::Integrator> make_integrator(const Scene& scene, const M
   }
   if (scene.material.model == MaterialModel::kCorotational && quadratic)
     return std::make_unique<physics::CorotationalQuasiStatic>(*quadratic, material, m.fixed_nodes,
-                                                              corotational_options(scene), m.prescribed);
+                                                              corotational_options(scene), m.prescribed, support);
   if (scene.material.model == MaterialModel::kCorotational)
     return std::make_unique<physics::CorotationalQuasiStatic>(m.mesh, material, m.fixed_nodes,
                                                               corotational_options(scene), m.prescribed, support);

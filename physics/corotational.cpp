@@ -1059,25 +1059,24 @@ bool newton_step(CorotationalState& state, CorotationalResidual& residual_at, co
 
 // Chord iterations (CorotationalMethod::chord): du = A^-1 r with A the lagged factorisation (the rest one until
 // the first refresh), one back-substitution a step, Anderson-mixed; a refresh of the factorisation at the current
-// rotations is asked for every options.refactor_cg_iterations steps of a solve (on the background thread, or at
-// once). result: in the start's residual, out the end's.
+// rotations is asked for every options.refactor_cg_iterations steps, counted over solves (on the background
+// thread, or at once). result: in the start's residual, out the end's.
 void chord_iterations(const CorotationalModel& model, const CorotationalOptions& options, CorotationalState& state,
                       CorotationalResidual& residual, CorotationalResult& result) {
   AndersonMixing anderson(options.anderson_depth);
   Eigen::VectorXd du;
   DivergenceGuard guard(state, residual);
-  int since_refresh = 0;  // steps since this solve last asked for a factorisation
   for (;;) {
     result.n_inverted = state.n_inverted;
     result.converged = result.residual <= options.tolerance;
     if (result.converged || result.iterations >= options.max_iterations) break;
     adopt_finished_factorisation(state, result);
-    if (options.refactor_cg_iterations > 0 && since_refresh >= options.refactor_cg_iterations &&
+    if (options.refactor_cg_iterations > 0 && state.chord_steps_since_refresh >= options.refactor_cg_iterations &&
         !state.pending.valid()) {
       start_factorisation(model, options, state, result);
-      since_refresh = 0;
+      state.chord_steps_since_refresh = 0;
     }
-    ++since_refresh;
+    ++state.chord_steps_since_refresh;
     // The step on the lagged factorisation, mixed with the last ones when that lowers the residual.
     const StaticSolver& A = state.preconditioner ? *state.preconditioner : model.solver();
     A.solve(residual.r(), du);

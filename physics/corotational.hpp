@@ -237,8 +237,9 @@ enum class CorotationalTangent { warped, projected, exact };
 // chord: the lagged factorisation itself is the operator (du = A^-1 r, one back-substitution, no CG): a chord /
 // quasi-Newton iteration whose operator is K_w at the rotations of the last refresh, accelerated by Anderson
 // mixing (the multisecant update Liu, Bouaziz and Kavan 2017 get from L-BFGS over a constant prefactored matrix),
-// with the factorisation refreshed at the current rotations every refactor_cg_iterations steps of a solve (on the
-// background thread with refactor_in_background; warped tangent only).
+// with the factorisation refreshed at the current rotations every refactor_cg_iterations steps, counted over solves
+// so that solves of one or two steps (a frame budget) still refresh it (on the background thread with
+// refactor_in_background; warped tangent only).
 enum class CorotationalMethod { pcg, chord };
 
 // Iteration bounds and tolerances of the corotational solves (validated by each solve).
@@ -283,6 +284,7 @@ struct CorotationalState {
   Eigen::VectorXd u_eval;                     // displacement of the cached evaluation, 3n, metres
   int n_inverted = 0;                         // inverted tets at u_eval
   Eigen::VectorXd u_previous;                 // u before the last solve (for extrapolate), 3n, metres
+  int chord_steps_since_refresh = 0;          // chord steps (over solves) since a factorisation was last asked for
   // Lagged warped preconditioner: K_w factorised at earlier rotations (null: the model's rest factorisation),
   // and a factorisation in progress on a background thread (valid() while one runs).
   std::shared_ptr<const StaticSolver> preconditioner;

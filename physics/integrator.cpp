@@ -116,8 +116,9 @@ CorotationalQuasiStatic::CorotationalQuasiStatic(const TetMesh& mesh, const Line
 
 CorotationalQuasiStatic::CorotationalQuasiStatic(const QuadraticMesh& mesh, const LinearMaterial& material,
                                                  const std::vector<int>& fixed_nodes,
-                                                 const CorotationalOptions& options, const PrescribedMotion& prescribed)
-    : model_(mesh, material, fixed_nodes), options_(options), prescribed_(prescribed) {
+                                                 const CorotationalOptions& options, const PrescribedMotion& prescribed,
+                                                 const Eigen::VectorXd& support)
+    : model_(mesh, material, fixed_nodes, support), options_(options), prescribed_(prescribed) {
   validate_options(options_);
   if (options_.tangent != CorotationalTangent::warped) model_.elements().require_linear("CorotationalQuasiStatic");
 }

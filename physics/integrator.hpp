@@ -131,10 +131,11 @@ class CorotationalQuasiStatic final : public Integrator {
   CorotationalQuasiStatic(const TetMesh& mesh, const LinearMaterial& material, const std::vector<int>& fixed_nodes,
                           const CorotationalOptions& options, const PrescribedMotion& prescribed,
                           const Eigen::VectorXd& support = Eigen::VectorXd());
-  // On 10-node tets (the warped tangent only: std::invalid_argument for another options.tangent).
+  // On 10-node tets (the warped tangent only: std::invalid_argument for another options.tangent); support as above
+  // (3n over the quadratic mesh's nodes, corners and edge nodes).
   CorotationalQuasiStatic(const QuadraticMesh& mesh, const LinearMaterial& material,
                           const std::vector<int>& fixed_nodes, const CorotationalOptions& options,
-                          const PrescribedMotion& prescribed);
+                          const PrescribedMotion& prescribed, const Eigen::VectorXd& support = Eigen::VectorXd());
   Prediction predict(FrameLoads& loads, const Eigen::VectorXd& prescribed_c, const SimState& state,
                      IntegratorWork& work, Eigen::VectorXd& u1) const override;
   const StaticSolver& contact_solver() const override { return model_.solver(); }

@@ -12,7 +12,7 @@ set(lumen_test_costs
   "HardCasesCorotational.ClosureThenFiveTimesTheClosingForce 28"
   "HardCases.SoakTenThousandFrames 26"
   "Scenes.AneurysmFullSceneNeverIntersects 16"
-  "InstrumentScenes.AFrameWithMoreContactsThanTheCapTakesTheSafeFallback 22"
+  "InstrumentScenes.AFrameWithMoreContactsThanTheCapTakesTheSafeFallback 12"
   "HardCasesCorotational.NearlyIncompressible0499 14"
   "HapticsStiffness.LocalStiffnessOfAGraspIncludesTheHoldAndMatchesFiniteDifferences 14"
   "HardCasesCorotational.ForceStepInOneFrame 13"

@@ -32,5 +32,5 @@ cmake -S "$root" -B "$root/build-asan" -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMP
   -DLUMEN_BUILD_BENCHMARKS=OFF -DCMAKE_CXX_FLAGS_DEBUG="$line_tables" >/dev/null
 cmake --build "$root/build-asan" -j"$(nproc)" --target lumen_unit_tests lumen_fuzz
 (cd "$root/build-asan" && ctest --output-on-failure -j"$(nproc)" -L unit)
-# Every file reader fuzzed for a bounded time (6 s each, two at a time: under a minute); a finding fails the run.
-"$root/tools/fuzz.sh" "$root/build-asan" 6
+# Every file reader fuzzed for a bounded time (4 s each, two at a time: about half a minute); a finding fails the run.
+"$root/tools/fuzz.sh" "$root/build-asan" 4

@@ -42,36 +42,62 @@ TEST(Support, LumpedAreasSumToThePolygonPrismAndStiffnessIsKTimesThem) {
 }
 
 // Springs much stiffer than the wall: the loaded node moves F / (k A) with A its lumped area, the area of one
-// quad of the outer wall (chord x cell length) for a node inside the wall; unsupported it moves far more.
+// quad of the outer wall (chord x cell length) for a node inside the wall; unsupported it moves far more. On 10-node
+// tets (the outer wall split over its edge nodes into quads of half the size each way) a corner node's area is a
+// quarter of that; the limit holds for the linear and the corotational model alike.
 TEST(Support, StiffSupportsCarryTheLoadOnTheNodesOwnSpring) {
-  auto displacement = [](double k) {
+  // The probe's displacement; area (optional): the loaded node's lumped area, a third of each outer-wall
+  // triangle around it summed here from the compiled mesh.
+  auto displacement = [](double k, const char* element, const char* model, double* area = nullptr) {
     json s = test::small_tube_scene("supported");
     s["frames"] = 1;
+    s["mesh"]["element"] = element;
+    s["material"]["model"] = model;
     // At an outer-wall node: angle 0, mid-length (ring 5 of 10).
     s["probes"] = json::parse(R"([{"name": "p", "point": [0.013, 0.0, 0.05],
                                    "track": [{"t": 0.0, "force": [-0.01, 0, 0]}]}])");
     if (k > 0) s["support"] = {{"stiffness_n_per_m3", k}};
-    const auto model = engine::compile_model(engine::parse_scene(s.dump(), "supported.json"));
+    const auto m = engine::compile_model(engine::parse_scene(s.dump(), "supported.json"));
+    if (area) {
+      Eigen::Index node = 0;
+      (m->mesh.rest.rowwise() - Eigen::RowVector3d(0.013, 0.0, 0.05)).rowwise().squaredNorm().minCoeff(&node);
+      *area = 0.0;
+      const Tris& wall = m->outer_wall();
+      for (Eigen::Index t = 0; t < wall.rows(); ++t) {
+        if (wall(t, 0) != node && wall(t, 1) != node && wall(t, 2) != node) continue;
+        const Eigen::Vector3d a = m->mesh.rest.row(wall(t, 0)), b = m->mesh.rest.row(wall(t, 1)),
+                              c = m->mesh.rest.row(wall(t, 2));
+        *area += (b - a).cross(c - a).norm() / 6.0;
+      }
+    }
     engine::SessionOptions opt;
     opt.render = false;
-    const engine::SessionResult r = engine::run_session(*model, engine::make_inputs(engine::parse_scene(s.dump(), "supported.json")), opt);
+    const engine::SessionResult r = engine::run_session(*m, engine::make_inputs(engine::parse_scene(s.dump(), "supported.json")), opt);
+    EXPECT_FALSE(r.frames.back().numerical_failure) << element << " " << model;
     return r.frames.back().probe_displacement[0];
   };
   constexpr double kStiff = 1e10, kForce = 0.01;
   const double node_area = chord() * kLength / kAlong;
-  const Eigen::Vector3d stiff = displacement(kStiff);
+  const Eigen::Vector3d stiff = displacement(kStiff, "tet4", "linear");
   EXPECT_NEAR(stiff.x(), -kForce / (kStiff * node_area), 1e-3 * kForce / (kStiff * node_area));
   EXPECT_NEAR(stiff.y(), 0.0, 1e-12);
+  for (const char* model : {"linear", "corotational"}) {
+    double area = 0.0;
+    const Eigen::Vector3d quadratic = displacement(kStiff, "tet10", model, &area);
+    EXPECT_NEAR(area, node_area / 4, 0.05 * node_area / 4);  // (the edge nodes on the curved wall: not exactly)
+    EXPECT_NEAR(quadratic.x(), -kForce / (kStiff * area), 1e-3 * kForce / (kStiff * area)) << model;
+    EXPECT_NEAR(quadratic.y(), 0.0, 1e-4 * kForce / (kStiff * area)) << model;  // (the split wall's diagonals)
+  }
   // Softer supports: the wall shares the load, so the node moves less than its spring alone would allow ...
   constexpr double kSoft = 1e5;
-  const Eigen::Vector3d soft = displacement(kSoft);
+  const Eigen::Vector3d soft = displacement(kSoft, "tet4", "linear");
   EXPECT_GT(soft.x(), -kForce / (kSoft * node_area));
   // ... and more than with stiffer springs; without supports most of all.
   EXPECT_LT(soft.x(), stiff.x());
-  EXPECT_LT(displacement(0.0).x(), soft.x());
+  EXPECT_LT(displacement(0.0, "tet4", "linear").x(), soft.x());
 }
 
-TEST(Support, KeysAreValidatedAndNeedA4NodeModel) {
+TEST(Support, KeysAreValidatedAndEveryModelTakesThem) {
   auto error_of = [](const json& s) { return test::message_of<engine::InputError>([&] { engine::parse_scene(s.dump(), "s.json"); }); };
   json s = test::small_tube_scene("keys");
   s["frames"] = 1;
@@ -83,7 +109,7 @@ TEST(Support, KeysAreValidatedAndNeedA4NodeModel) {
   EXPECT_NE(error_of(s).find("stiffness_n_per_m3"), std::string::npos) << error_of(s);
   s["support"] = {{"stiffness_n_per_m3", 1000.0}};
   s["mesh"]["element"] = "tet10";
-  EXPECT_EQ(error_of(s), "s.json: support: needs mesh.element \"tet4\" (value {\"stiffness_n_per_m3\":1000.0})");
+  EXPECT_EQ(error_of(s), "") << "10-node tets take supports";
   s["mesh"].erase("element");
   s["material"]["model"] = "corotational";
   EXPECT_EQ(error_of(s), "") << "the corotational model takes supports";
@@ -155,4 +181,56 @@ TEST(Support, DynamicRunsOnSupportsSettleOnTheQuasiStaticAnswer) {
     EXPECT_LT((settled - still).norm(), 1e-3 * still.norm()) << model << ": " << settled.transpose() << " vs "
                                                               << still.transpose();
   }
+}
+
+// support.where limits the springs to the outer-wall nodes its entries select (entries as in "fixed"). With springs
+// much stiffer than the wall, a load at a selected node moves F / (k A) (its own spring, as with the whole wall
+// supported); a selection that leaves that node out (the other half of the tube, by a plane side) lets it move
+// orders of magnitude more, yet less than without supports; a box around the whole organ is the same as no "where",
+// bit for bit. Selections that select nothing, or nothing on the outer wall, are refused naming the entry.
+TEST(Support, WhereLimitsTheSpringsToTheSelectedOuterWallNodes) {
+  constexpr double kStiff = 1e10, kForce = 0.01;
+  auto scene_with = [&](const json& where) {
+    json s = test::small_tube_scene("supported");
+    s["frames"] = 1;
+    s["probes"] = json::parse(R"([{"name": "p", "point": [0.013, 0.0, 0.05],
+                                   "track": [{"t": 0.0, "force": [-0.01, 0, 0]}]}])");
+    s["support"] = {{"stiffness_n_per_m3", kStiff}};
+    if (!where.is_null()) s["support"]["where"] = where;
+    return s;
+  };
+  auto displacement = [](const json& s) {
+    const engine::Scene scene = engine::parse_scene(s.dump(), "supported.json");
+    const auto m = engine::compile_model(scene);
+    engine::SessionOptions opt;
+    opt.render = false;
+    return engine::run_session(*m, engine::make_inputs(scene), opt).frames.back().probe_displacement[0];
+  };
+  const double own_spring = kForce / (kStiff * chord() * kLength / kAlong);
+  const json x_positive = json::parse(R"([{"plane": {"point": [0, 0, 0], "normal": [1, 0, 0]}}])");
+  const json x_negative = json::parse(R"([{"plane": {"point": [0, 0, 0], "normal": [-1, 0, 0]}}])");
+  const json everything = json::parse(R"([{"box": [[-1, -1, -1], [1, 1, 1]]}])");
+  EXPECT_NEAR(displacement(scene_with(x_positive)).x(), -own_spring, 1e-3 * own_spring);
+  const Eigen::Vector3d other_half = displacement(scene_with(x_negative));
+  json unsupported = scene_with(json());
+  unsupported.erase("support");
+  EXPECT_LT(other_half.x(), -100.0 * own_spring);
+  EXPECT_GT(other_half.x(), displacement(unsupported).x());
+  EXPECT_EQ(displacement(scene_with(everything)), displacement(scene_with(json())));
+
+  auto error_of = [&](const json& where) {
+    return test::message_of<engine::InputError>([&] {
+      const json s = scene_with(where);
+      engine::compile_model(engine::parse_scene(s.dump(), "s.json"));
+    });
+  };
+  EXPECT_EQ(error_of(json::array()), "s.json: support.where: must be a non-empty list of node selections (as \"fixed\") "
+                                     "(value [])");
+  EXPECT_EQ(error_of(json::parse(R"([{"box": [[1, 1, 1], [2, 2, 2]]}])")),
+            "s.json: support.where[0]: selects no node of the mesh");
+  // (The inner wall's nodes only: a box of radius 10.5 mm around the axis holds the 10 mm lumen wall.)
+  EXPECT_EQ(error_of(json::parse(R"([{"box": [[-0.0105, -0.0105, -1], [0.0105, 0.0105, 1]]}])")),
+            "s.json: support.where: selects no node of the outer wall (the springs would hold nothing)");
+  EXPECT_NE(error_of(json::parse(R"(["middle"])")).find("support.where[0]"), std::string::npos)
+      << error_of(json::parse(R"(["middle"])"));
 }

@@ -296,6 +296,40 @@ TEST(ChordMethod, ADivergingSolveGoesBackToItsStartAndConvergesAfterItsRefactori
   EXPECT_LT((state.u - reference.u).norm(), 1e-5 * reference.u.norm());
 }
 
+// A frame budget of one chord step a solve (solver.max_iterations 1): the refresh of the lagged factorisation is
+// counted over solves, so a sequence of one-step solves still gets its operator refreshed every
+// refactor_cg_iterations steps (counted per solve, it never would be), and the sequence reaches the equilibrium of
+// a tight PCG solve.
+TEST(ChordMethod, OneStepSolvesRefreshTheirFactorisationAcrossSolves) {
+  const Pressed p = pressed_tube(3e-2);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
+  CorotationalOptions chord;
+  chord.method = CorotationalMethod::chord;
+  chord.tolerance = 1e-8;
+  chord.max_iterations = 1;
+  chord.anderson_depth = 0;  // (mixing restarts every solve; one step has nothing to mix)
+  chord.refactor_cg_iterations = 4;
+  CorotationalState state;
+  int solves = 0, refactorisations = 0;
+  bool converged = false;
+  for (; solves < 400 && !converged; ++solves) {
+    const CorotationalResult r = solve_corotational(model, p.f, state, chord);
+    ASSERT_FALSE(r.diverged) << "solve " << solves;
+    refactorisations += r.refactorisations;
+    converged = r.converged;
+  }
+  std::printf("one-step chord solves: %d solves, %d refactorisations\n", solves, refactorisations);
+  ASSERT_TRUE(converged);
+  EXPECT_GE(refactorisations, solves / 4 - 1);  // one every 4 steps (the last may not have been due)
+  CorotationalOptions pcg;
+  pcg.tolerance = 1e-10;
+  pcg.max_iterations = 4000;
+  pcg.max_cg_iterations = 400;
+  CorotationalState reference;
+  ASSERT_TRUE(solve_corotational(model, p.f, reference, pcg).converged);
+  EXPECT_LT((state.u - reference.u).norm(), 1e-5 * reference.u.norm());
+}
+
 TEST(ChordMethod, NeedsTheWarpedTangent) {
   CorotationalOptions o;
   o.method = CorotationalMethod::chord;
