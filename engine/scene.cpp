@@ -865,9 +865,9 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
        root.contains("support") && root.at("support").contains("where") ? &root.at("support").at("where") : &none}}};
   // A volume mesh has no generated centreline: no twist; its end sets exist when its end caps are two pieces.
   if (s.mesh_type == MeshType::kVolume) {
-    if (s.twist.enabled())
-      r.fail("twist", "needs a generated tube (mesh.type \"hollow_cylinder\" or \"swept_tube\"; got \"volume\")",
-             nullptr);
+    if (s.twist.enabled() && !s.volume.mesh.has_node_set(physics::kStartEnd))
+      r.fail("twist", "the volume mesh " + s.volume.file + " has no end node sets (its end caps are not two separate "
+             "pieces), so it has no end to turn", nullptr);
     for (const auto& [key, list, at] : selections)
       for (size_t i = 0; i < list->size(); ++i)
         if ((*list)[i].kind == FixedKind::kNamed && !s.volume.mesh.has_node_set(physics::kStartEnd))

@@ -14,6 +14,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include <Eigen/Eigenvalues>
+
 namespace lumen::engine {
 namespace {
 
@@ -271,23 +273,60 @@ void require_free_nodes(const Scene& scene, const Model& m) {
                      " nodes), nothing is left to move");
 }
 
-// Twisted end ring: turned about the centreline tangent through its centre (the generator's centreline frame).
-// Its nodes are prescribed (and fixed): u = (cos theta - 1) P + sin theta Q with the basis [P Q].
+// The centroid of a node set's rest positions (metres).
+Eigen::Vector3d centroid(const Points& rest, const std::vector<int>& nodes) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int v : nodes) c += rest.row(v).transpose();
+  return c / static_cast<double>(nodes.size());
+}
+
+// A volume mesh's end (its end node set, a ring of the cut wall): the twist's centre, the set's centroid, and axis,
+// the normal of the set's least-squares plane pointing from the start end to the stop end. An end set whose nodes
+// do not span a plane (fewer than 3, or on a line) has no axis: InputError naming the file.
+void volume_end_axis(const Scene& scene, bool start, Model& m) {
+  const std::vector<int>& nodes = m.mesh.node_set(start ? physics::kStartEnd : physics::kStopEnd);
+  const Eigen::Vector3d c = centroid(m.mesh.rest, nodes);
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (int v : nodes) {
+    const Eigen::Vector3d r = m.mesh.rest.row(v).transpose() - c;
+    scatter += r * r.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(scatter);  // eigenvalues ascending
+  if (nodes.size() < 3 || !(eig.eigenvalues()[1] > kEndPlaneSpread * eig.eigenvalues()[2]))
+    throw InputError(scene.path + ": twist: the " + (start ? "start" : "stop") + " end of " + scene.volume.file +
+                     " (" + std::to_string(nodes.size()) + " nodes) does not span a plane, so it has no axis to turn about");
+  Eigen::Vector3d a = eig.eigenvectors().col(0);
+  const Eigen::Vector3d along = centroid(m.mesh.rest, m.mesh.node_set(physics::kStopEnd)) -
+                                centroid(m.mesh.rest, m.mesh.node_set(physics::kStartEnd));
+  if (a.dot(along) < 0.0) a = -a;
+  m.twist_center = c;
+  m.twist_axis = a.normalized();
+}
+
+// Twisted end ring: turned about the tube's axis at that end through the ring's centre (a generated tube: the
+// centreline frame of its end ring; a volume mesh: volume_end_axis). Its nodes are prescribed (and fixed):
+// u = (cos theta - 1) P + sin theta Q with the basis [P Q].
 void add_twist(const Scene& scene, Model& m) {
   if (!scene.twist.enabled()) return;
   const bool start = scene.twist.end == TwistEnd::kStart;
   physics::PrescribedMotion& pm = m.prescribed;
   pm.nodes = start ? m.mesh.node_set(physics::kStartEnd) : m.mesh.node_set(physics::kStopEnd);
+  const bool generated = scene.mesh_type != MeshType::kVolume;  // (the scene refuses twists on closed walls)
   const physics::TubeRing& ring = m.end_rings[start ? 0 : 1];
-  m.twist_center = ring.frame.point;
-  m.twist_axis = ring.frame.tangent;
+  if (generated) {
+    m.twist_center = ring.frame.point;
+    m.twist_axis = ring.frame.tangent;
+  } else {
+    volume_end_axis(scene, start, m);
+  }
   // Rotation basis per ring node: R(theta) r - r = (cos theta - 1) (r - a (a . r)) + sin theta (a x r).
   pm.basis = Eigen::MatrixXd::Zero(3 * m.mesh.n_nodes(), 2);
   const Eigen::Vector3d& a = m.twist_axis;
   for (int node : pm.nodes) {
     const Eigen::Vector3d r = m.mesh.rest.row(node).transpose() - m.twist_center;
-    // The generator puts every end node in the ring plane; a node off it is a bug, not a user's mistake.
-    if (std::abs(a.dot(r)) > 1e-9 * ring.outer_radius)
+    // The generator puts every end node in the ring plane; a node off it is a bug, not a user's mistake. (A volume
+    // mesh's end need not be planar: its nodes turn rigidly about the axis all the same.)
+    if (generated && std::abs(a.dot(r)) > 1e-9 * ring.outer_radius)
       throw std::logic_error("compile_model: twist: end node " + std::to_string(node) + " is off the ring plane (" +
                              std::to_string(a.dot(r)) + " m)");
     pm.basis.block<3, 1>(3 * node, 0) = r - a * a.dot(r);

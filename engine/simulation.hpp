@@ -38,6 +38,9 @@ constexpr double kCouplingStiffnessScale = 1.0;
 // but a failed solve (no organ in a training scene moves ten times its own size): the frame is a numerical failure
 // and the last good frame stands. (Collision cannot work on such positions: the CCD's cubic overflows.)
 constexpr double kImplausibleDisplacementScale = 10.0;
+// A volume mesh's end set spans a plane (and so has an axis to twist about) when the second principal moment of its
+// nodes about their centroid is above this fraction of the first (a ring: 1; nodes on a line: 0).
+constexpr double kEndPlaneSpread = 1e-6;
 
 // The value at a surface point of a per-node field (positions, or displacements as n x 3): the barycentric sum
 // over its nodes.
