@@ -46,19 +46,7 @@ lumen::test::CheckedRun run_checked(const json& scene_json, const std::string& p
 
 TEST(InstrumentSession, ProbePressNeverPenetratesTheOrgan) {
   const lumen::test::CheckedRun c = run_checked(press_scene(0.003, 20, 24));
-  int touching = 0;
-  for (size_t i = 0; i < c.result.frames.size(); ++i) {
-    const FrameRecord& f = c.result.frames[i];
-    EXPECT_EQ(f.instrument_intersecting_pairs, 0) << "frame " << f.frame;
-    EXPECT_EQ(f.intersecting_pairs, 0) << "frame " << f.frame;
-    EXPECT_FALSE(f.numerical_failure) << "frame " << f.frame;
-    // Every tool vertex outside the organ by at least a quarter of the gap (the re-check clears half of it), and
-    // no organ node inside the tool.
-    EXPECT_GE(c.clearance[i].min_tool_vertex, 0.25 * kGap) << "frame " << f.frame;
-    EXPECT_EQ(c.clearance[i].organ_nodes_inside_tool, 0) << "frame " << f.frame;
-    ASSERT_EQ(f.instruments.size(), 1u);
-    touching += f.instruments[0].contacts > 0;
-  }
+  const int touching = lumen::test::expect_tool_clear(c, kGap);
   // The tool really pressed (3 mm past the wall): contact on most frames, the wall pushed in by millimetres.
   EXPECT_GT(touching, 12);
   EXPECT_GT(c.result.frames.back().max_displacement, 0.002);
@@ -228,21 +216,16 @@ TEST(InstrumentSession, ProbePressOnASweptTubeWithHaustraNeverPenetrates) {
                                   {{"t", 0.5}, {"position", {0.0, 0.012 - 0.003, 0.05}}}};
   std::ofstream(d / "s.json") << s.dump();
   const lumen::test::CheckedRun c = run_checked(s, (d / "s.json").string());
-  int touching = 0;
+  lumen::test::expect_tool_clear(c, kGap);
+  int compared = 0;  // solved frames with contact: the force on the tool balances K u
   for (size_t i = 0; i < c.result.frames.size(); ++i) {
     const FrameRecord& f = c.result.frames[i];
-    EXPECT_EQ(f.instrument_intersecting_pairs, 0) << "frame " << f.frame;
-    EXPECT_EQ(f.intersecting_pairs, 0) << "frame " << f.frame;
-    EXPECT_FALSE(f.numerical_failure) << "frame " << f.frame;
-    EXPECT_GE(c.clearance[i].min_tool_vertex, 0.25 * kGap) << "frame " << f.frame;
-    EXPECT_EQ(c.clearance[i].organ_nodes_inside_tool, 0) << "frame " << f.frame;
-    ASSERT_EQ(f.instruments.size(), 1u);
-    if (f.fallback || f.instruments[0].contacts == 0) continue;
-    ++touching;
+    if (f.fallback || f.instruments.empty() || f.instruments[0].contacts == 0) continue;
+    ++compared;
     EXPECT_LE((f.instruments[0].force + c.elastic[i].force).norm(), 1e-6 * c.elastic[i].force.norm() + 1e-12)
         << "frame " << f.frame;
     EXPECT_GT(f.instruments[0].force.y(), 0.0) << "frame " << f.frame;
   }
-  EXPECT_GT(touching, 8);
+  EXPECT_GT(compared, 8);
   EXPECT_GT(c.result.frames.back().max_displacement, 0.002);
 }
