@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # Install the Debian packages Lumen builds and runs with (idempotent).
 set -euo pipefail
-pkgs=(build-essential cmake pkg-config libeigen3-dev libsuitesparse-dev libosmesa6-dev
+# libopenblas0-pthread: OpenBLAS takes over Debian's libblas.so.3 alternative from the reference BLAS, for CHOLMOD's
+# supernodal factorisations and solves (the threaded flavour is the one safe to call from two threads at once;
+# physics/fem.cpp runs it on one thread a call).
+pkgs=(build-essential cmake pkg-config libeigen3-dev libsuitesparse-dev libopenblas0-pthread libosmesa6-dev
       libassimp-dev libexpat1-dev libpng-dev libavcodec-dev libavformat-dev libavutil-dev libswscale-dev
       nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev python3 python3-meshio python3-matplotlib
       calculix-ccx libopenigtlink-dev openigtlink-examples libnglib-dev libcgal-dev clang libclang-rt-dev)
