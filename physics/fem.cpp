@@ -21,7 +21,8 @@ using Mat43 = Eigen::Matrix<double, 4, 3>;
 
 // CHOLMOD's supernodal factorisations and solves call the system BLAS, OpenBLAS's threaded flavour from
 // tools/setup.sh (libopenblas0-pthread, the one that is safe to call from two threads at once: the engine solves
-// on one while it factorises on the other; the serial flavour corrupted factorisations made during solves). Its
+// on one while it factorises on the other; a single-threaded OpenBLAS is only with USE_LOCKING, which Debian's
+// serial flavour lacks, and with it the lagged factorisations went bad). Its
 // own threads would compete with the engine's second thread on a 2-core machine, so it runs one thread per call:
 // openblas_set_num_threads(1) when the BLAS loaded is OpenBLAS (looked up at run time: no link to it), once.
 void use_one_blas_thread() {
