@@ -296,9 +296,10 @@ void volume_end_axis(const Scene& scene, bool start, Model& m) {
     throw InputError(scene.path + ": twist: the " + (start ? "start" : "stop") + " end of " + scene.volume.file +
                      " (" + std::to_string(nodes.size()) + " nodes) does not span a plane, so it has no axis to turn about");
   Eigen::Vector3d a = eig.eigenvectors().col(0);
-  const Eigen::Vector3d along = centroid(m.mesh.rest, m.mesh.node_set(physics::kStopEnd)) -
-                                centroid(m.mesh.rest, m.mesh.node_set(physics::kStartEnd));
-  if (a.dot(along) < 0.0) a = -a;
+  // (The other end's centroid against this one's: start -> stop.)
+  const Eigen::Vector3d other =
+      centroid(m.mesh.rest, m.mesh.node_set(start ? physics::kStopEnd : physics::kStartEnd));
+  if (a.dot(start ? other - c : c - other) < 0.0) a = -a;
   m.twist_center = c;
   m.twist_axis = a.normalized();
 }

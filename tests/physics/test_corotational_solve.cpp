@@ -138,6 +138,18 @@ TEST(AugmentedContacts, BadContactsAreRefusedNamingTheField) {
 namespace lumen::physics {
 namespace {
 
+// u is the equilibrium under f that PCG on K_w finds at tolerance 1e-10 (within 1e-5 relative).
+void expect_at_tight_pcg_equilibrium(const CorotationalModel& model, const Eigen::VectorXd& f,
+                                     const Eigen::VectorXd& u) {
+  CorotationalOptions pcg;
+  pcg.tolerance = 1e-10;
+  pcg.max_iterations = 4000;
+  pcg.max_cg_iterations = 400;
+  CorotationalState reference;
+  ASSERT_TRUE(solve_corotational(model, f, reference, pcg).converged);
+  EXPECT_LT((u - reference.u).norm(), 1e-5 * reference.u.norm());
+}
+
 // Anderson mixing changes the path of the fixed-point iterations, not where they end: a large pinch (the wall
 // deflects by about its thickness) solved to a tight tolerance with and without it.
 TEST(AndersonMixing, ReachesTheSameEquilibriumAsThePlainIteration) {
@@ -287,13 +299,7 @@ TEST(ChordMethod, ADivergingSolveGoesBackToItsStartAndConvergesAfterItsRefactori
   const CorotationalResult good = solve_corotational(model, full.f, state, chord);
   ASSERT_TRUE(good.converged);
   EXPECT_FALSE(good.diverged);
-  CorotationalOptions pcg;
-  pcg.tolerance = 1e-10;
-  pcg.max_iterations = 4000;
-  pcg.max_cg_iterations = 400;
-  CorotationalState reference;
-  ASSERT_TRUE(solve_corotational(model, full.f, reference, pcg).converged);
-  EXPECT_LT((state.u - reference.u).norm(), 1e-5 * reference.u.norm());
+  expect_at_tight_pcg_equilibrium(model, full.f, state.u);
 }
 
 // A frame budget of one chord step a solve (solver.max_iterations 1): the refresh of the lagged factorisation is
@@ -321,13 +327,7 @@ TEST(ChordMethod, OneStepSolvesRefreshTheirFactorisationAcrossSolves) {
   std::printf("one-step chord solves: %d solves, %d refactorisations\n", solves, refactorisations);
   ASSERT_TRUE(converged);
   EXPECT_GE(refactorisations, solves / 4 - 1);  // one every 4 steps (the last may not have been due)
-  CorotationalOptions pcg;
-  pcg.tolerance = 1e-10;
-  pcg.max_iterations = 4000;
-  pcg.max_cg_iterations = 400;
-  CorotationalState reference;
-  ASSERT_TRUE(solve_corotational(model, p.f, reference, pcg).converged);
-  EXPECT_LT((state.u - reference.u).norm(), 1e-5 * reference.u.norm());
+  expect_at_tight_pcg_equilibrium(model, p.f, state.u);
 }
 
 TEST(ChordMethod, NeedsTheWarpedTangent) {
