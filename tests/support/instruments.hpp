@@ -52,11 +52,17 @@ inline bool inside_closed(const Points& x, const Tris& tris, const Eigen::Vector
   return crossings % 2 == 1;
 }
 
-// Distance from p to the surface (x, tris) by brute force over its triangles, negative inside it.
+// Distance from p to the surface (x, tris) by brute force over its triangles, negative inside it. A triangle whose
+// bounding box is farther from p than the nearest triangle so far is skipped: the distance to a triangle is never
+// less than the distance to its box, so the minimum is exact.
 inline double signed_distance(const Points& x, const Tris& tris, const Eigen::Vector3d& p) {
   double d = std::numeric_limits<double>::infinity();
-  for (int t = 0; t < tris.rows(); ++t)
-    d = std::min(d, collision::point_triangle_distance(p, x.row(tris(t, 0)), x.row(tris(t, 1)), x.row(tris(t, 2))));
+  for (int t = 0; t < tris.rows(); ++t) {
+    const Eigen::Vector3d a = x.row(tris(t, 0)), b = x.row(tris(t, 1)), c = x.row(tris(t, 2));
+    const Eigen::Vector3d lo = a.cwiseMin(b).cwiseMin(c), hi = a.cwiseMax(b).cwiseMax(c);
+    if ((lo - p).cwiseMax(p - hi).cwiseMax(0.0).norm() >= d) continue;
+    d = std::min(d, collision::point_triangle_distance(p, a, b, c));
+  }
   return inside_closed(x, tris, p) ? -d : d;
 }
 
@@ -86,16 +92,15 @@ inline ToolClearance tool_clearance(const Model& m, const State& s) {
   return c;
 }
 
-// The organ's elastic nodal forces K u (linear tet4 stiffness assembled here from the mesh and the material) at
-// the committed state, summed over the nodes that are not fixed: with no other load, the total force the
-// instruments put on the organ. torque: their moment about `point`.
+// The organ's elastic nodal forces K u at the committed state (K: the linear tet4 stiffness, assembled by the caller
+// from the mesh and the material with physics::assemble_stiffness), summed over the nodes that are not fixed: with
+// no other load, the total force the instruments put on the organ. torque: their moment about `point`.
 struct ElasticLoad {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();
   Eigen::Vector3d torque = Eigen::Vector3d::Zero();
 };
-inline ElasticLoad elastic_load(const Model& m, const State& s, const physics::LinearMaterial& material,
+inline ElasticLoad elastic_load(const Model& m, const State& s, const Eigen::SparseMatrix<double>& K,
                                 const Eigen::Vector3d& point) {
-  const Eigen::SparseMatrix<double> K = physics::assemble_stiffness(m.mesh, material);
   const Eigen::VectorXd f = K * s.sim.u;
   std::vector<bool> fixed(static_cast<size_t>(m.mesh.n_nodes()), false);
   for (int v : m.fixed_nodes) fixed[static_cast<size_t>(v)] = true;
@@ -152,13 +157,15 @@ inline CheckedRun run_checked(const engine::Scene& scene) {
   physics::LinearMaterial material;
   material.young_modulus = scene.material.young_modulus;
   material.poisson_ratio = scene.material.poisson_ratio;
+  // Assembled once: the mesh never changes.
+  const Eigen::SparseMatrix<double> K = physics::assemble_stiffness(c.model->mesh, material);
   engine::SessionOptions opt;
   opt.render = false;
   opt.check = true;
   opt.on_frame = [&](const Model& m, const State& s, const engine::FrameRecord&) {
     c.clearance.push_back(tool_clearance(m, s));
     const Eigen::Vector3d origin = s.tool_pose.empty() ? Eigen::Vector3d::Zero() : s.tool_pose[0].position;
-    c.elastic.push_back(elastic_load(m, s, material, origin));
+    c.elastic.push_back(elastic_load(m, s, K, origin));
     c.x.push_back(s.x);
     c.final_x = s.x;
   };
