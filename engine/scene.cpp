@@ -450,13 +450,12 @@ FixedSpec read_near_centreline(const Reader& r, const json& v, const std::string
   f.s0 = arc_length_within(r, v[0], Reader::index(path, 0), s, 0.0, length, of.c_str());
   f.s1 = arc_length_within(r, v[1], Reader::index(path, 1), s, 0.0, length, of.c_str());
   if (!(f.s0 < f.s1)) r.fail(path, "must be [s0, s1] with s0 < s1", &v);
-  f.given = v.dump();
   return f;
 }
 
 // One entry of "fixed": a node-set name, {"box": [low, high]}, {"plane": {"point", "normal"}} or (a swept tube)
 // {"near_centreline": [s0, s1]}.
-FixedSpec read_fixed(const Reader& r, const json& v, const std::string& path, const Scene& s) {
+FixedSpec read_fixed_entry(const Reader& r, const json& v, const std::string& path, const Scene& s) {
   if (v.is_string()) return r.choice<NodeSetName>(v, path, kNodeSetNames);
   if (!v.is_object() || v.size() != 1 || !(v.contains("box") || v.contains("plane") || v.contains("near_centreline")))
     r.fail(path, "must be a node-set name (ends, start, stop), {\"box\": [[x0, y0, z0], [x1, y1, z1]]}, "
@@ -482,6 +481,13 @@ FixedSpec read_fixed(const Reader& r, const json& v, const std::string& path, co
   f.b = r.vec3(r.require(plane, at, "normal"), Reader::join(at, "normal"));
   if (!(f.b.norm() > 0.0)) r.fail(Reader::join(at, "normal"), "must not be zero", &plane.at("normal"));
   f.b.normalize();
+  return f;
+}
+
+// An entry of "fixed" (or of support.where) with the entry as the scene gives it, for the messages that name it.
+FixedSpec read_fixed(const Reader& r, const json& v, const std::string& path, const Scene& s) {
+  FixedSpec f = read_fixed_entry(r, v, path, s);
+  f.given = v.dump();
   return f;
 }
 

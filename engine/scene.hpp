@@ -84,7 +84,7 @@ struct FixedSpec {
   Eigen::Vector3d a = Eigen::Vector3d::Zero();    // kBox: the low corner; kPlane: a point on the plane (metres)
   Eigen::Vector3d b = Eigen::Vector3d::Zero();    // kBox: the high corner; kPlane: the unit normal
   double s0 = 0.0, s1 = 0.0;                      // kNearCentreline: the interval, metres of arc length, s0 < s1
-  std::string given;                              // kNearCentreline: the interval as the scene gives it (JSON)
+  std::string given;                              // the entry as the scene gives it (JSON), for messages
   FixedSpec() = default;
   FixedSpec(NodeSetName n) : name(n) {}  // a named set (implicit, so a list of names reads as before)
 };

@@ -230,12 +230,12 @@ std::vector<int> selection_nodes(const Scene& scene, const Model& m, const Fixed
   if (f.kind == FixedKind::kNearCentreline) {
     nodes = near_centreline_nodes(f, scene.swept_tube.centreline, m);
     if (nodes.empty())
-      throw InputError(scene.path + ": " + key + ".near_centreline: selects no outer-wall node (none has its nearest "
+      throw InputError(scene.path + ": " + key + ": selects no outer-wall node (none has its nearest "
                        "centreline point in the interval) (value " + f.given + ")");
     return nodes;
   }
   nodes = selected_nodes(f, m.mesh.rest);
-  if (nodes.empty()) throw InputError(scene.path + ": " + key + ": selects no node of the mesh");
+  if (nodes.empty()) throw InputError(scene.path + ": " + key + ": selects no node of the mesh (value " + f.given + ")");
   return nodes;
 }
 
@@ -260,8 +260,12 @@ Eigen::VectorXd support_diagonal(const Scene& scene, const Model& m) {
       selected[static_cast<size_t>(v)] = 1;
   for (int v = 0; v < m.mesh.n_nodes(); ++v)
     if (!selected[static_cast<size_t>(v)]) S.segment<3>(3 * v).setZero();
-  if (!(S.maxCoeff() > 0.0))
-    throw InputError(scene.path + ": support.where: selects no node of the outer wall (the springs would hold nothing)");
+  if (!(S.maxCoeff() > 0.0)) {
+    std::string given;
+    for (const FixedSpec& f : scene.support.where) given += (given.empty() ? "[" : ", ") + f.given;
+    throw InputError(scene.path + ": support.where: selects no node of the outer wall (the springs would hold nothing) "
+                     "(value " + given + "])");
+  }
   return S;
 }
 

@@ -227,10 +227,11 @@ TEST(Support, WhereLimitsTheSpringsToTheSelectedOuterWallNodes) {
   EXPECT_EQ(error_of(json::array()), "s.json: support.where: must be a non-empty list of node selections (as \"fixed\") "
                                      "(value [])");
   EXPECT_EQ(error_of(json::parse(R"([{"box": [[1, 1, 1], [2, 2, 2]]}])")),
-            "s.json: support.where[0]: selects no node of the mesh");
+            "s.json: support.where[0]: selects no node of the mesh (value {\"box\":[[1,1,1],[2,2,2]]})");
   // (The inner wall's nodes only: a box of radius 10.5 mm around the axis holds the 10 mm lumen wall.)
   EXPECT_EQ(error_of(json::parse(R"([{"box": [[-0.0105, -0.0105, -1], [0.0105, 0.0105, 1]]}])")),
-            "s.json: support.where: selects no node of the outer wall (the springs would hold nothing)");
+            "s.json: support.where: selects no node of the outer wall (the springs would hold nothing) (value "
+            "[{\"box\":[[-0.0105,-0.0105,-1],[0.0105,0.0105,1]]}])");
   EXPECT_NE(error_of(json::parse(R"(["middle"])")).find("support.where[0]"), std::string::npos)
       << error_of(json::parse(R"(["middle"])"));
 }

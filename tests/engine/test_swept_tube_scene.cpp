@@ -218,7 +218,7 @@ TEST(FixedNodeSets, BoxAndPlaneSelectTheNodesInsideAndOnTheNormalsSide) {
   EXPECT_EQ(model->fixed_nodes, expected);
   scene["fixed"] = json::parse(R"([{"box": [[1, 1, 1], [2, 2, 2]]}])");
   EXPECT_EQ(lumen::test::message_of<InputError>([&] { lumen::engine::compile_model(lumen::engine::parse_scene(scene.dump(), "f.json")); }),
-            "f.json: fixed[0]: selects no node of the mesh");
+            "f.json: fixed[0]: selects no node of the mesh (value {\"box\":[[1,1,1],[2,2,2]]})");
   scene["fixed"] = json::parse(R"([{"box": [[-1, -1, -1], [1, 1, 1]]}])");
   EXPECT_EQ(lumen::test::message_of<InputError>([&] { lumen::engine::compile_model(lumen::engine::parse_scene(scene.dump(), "f.json")); }),
             "f.json: fixed: holds every node of the mesh (396 nodes), nothing is left to move");

@@ -173,7 +173,7 @@ Outcome run(const engine::Scene& scene, bool render) {
   o.compile_s = model->compile_seconds;
   const physics::TetMesh& mesh = model->mesh;
   o.nodes = mesh.n_nodes();
-  o.tets = static_cast<int>(mesh.tets.rows());
+  o.tets = model->n_elements;  // (tet10: the quadratic elements, not the 8 linear tets of each in mesh.tets)
   o.inner_tris = static_cast<int>(mesh.surface(lumen::physics::kInnerWall).rows());
   const auto& ms = scene.mesh;
 
@@ -265,6 +265,9 @@ struct StudyOptions {
   std::string closure_mesh;                   // the closure sweep's one mesh ("24x14x1"; empty: all)
   double closure_force = 0.03;                // the closure sweep's force per tip, newtons (a reference row's)
   std::string reference_meshes = "all";       // the reference sweep's meshes: "uniform" | "graded" | "all"
+  std::string capacity_scenario = "all";      // the capacity sweep's scenarios: "open" | "shut" | "all"
+  std::string capacity_family = "all";        // its families: "tet4-linear" | "tet4-corotational" | "tet10-linear"
+  int capacity_min_tets = 0;                  // its meshes from this many elements on (the smaller are skipped)
 };
 
 // Two opposite probes at 1.25x the force that first shuts the lumen (0.08 N on the paper mesh, linear): the walls
@@ -582,6 +585,8 @@ void capacity_family(const StudyOptions& opt, const char* scenario, double load,
     if (l.around == previous.around && l.along == previous.along && l.layers == previous.layers) continue;
     previous = l;
     const Config c{l, fam.element, fam.model, fam.tolerance};
+    // (a tet10 cell holds 6 quadratic tets, as a tet4 cell 6 linear ones)
+    if (6L * l.around * l.along * l.layers < opt.capacity_min_tets) continue;
     std::fprintf(stderr, "capacity %s %s %s %dx%dx%d ...", scenario, fam.element, fam.model, l.around, l.along,
                  l.layers);
     Outcome o;
@@ -617,7 +622,12 @@ void capacity_sweep(const StudyOptions& opt) {
                              {"tet10", "linear", 0.0, {10, 13, 1}, 1}};
   const std::pair<const char*, double> scenarios[] = {{"open", 0.02}, {"shut", kShutForce}};
   for (const auto& [scenario, load] : scenarios)
-    for (const Family& fam : families) capacity_family(opt, scenario, load, fam, ccsv);
+    for (const Family& fam : families) {
+      const bool wanted = (opt.capacity_scenario == "all" || opt.capacity_scenario == scenario) &&
+                          (opt.capacity_family == "all" ||
+                           opt.capacity_family == std::string(fam.element) + "-" + fam.model);
+      if (wanted) capacity_family(opt, scenario, load, fam, ccsv);
+    }
 }
 
 }  // namespace
@@ -632,6 +642,13 @@ int main(int argc, char** argv) {
   app.add_option("--capacity-frames", opt.capacity_frames, "frames per capacity session at 40 fps")
       ->check(CLI::Range(41, 100000));
   app.add_flag("--capacity-only", opt.capacity_only, "run only the capacity sweep");
+  app.add_option("--capacity-scenario", opt.capacity_scenario, "the capacity sweep's scenarios")
+      ->check(CLI::IsMember({"open", "shut", "all"}));
+  app.add_option("--capacity-family", opt.capacity_family, "the capacity sweep's model families")
+      ->check(CLI::IsMember({"tet4-linear", "tet4-corotational", "tet10-linear", "all"}));
+  app.add_option("--capacity-min-tets", opt.capacity_min_tets,
+                 "the capacity sweep's meshes from this many elements on (to measure one large mesh)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--frames", opt.frames, "frames per session (the squeeze ramps over 1 s)")->check(CLI::Range(2, 100000));
   app.add_option("--fps", opt.fps, "simulated frames per second (quasi-static: sets the load increment per frame)")
       ->check(CLI::Range(1.0, 1000.0));
