@@ -8,7 +8,10 @@
 #include <cstdint>
 #include <cstring>
 #include <exception>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <limits>
 #include <map>
 #include <tuple>
 #include <utility>
@@ -28,6 +31,13 @@ namespace {
 
 // File extensions (lower case) of the organ surface formats: Wavefront OBJ, STL, PLY, OFF.
 constexpr const char* kSurfaceExtensions[] = {".obj", ".stl", ".ply", ".off"};
+
+// A file's extension in lower case (".ply").
+std::string lower_extension(const std::string& file) {
+  std::string ext = std::filesystem::path(file).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext;
+}
 
 // "vertex 3 at [x, y, z]", for messages.
 std::string vertex_text(const SurfaceMesh& m, int v) {
@@ -154,11 +164,127 @@ SurfaceMesh decode(const std::string& bytes) {
   return m;
 }
 
+// Bytes of a PLY scalar type, or 0 for a name that is none; integer: whether it is an integer type.
+int ply_type_bytes(const std::string& type, bool* integer = nullptr) {
+  static const std::map<std::string, std::pair<int, bool>> kTypes = {
+      {"char", {1, true}},    {"uchar", {1, true}},   {"int8", {1, true}},    {"uint8", {1, true}},
+      {"short", {2, true}},   {"ushort", {2, true}},  {"int16", {2, true}},   {"uint16", {2, true}},
+      {"int", {4, true}},     {"uint", {4, true}},    {"int32", {4, true}},   {"uint32", {4, true}},
+      {"float", {4, false}},  {"float32", {4, false}}, {"double", {8, false}}, {"float64", {8, false}}};
+  const auto it = kTypes.find(type);
+  if (it == kTypes.end()) return 0;
+  if (integer) *integer = it->second.second;
+  return it->second.first;
+}
+
+// The whitespace-separated words of a line.
+std::vector<std::string> words_of(const std::string& line) {
+  std::vector<std::string> words;
+  size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+    const size_t start = i;
+    while (i < line.size() && !std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+    if (i > start) words.push_back(line.substr(start, i - start));
+  }
+  return words;
+}
+
+// A PLY element of the header: its name, declared count, line, and the least bytes one of it takes in the body.
+struct PlyElement {
+  std::string name;
+  long long count = 0;
+  int line = 0;
+  long long min_bytes = 0;  // binary: fixed properties and list counts; ascii: 2 a property
+};
+
 }  // namespace
+
+void require_ply_header(const std::string& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(file + ": cannot open the PLY file");
+  std::string head(static_cast<size_t>(kPlyHeaderMaxBytes), '\0');
+  in.read(head.data(), kPlyHeaderMaxBytes);
+  head.resize(static_cast<size_t>(in.gcount()));
+  in.clear();
+  in.seekg(0, std::ios::end);
+  const long long file_bytes = static_cast<long long>(in.tellg());
+  auto fail_line = [&](int line, const std::string& text, const std::string& problem) {
+    throw InputError(file + ": PLY header line " + std::to_string(line) + ": " + problem + " (\"" + text + "\")");
+  };
+  bool ascii = false, have_format = false;
+  std::vector<PlyElement> elements;
+  size_t pos = 0;
+  for (int line = 1;; ++line) {
+    const size_t end = head.find('\n', pos);
+    if (end == std::string::npos)
+      throw InputError(file + ": PLY header: no \"end_header\" line within its first " +
+                       std::to_string(kPlyHeaderMaxBytes) + " bytes");
+    std::string text = head.substr(pos, end - pos);
+    pos = end + 1;
+    if (!text.empty() && text.back() == '\r') text.pop_back();
+    const std::vector<std::string> w = words_of(text);
+    const std::string key = w.empty() ? std::string() : w[0];
+    // The magic line, then the keywords of the header.
+    if (line == 1) {
+      if (text != "ply") fail_line(line, text, "must be \"ply\"");
+      continue;
+    }
+    if (key == "comment" || key == "obj_info") continue;
+    if (key == "end_header") {
+      if (w.size() != 1) fail_line(line, text, "\"end_header\" takes nothing after it");
+      break;
+    }
+    if (key == "format") {
+      const bool known = w.size() == 3 && w[2] == "1.0" &&
+                         (w[1] == "ascii" || w[1] == "binary_little_endian" || w[1] == "binary_big_endian");
+      if (!known) fail_line(line, text, "must be \"format ascii|binary_little_endian|binary_big_endian 1.0\"");
+      if (have_format || !elements.empty()) fail_line(line, text, "one format line, before the first element");
+      have_format = true;
+      ascii = w[1] == "ascii";
+      continue;
+    }
+    if (key == "element") {
+      if (!have_format) fail_line(line, text, "an element before the format line");
+      char* stop = nullptr;
+      const long long count = w.size() == 3 ? std::strtoll(w[2].c_str(), &stop, 10) : -1;
+      if (w.size() != 3 || *stop != '\0' || count < 0 || count > std::numeric_limits<int>::max())
+        fail_line(line, text, "must be \"element NAME COUNT\" with COUNT an integer in [0, 2147483647]");
+      elements.push_back({w[1], count, line, 0});
+      continue;
+    }
+    if (key == "property") {
+      if (elements.empty()) fail_line(line, text, "a property before any element");
+      bool integer = false;
+      const bool list = w.size() > 1 && w[1] == "list";
+      if (list) {
+        const bool ok = w.size() == 5 && ply_type_bytes(w[2], &integer) > 0 && integer && ply_type_bytes(w[3]) > 0;
+        if (!ok) fail_line(line, text, "must be \"property list COUNT_TYPE TYPE NAME\" (COUNT_TYPE an integer type)");
+      } else if (w.size() != 3 || ply_type_bytes(w[1]) == 0) {
+        fail_line(line, text, "must be \"property TYPE NAME\" with TYPE one of PLY's scalar types");
+      }
+      elements.back().min_bytes += ascii ? 2 : ply_type_bytes(list ? w[2] : w[1]);
+      continue;
+    }
+    fail_line(line, text, "not a PLY header keyword");
+  }
+  // Each element's declared count against the bytes after the header (ascii: the last value needs no separator).
+  const long long body = file_bytes - static_cast<long long>(pos);
+  long long needed = 0;
+  for (const PlyElement& e : elements) {
+    needed += e.count * e.min_bytes;  // (each term < 2^48, and the sum stops once past the body: no overflow)
+    if (needed > body + (ascii ? 1 : 0))
+      throw InputError(file + ": PLY header line " + std::to_string(e.line) + ": element " + e.name + " declares " +
+                       std::to_string(e.count) + " of them, more than the file's " + std::to_string(body) +
+                       " bytes after the header can hold");
+  }
+}
 
 SurfaceMesh read_surface_file(const std::string& file, double metres_per_unit, const std::string& what,
                               double timeout_s) {
-  // assimp in a child process: its crash or endless loop on a malformed file becomes this file's refusal.
+  // A PLY header checked first; assimp in a child process: its crash or endless loop on a malformed file becomes
+  // this file's refusal.
+  if (lower_extension(file) == ".ply") require_ply_header(file);
   const IsolatedRun run = run_isolated([&] { return encode(import_surface(file, metres_per_unit, what)); }, timeout_s);
   switch (run.end) {
     case IsolatedRun::End::kDone:
@@ -175,8 +301,7 @@ SurfaceMesh read_surface_file(const std::string& file, double metres_per_unit, c
 }
 
 void require_surface_format(const std::string& file) {
-  std::string ext = std::filesystem::path(file).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const std::string ext = lower_extension(file);
   for (const char* ok : kSurfaceExtensions)
     if (ext == ok) return;
   throw InputError(file + ": unsupported surface format \"" + ext + "\" (OBJ, STL, PLY or OFF)");

@@ -28,9 +28,19 @@ inline constexpr double kSurfaceReadTimeoutS = 60.0;
 // of first use by the faces), positions times metres_per_unit. assimp runs in a child process (engine/isolated.hpp).
 // Refuses (InputError "FILE: ...", naming `what`) an unreadable or empty file, a face that is not a triangle, and a
 // file on which assimp crashes ("... the reader (assimp) crashed on it (signal 6 (Aborted))") or runs longer than
-// timeout_s ("... did not finish within 60 s").
+// timeout_s ("... did not finish within 60 s"); a .ply file's header is checked first (require_ply_header).
 SurfaceMesh read_surface_file(const std::string& file, double metres_per_unit, const std::string& what,
                               double timeout_s = kSurfaceReadTimeoutS);
+
+// A PLY file's header, checked before assimp reads the file (assimp loops without end on some malformed headers):
+// "ply", one "format ascii|binary_little_endian|binary_big_endian 1.0" before the first element, "comment" and
+// "obj_info" lines, "element NAME COUNT" (COUNT a non-negative integer), "property TYPE NAME" and "property list
+// COUNT_TYPE TYPE NAME" after an element (TYPE one of PLY's scalar types, COUNT_TYPE an integer one), "end_header"
+// within the first kPlyHeaderMaxBytes; and each element's COUNT no more than the bytes after the header can hold
+// (binary: its fixed properties' bytes and its lists' count fields; ascii: two characters a property). Refuses
+// (InputError) "FILE: PLY header line L: PROBLEM (\"LINE\")" or "FILE: PLY header: PROBLEM".
+inline constexpr long kPlyHeaderMaxBytes = 64 * 1024;
+void require_ply_header(const std::string& file);
 
 // The formats the organ's surface sources read (mesh.type "surface_wall" and "surface_pair", a swept tube's radius
 // from_surface): refuses another file extension, InputError "FILE: unsupported surface format \".EXT\" (OBJ, STL,
