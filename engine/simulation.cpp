@@ -261,8 +261,8 @@ Eigen::VectorXd support_diagonal(const Scene& scene, const Model& m) {
   for (int v = 0; v < m.mesh.n_nodes(); ++v)
     if (!selected[static_cast<size_t>(v)]) S.segment<3>(3 * v).setZero();
   if (!(S.maxCoeff() > 0.0)) {
-    std::string given;
-    for (const FixedSpec& f : scene.support.where) given += (given.empty() ? "[" : ", ") + f.given;
+    std::string given;  // the list as the scene gives it (compact JSON, as each entry's)
+    for (const FixedSpec& f : scene.support.where) given += (given.empty() ? "[" : ",") + f.given;
     throw InputError(scene.path + ": support.where: selects no node of the outer wall (the springs would hold nothing) "
                      "(value " + given + "])");
   }

@@ -195,6 +195,7 @@ struct PlyElement {
   std::string name;
   long long count = 0;
   int line = 0;
+  std::string text;         // the header line
   long long min_bytes = 0;  // binary: fixed properties and list counts; ascii: 2 a property
 };
 
@@ -202,15 +203,23 @@ struct PlyElement {
 
 void require_ply_header(const std::string& file) {
   std::ifstream in(file, std::ios::binary);
-  if (!in) throw InputError(file + ": cannot open the PLY file");
+  if (!in) throw InputError(file + ": PLY header: cannot open the file");
   std::string head(static_cast<size_t>(kPlyHeaderMaxBytes), '\0');
   in.read(head.data(), kPlyHeaderMaxBytes);
   head.resize(static_cast<size_t>(in.gcount()));
   in.clear();
   in.seekg(0, std::ios::end);
   const long long file_bytes = static_cast<long long>(in.tellg());
+  // A header line as the messages quote it: at most kQuoted characters, unprintable ones as '?'.
+  constexpr size_t kQuoted = 80;
+  auto quoted = [](const std::string& text) {
+    std::string q = text.substr(0, kQuoted);
+    for (char& c : q)
+      if (!std::isprint(static_cast<unsigned char>(c))) c = '?';
+    return "(\"" + q + (text.size() > kQuoted ? "...\")" : "\")");
+  };
   auto fail_line = [&](int line, const std::string& text, const std::string& problem) {
-    throw InputError(file + ": PLY header line " + std::to_string(line) + ": " + problem + " (\"" + text + "\")");
+    throw InputError(file + ": PLY header line " + std::to_string(line) + ": " + problem + " " + quoted(text));
   };
   bool ascii = false, have_format = false;
   std::vector<PlyElement> elements;
@@ -225,12 +234,14 @@ void require_ply_header(const std::string& file) {
     if (!text.empty() && text.back() == '\r') text.pop_back();
     const std::vector<std::string> w = words_of(text);
     const std::string key = w.empty() ? std::string() : w[0];
-    // The magic line, then the keywords of the header.
+    // The magic line (as assimp takes it, in either case), then the keywords of the header; blank lines skipped.
     if (line == 1) {
-      if (text != "ply") fail_line(line, text, "must be \"ply\"");
+      std::string magic = key;
+      std::transform(magic.begin(), magic.end(), magic.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      if (w.size() != 1 || magic != "ply") fail_line(line, text, "must be \"ply\"");
       continue;
     }
-    if (key == "comment" || key == "obj_info") continue;
+    if (w.empty() || key == "comment" || key == "obj_info") continue;
     if (key == "end_header") {
       if (w.size() != 1) fail_line(line, text, "\"end_header\" takes nothing after it");
       break;
@@ -250,7 +261,7 @@ void require_ply_header(const std::string& file) {
       const long long count = w.size() == 3 ? std::strtoll(w[2].c_str(), &stop, 10) : -1;
       if (w.size() != 3 || *stop != '\0' || count < 0 || count > std::numeric_limits<int>::max())
         fail_line(line, text, "must be \"element NAME COUNT\" with COUNT an integer in [0, 2147483647]");
-      elements.push_back({w[1], count, line, 0});
+      elements.push_back({w[1], count, line, text, 0});
       continue;
     }
     if (key == "property") {
@@ -274,9 +285,8 @@ void require_ply_header(const std::string& file) {
   for (const PlyElement& e : elements) {
     needed += e.count * e.min_bytes;  // (each term < 2^48, and the sum stops once past the body: no overflow)
     if (needed > body + (ascii ? 1 : 0))
-      throw InputError(file + ": PLY header line " + std::to_string(e.line) + ": element " + e.name + " declares " +
-                       std::to_string(e.count) + " of them, more than the file's " + std::to_string(body) +
-                       " bytes after the header can hold");
+      fail_line(e.line, e.text, "element " + e.name + " declares " + std::to_string(e.count) +
+                " of them, more than the file's " + std::to_string(body) + " bytes after the header can hold");
   }
 }
 

@@ -33,12 +33,13 @@ SurfaceMesh read_surface_file(const std::string& file, double metres_per_unit, c
                               double timeout_s = kSurfaceReadTimeoutS);
 
 // A PLY file's header, checked before assimp reads the file (assimp loops without end on some malformed headers):
-// "ply", one "format ascii|binary_little_endian|binary_big_endian 1.0" before the first element, "comment" and
-// "obj_info" lines, "element NAME COUNT" (COUNT a non-negative integer), "property TYPE NAME" and "property list
-// COUNT_TYPE TYPE NAME" after an element (TYPE one of PLY's scalar types, COUNT_TYPE an integer one), "end_header"
-// within the first kPlyHeaderMaxBytes; and each element's COUNT no more than the bytes after the header can hold
-// (binary: its fixed properties' bytes and its lists' count fields; ascii: two characters a property). Refuses
-// (InputError) "FILE: PLY header line L: PROBLEM (\"LINE\")" or "FILE: PLY header: PROBLEM".
+// "ply" (either case), one "format ascii|binary_little_endian|binary_big_endian 1.0" before the first element,
+// "comment" and "obj_info" lines, blank lines, "element NAME COUNT" (COUNT a non-negative integer), "property TYPE
+// NAME" and "property list COUNT_TYPE TYPE NAME" after an element (TYPE one of PLY's scalar types, COUNT_TYPE an
+// integer one), "end_header" within the first kPlyHeaderMaxBytes; and each element's COUNT no more than the bytes
+// after the header can hold (binary: its fixed properties' bytes and its lists' count fields; ascii: two characters
+// a property, the last separator optional). Refuses (InputError) "FILE: PLY header line L: PROBLEM (\"LINE\")" (the
+// line's first 80 characters, unprintable ones as '?') or "FILE: PLY header: PROBLEM" (no end_header, unreadable).
 inline constexpr long kPlyHeaderMaxBytes = 64 * 1024;
 void require_ply_header(const std::string& file);
 

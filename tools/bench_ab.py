@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Two lumen binaries side by side on scene files: `lumen run <scene> --no-render --out DIR` (or rendered with
---render), runs alternating between the binaries so that drifts of the machine hit both alike. Per binary and
+--render), runs alternating between the binaries, in the order old new new old old new ... (ABBA), so that drifts
+of the machine and a first run's cold caches hit both alike. Per binary and
 scene, the median over runs of each run's physics median and p99, of physics + collision + response per frame
 (pcr) median and p99, of the whole frame's median and p99, and of the back-substitutions over the session (the
 frames' cg_iterations summed). Written as CSV (--out) with the command in its header.
@@ -36,7 +37,9 @@ def one_run(binary, scene, render):
     """One session; its per-run statistics from report.json."""
     with tempfile.TemporaryDirectory() as out:
         cmd = [binary, "run", scene, "--out", out] + ([] if render else ["--no-render"])
-        subprocess.run(cmd, check=True, capture_output=True, text=True)
+        done = subprocess.run(cmd, capture_output=True, text=True)
+        if done.returncode != 0:
+            sys.exit(f"bench_ab.py: {' '.join(cmd)} exited {done.returncode}:\n{done.stderr}")
         with open(os.path.join(out, "report.json")) as f:
             report = json.load(f)
     frames = report["per_frame"]
@@ -64,6 +67,10 @@ def main():
     a = ap.parse_args()
     if a.runs < 1:
         sys.exit(f"bench_ab.py: --runs must be at least 1, got {a.runs}")
+    if a.old_label == a.new_label:
+        sys.exit(f"bench_ab.py: --old-label and --new-label must differ, both are {a.old_label!r}")
+    if len({os.path.basename(s) for s in a.scenes}) != len(a.scenes):
+        sys.exit("bench_ab.py: two scenes have the same file name (the CSV names scenes by file name)")
     for path in [a.old, a.new] + a.scenes:
         if not os.path.exists(path):
             sys.exit(f"bench_ab.py: {path}: no such file")
@@ -71,8 +78,8 @@ def main():
     rows = []
     for scene in a.scenes:
         runs = {label: [] for label, _ in variants}
-        for _ in range(a.runs):
-            for label, binary in variants:
+        for k in range(a.runs):
+            for label, binary in (variants if k % 2 == 0 else variants[::-1]):
                 runs[label].append(one_run(binary, scene, a.render))
         for label, _ in variants:
             row = {"scene": os.path.basename(scene), "binary": label, "runs": a.runs}

@@ -54,7 +54,13 @@ TEST(PlyHeader, ShippedAndSeedFilesPass) {
       write_ply("triangle", std::string(kHeader) + kBody),
       write_ply("crlf", "ply\r\nformat ascii 1.0\r\ncomment made by hand\r\nelement vertex 3\r\nproperty float x\r\n"
                         "property float y\r\nproperty float z\r\nelement face 1\r\nproperty list uint8 int32 v\r\n"
-                        "end_header\r\n0 0 0\r\n1 0 0\r\n0 1 0\r\n3 0 1 2\r\n")};
+                        "end_header\r\n0 0 0\r\n1 0 0\r\n0 1 0\r\n3 0 1 2\r\n"),
+      // What writers put in headers: upper-case magic, obj_info, comments between properties, tabs, trailing
+      // spaces, blank lines, sized type names, zero counts, elements besides vertex and face, bytes after the body.
+      write_ply("writers", "PLY\nformat binary_little_endian 1.0\nobj_info made by hand\nelement vertex 3\n"
+                           "property float32 x\ncomment between properties\nproperty float64 y\t\n\nproperty int16 z \n"
+                           "element edge 0\nproperty int vertex1\nelement material 0\nproperty uchar red\n"
+                           "end_header\n" + std::string(3 * (4 + 8 + 2) + 7, '\0'))};
   for (const std::string& f : files) EXPECT_EQ(refusal(f), "") << f;
 }
 
@@ -85,17 +91,35 @@ TEST(PlyHeader, MalformedHeadersAreRefusedNamingLineAndText) {
       // More elements than the body can hold: ascii (2 bytes a property), binary (the properties' bytes).
       {with_line(3, "element vertex 99999999"),
        "PLY header line 3: element vertex declares 99999999 of them, more than the file's 26 bytes after the header "
-       "can hold"},
+       "can hold (\"element vertex 99999999\")"},
       {"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\nend_header\n" + std::string(23, 'x'),
        "PLY header line 3: element vertex declares 3 of them, more than the file's 23 bytes after the header can "
-       "hold"}};
+       "hold (\"element vertex 3\")"},
+      // At the edge: one ascii vertex of 3 values needs "0 0 0" (5 bytes), a binary face with a list its count byte.
+      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0",
+       "PLY header line 3: element vertex declares 1 of them, more than the file's 3 bytes after the header can hold "
+       "(\"element vertex 1\")"},
+      {"ply\nformat binary_big_endian 1.0\nelement face 2\nproperty list uchar int v\nend_header\n" + std::string(1, '\0'),
+       "PLY header line 3: element face declares 2 of them, more than the file's 1 bytes after the header can hold "
+       "(\"element face 2\")"},
+      // A long line with unprintable bytes is quoted short and printable.
+      {with_line(3, "element vertex\x01" + std::string(100, 'x')),
+       "PLY header line 3: must be \"element NAME COUNT\" with COUNT an integer in [0, 2147483647] (\"element vertex?" +
+           std::string(65, 'x') + "...\")"}};
   for (size_t i = 0; i < cases.size(); ++i) {
     const std::string file = write_ply("case" + std::to_string(i), cases[i].first);
     EXPECT_EQ(refusal(file), file + ": " + cases[i].second) << "case " << i;
   }
-  // A binary body of exactly the declared bytes passes (3 doubles).
+  // Bodies of exactly the least bytes pass: 3 binary doubles, an ascii vertex without its last separator, two
+  // empty binary lists (their count bytes).
   EXPECT_EQ(refusal(write_ply("exact", "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty double x\n"
                                        "end_header\n" + std::string(24, '\0'))),
+            "");
+  EXPECT_EQ(refusal(write_ply("exact_ascii", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty "
+                                             "float y\nproperty float z\nend_header\n0 0 0")),
+            "");
+  EXPECT_EQ(refusal(write_ply("exact_list", "ply\nformat binary_big_endian 1.0\nelement face 2\nproperty list uchar "
+                                            "int v\nend_header\n" + std::string(2, '\0'))),
             "");
 }
 

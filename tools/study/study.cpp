@@ -647,7 +647,8 @@ int main(int argc, char** argv) {
   app.add_option("--capacity-family", opt.capacity_family, "the capacity sweep's model families")
       ->check(CLI::IsMember({"tet4-linear", "tet4-corotational", "tet10-linear", "all"}));
   app.add_option("--capacity-min-tets", opt.capacity_min_tets,
-                 "the capacity sweep's meshes from this many elements on (to measure one large mesh)")
+                 "the capacity sweep's meshes from this many elements on (to measure one large mesh); with any of "
+                 "these filters --capacity-out holds only the rows they ran")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--frames", opt.frames, "frames per session (the squeeze ramps over 1 s)")->check(CLI::Range(2, 100000));
   app.add_option("--fps", opt.fps, "simulated frames per second (quasi-static: sets the load increment per frame)")
