@@ -6,9 +6,9 @@
 #include <cassert>
 #include <cctype>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -32,12 +32,14 @@ namespace {
 // File extensions (lower case) of the organ surface formats: Wavefront OBJ, STL, PLY, OFF.
 constexpr const char* kSurfaceExtensions[] = {".obj", ".stl", ".ply", ".off"};
 
-// A file's extension in lower case (".ply").
-std::string lower_extension(const std::string& file) {
-  std::string ext = std::filesystem::path(file).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext;
+// The text in lower case (ASCII).
+std::string lower_case(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return text;
 }
+
+// A file's extension in lower case (".ply").
+std::string lower_extension(const std::string& file) { return lower_case(std::filesystem::path(file).extension().string()); }
 
 // "vertex 3 at [x, y, z]", for messages.
 std::string vertex_text(const SurfaceMesh& m, int v) {
@@ -236,9 +238,7 @@ void require_ply_header(const std::string& file) {
     const std::string key = w.empty() ? std::string() : w[0];
     // The magic line (as assimp takes it, in either case), then the keywords of the header; blank lines skipped.
     if (line == 1) {
-      std::string magic = key;
-      std::transform(magic.begin(), magic.end(), magic.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-      if (w.size() != 1 || magic != "ply") fail_line(line, text, "must be \"ply\"");
+      if (w.size() != 1 || lower_case(key) != "ply") fail_line(line, text, "must be \"ply\"");
       continue;
     }
     if (w.empty() || key == "comment" || key == "obj_info") continue;
