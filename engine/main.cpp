@@ -77,7 +77,7 @@ void prepare_output_dir(const std::string& dir) {
 
 int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool no_render, std::string video,
             bool export_surface, bool export_volume, bool check, const std::string& positions_path,
-            const std::string& replay_dir) {
+            const std::string& replay_dir, bool serial_correction) {
   // Load and validate everything before touching the output folder.
   engine::Scene scene = engine::load_scene(scene_path);
   if (out_dir.empty()) out_dir = (fs::path("out") / scene.name).string();
@@ -97,6 +97,7 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
   if (!video.empty()) prepare_output_dir(fs::path(video).parent_path().empty() ? "." : fs::path(video).parent_path().string());
   opt.out_dir = out_dir;
   opt.render = !no_render;
+  opt.overlap_interior = !serial_correction;
   opt.write_frames = !no_render;
   opt.video_path = no_render ? std::string() : video;
   opt.export_surface = export_surface;
@@ -167,7 +168,8 @@ int cmd_serve(const std::string& scene_path, std::string out_dir, int frames, bo
   return 0;
 }
 
-int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_render, int kdop, bool classify) {
+int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_render, int kdop, bool classify,
+              bool serial_correction) {
   engine::Scene scene = engine::load_scene(scene_path);
   if (kdop > 0 && kdop != 6 && kdop != 14 && kdop != 18 && kdop != 26)
     throw engine::InputError("--kdop: must be one of 6, 14, 18, 26 (value " + std::to_string(kdop) + ")");
@@ -178,6 +180,7 @@ int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_rend
   opt.frames = frames;
   opt.classify_overlaps = classify;
   opt.render = !no_render;
+  opt.overlap_interior = !serial_correction;
   opt.write_frames = false;
   engine::SessionResult result = engine::run_session(*model, std::move(inputs), opt);
   if (json) {
@@ -216,6 +219,9 @@ int main(int argc, char** argv) {
   int frames = -1, kdop = 0, port = engine::kDefaultIgtlPort;
   bool classify = false;
   bool no_render = false, export_surface = false, export_volume = false, json = false, check = false;
+  bool serial_correction = false;
+  const char* serial_help = "solve a contact frame's whole-mesh correction before rendering instead of on the second "
+                            "core while it renders (to compare)";
 
   CLI::App* run = app.add_subcommand("run", "run a scene: PNG frames, optional MP4, report.json");
   run->add_option("scene", scene_path, "scene file (JSON)")->required();
@@ -229,6 +235,7 @@ int main(int argc, char** argv) {
   run->add_option("--positions", positions_path, "write the final node positions as CSV (x, y, z per node, metres)");
   run->add_flag("--check", check, "count intersecting inner-wall triangle pairs, and instrument-organ pairs, on every frame (exact predicates)");
 
+  run->add_flag("--serial-correction", serial_correction, serial_help);
   run->add_option("--replay", replay_dir, "play back a served session (its --out folder): its poses and frame count");
 
   CLI::App* serve = app.add_subcommand("serve", "serve a scene over OpenIGTLink: devices drive its instruments, "
@@ -247,6 +254,7 @@ int main(int argc, char** argv) {
   bench->add_flag("--no-render", no_render, "leave rendering out");
   bench->add_option("--kdop", kdop, "override the scene's k-DOP (6, 14, 18, 26)");
   bench->add_flag("--classify-overlaps", classify, "count bounding-volume overlaps with and without contact");
+  bench->add_flag("--serial-correction", serial_correction, serial_help);
 
   CLI::App* ccd = app.add_subcommand("ccd", "run every CCD query of a file; print positives, misses, timings");
   ccd->add_option("file", ccd_file, "query file (CSV, see tests/data/ccd/README.md)")->required();
@@ -268,9 +276,9 @@ int main(int argc, char** argv) {
 
   try {
     if (*run) return cmd_run(scene_path, out_dir, frames, no_render, video, export_surface, export_volume, check,
-                               positions_path, replay_dir);
+                               positions_path, replay_dir, serial_correction);
     if (*serve) return cmd_serve(scene_path, out_dir, frames, no_render, host, port);
-    if (*bench) return cmd_bench(scene_path, frames, json, no_render, kdop, classify);
+    if (*bench) return cmd_bench(scene_path, frames, json, no_render, kdop, classify, serial_correction);
     if (*ccd) return cmd_ccd(ccd_file, json);
   } catch (const engine::InputError& e) {
     std::fprintf(stderr, "lumen: error: %s\n", e.what());

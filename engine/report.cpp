@@ -98,6 +98,8 @@ nlohmann::json frame_json(const FrameRecord& r) {
   j["fallback"] = r.fallback;
   j["contact_rows_capped"] = r.contact_rows_capped;
   j["fallback_kept"] = r.fallback_kept;
+  j["interior_deferred"] = r.interior_deferred;
+  j["interior_wait_ms"] = r.interior_wait_ms;
   if (r.intersecting_pairs >= 0) j["intersecting_pairs"] = r.intersecting_pairs;
   if (r.instrument_intersecting_pairs >= 0) j["instrument_intersecting_pairs"] = r.instrument_intersecting_pairs;
   j["inverted_elements"] = r.inverted_elements;

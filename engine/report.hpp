@@ -45,6 +45,10 @@ struct FrameRecord {
   // Part of its last trial motion the fallback kept: sum over nodes of |x_end - x_start| over the same sum for the
   // motion it ended (the stop's time fraction); 1 when no fallback ran.
   double fallback_kept = 1.0;
+  // The whole-mesh correction's interior (the nodes neither colliding nor drawn) was solved on a second thread while
+  // the frame rendered; the wait for it after the render, milliseconds (also counted in the response stage).
+  bool interior_deferred = false;
+  double interior_wait_ms = 0.0;
   long intersecting_pairs = -1;       // exact check (--check), -1 when not run
   long instrument_intersecting_pairs = -1;  // exact check (--check) of instrument-organ pairs, -1 when not run
   int inverted_elements = 0;          // tets with non-positive volume after the frame

@@ -436,10 +436,24 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     add_contact_to_probe_forces(model, state, rr);
     // Whole-mesh correction for the last multipliers (a sum of precomputed columns or one back-substitution); the
     // colliding walls keep the values the check saw (equal to round-off).
+    // Deferred (a resolved frame that would back-substitute, in a session that renders): exact on the colliding
+    // and drawn nodes now from the kept rows; step_begin() starts the interior's solve, step_end() joins it.
     clock = Clock::now();
     Eigen::VectorXd du;
-    state.compliance->displacement(rr.solved.force, du);
-    for (int v : state.compliance->nodes()) du.segment<3>(3 * v) = rr.solved.correction.segment<3>(3 * v);
+    physics::SurfaceCompliance& sc = *state.compliance;
+    const bool by_view = sc.needs_solve(rr.solved.force) && sc.loads_only_view(rr.solved.force);
+    if (by_view)
+      sc.displacement_on_view(rr.solved.force, du);
+    else
+      sc.displacement(rr.solved.force, du);
+    for (int v : sc.nodes()) du.segment<3>(3 * v) = rr.solved.correction.segment<3>(3 * v);
+    rec.interior_deferred = by_view && state.defer_interior && resolved;
+    if (rec.interior_deferred) {
+      state.pending.du = du;
+      state.pending.u_free = u_free;
+    } else if (by_view) {
+      sc.complete_interior(du);
+    }
     u = u_free + du;
     x1 = positions(u);
     rec.ms[kResponse] += ms_since(clock);

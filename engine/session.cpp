@@ -226,23 +226,16 @@ SessionOutputs open_outputs(const Model& model, const SessionOptions& opt) {
   return o;
 }
 
-// One frame: step, the optional exact check, render and hand the image to the writer, export, observe. The total
-// is the simulation thread's work for the frame without the check, the export and the observer.
+// One frame: the step's first half, render and hand the image to the writer (while the interior of the
+// whole-mesh correction may be solving on the second core), the step's second half, the optional exact check,
+// export, observe. The total is the simulation thread's work for the frame without the check, the export and the
+// observer.
 FrameRecord run_frame(const Model& model, const SessionOptions& opt, SessionOutputs& io, Inputs& inputs,
                       State& state) {
   FrameRecord rec;
   const auto frame_start = Clock::now();
-  step(model, inputs, state, rec);
-  // Optional exact intersection count (not part of the frame's budget).
-  double check_ms = 0.0;
-  if (opt.check) {
-    const auto c0 = Clock::now();
-    rec.intersecting_pairs = collision::count_intersecting_pairs(state.x, model.collision_tris);
-    if (!model.instruments.empty())
-      rec.instrument_intersecting_pairs = count_tool_intersections(model, state.x, state.tool_points);
-    check_ms = std::chrono::duration<double, std::milli>(Clock::now() - c0).count();
-  }
-  // Render the committed state and hand the image to the writer thread.
+  step_begin(model, inputs, state, rec);
+  // Render what step_begin placed (every node the renderer reads) and hand the image to the writer thread.
   if (io.renderer) {
     const auto r0 = Clock::now();
     render::Image image;
@@ -250,8 +243,15 @@ FrameRecord run_frame(const Model& model, const SessionOptions& opt, SessionOutp
     rec.ms[kRender] = std::chrono::duration<double, std::milli>(Clock::now() - r0).count();
     if (io.writer) io.writer->push(std::move(image));
   }
-  rec.ms[kTotal] = std::chrono::duration<double, std::milli>(Clock::now() - frame_start).count() - check_ms;
+  step_end(model, inputs, state, rec);
+  rec.ms[kTotal] = std::chrono::duration<double, std::milli>(Clock::now() - frame_start).count();
   rec.over_budget = rec.ms[kTotal] > model.budget_ms;
+  // Optional exact intersection count (not part of the frame's budget).
+  if (opt.check) {
+    rec.intersecting_pairs = collision::count_intersecting_pairs(state.x, model.collision_tris);
+    if (!model.instruments.empty())
+      rec.instrument_intersecting_pairs = count_tool_intersections(model, state.x, state.tool_points);
+  }
   // Surface and volume export and observer (off the budget, like the writers).
   if (io.export_surface)
     export_surface_obj(numbered(io.out / "surface", "inner_", rec.frame, ".obj"), state.x, model.inner_wall());
@@ -379,6 +379,7 @@ SessionResult run_session_on(const Model& model, Inputs& inputs, const SessionOp
   SessionOutputs io = open_outputs(model, opt);
   io.frames = std::max(frames, 1);
   State state = make_state(model);
+  state.defer_interior = io.renderer != nullptr && opt.overlap_interior;
   // Warm-up draw of the rest state: the GL driver's one-time set-up (shader compilation) happens at load time,
   // not in the first frame's budget.
   if (io.renderer) {

@@ -23,6 +23,9 @@ struct SessionOptions {
   bool export_volume = false;   // DIR/volume/volume_000001.vtu ... and the collection DIR/volume.pvd
   physics::LinearMaterial volume_material;  // the scene's elasticity, for the exported von Mises stress
   bool check = false;           // exact intersection count of the inner wall on every frame
+  // Solve the interior of a contact frame's whole-mesh correction on the second core while the frame renders (when
+  // it would back-substitute; State::defer_interior). Off: the frame does it before rendering, as without a render.
+  bool overlap_interior = true;
   bool progress = false;        // progress line on stderr
   bool classify_overlaps = false;  // k-DOP study: split bounding-volume overlaps into with / without contact
   // Called after every frame with the committed state (off the frame's budget: not timed), e.g. by studies

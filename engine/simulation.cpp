@@ -459,6 +459,18 @@ double coupling_stiffness(const Model& m) {
   return count > 0 ? kCouplingStiffnessScale * sum / count : 0.0;
 }
 
+// The nodes the renderer reads: the drawn surfaces', the probes' attachment nodes, the centreline camera's rings.
+void collect_view_nodes(Model& m) {
+  std::vector<int>& v = m.view_nodes;
+  for (const DrawnSurface& d : m.drawn) {
+    const Tris& tris = m.mesh.surfaces[d.surface].tris;
+    v.insert(v.end(), tris.data(), tris.data() + tris.size());
+  }
+  for (const SurfacePoint& sp : m.probe_points) v.insert(v.end(), sp.node, sp.node + 3);
+  v.insert(v.end(), m.flight_ring_inner.begin(), m.flight_ring_inner.end());
+  sort_unique(v);
+}
+
 }  // namespace
 
 std::unique_ptr<Model> compile_model(const Scene& scene) {
@@ -488,6 +500,7 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   attach_probes(scene, *m);
   build_collision_topology(scene, *m);
   compile_instruments(scene, *m);
+  collect_view_nodes(*m);
   m->integrator = make_integrator(scene, *m, quadratic.get());
   if (m->collision_surface && scene.collision.coupling == ContactCoupling::kCarried)
     m->coupling_stiffness = coupling_stiffness(*m);
@@ -537,7 +550,11 @@ State make_state(const Model& model) {
     s.grasps.resize(model.instruments.size());
   }
   if (model.collision_surface || model.tool_target_surface) {
-    s.compliance = std::make_unique<physics::SurfaceCompliance>(model.contact_solver(), model.collision_nodes);
+    using physics::SurfaceCompliance;
+    s.compliance = std::make_unique<SurfaceCompliance>(model.contact_solver(), model.collision_nodes,
+                                                       SurfaceCompliance::kBlockColumns,
+                                                       model.compliance_mesh_column_bytes,
+                                                       SurfaceCompliance::kSetMatrixBytes, model.view_nodes);
     // Whole-mesh columns of the probe nodes too, so a contact correction that changes probe forces stays cheap.
     std::vector<int> probe_nodes;
     for (const SurfacePoint& sp : model.probe_points) probe_nodes.insert(probe_nodes.end(), sp.node, sp.node + 3);
@@ -682,6 +699,18 @@ physics::AugmentedContacts carry_contacts(const Model& model, const State& state
   return c;
 }
 
+// The prediction's solver statistics into the frame's record.
+void record_prediction(const physics::Prediction& pred, FrameRecord& rec) {
+  rec.physics_iterations = pred.iterations;
+  rec.physics_converged = pred.converged;
+  rec.physics_diverged = pred.diverged;
+  rec.refactorisations = pred.refactorisations;
+  rec.tangent_fallbacks = pred.tangent_fallbacks;
+  rec.cg_iterations = pred.cg_iterations;
+  rec.truncated_steps = pred.truncated_steps;
+  rec.preconditioner_failures = pred.preconditioner_failures;
+}
+
 // Reaction at each probe point (a probe in equilibrium: equal and opposite to its force), handed back; the
 // point's displacement recorded.
 void feed_back(Inputs& inputs, const State& state, double t1, FrameRecord& rec) {
@@ -714,6 +743,12 @@ Eigen::VectorXd nodal_loads(const Model& model, const State& state) {
 }
 
 void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
+  step_begin(model, inputs, state, rec);
+  step_end(model, inputs, state, rec);
+}
+
+void step_begin(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
+  if (state.pending.open) throw std::logic_error("step_begin: the last frame's step_end() has not run");
   // Every field of the record is this frame's (callers may reuse one record across frames).
   rec = FrameRecord{};
   const double t1 = (state.frame + 1) / model.fps;
@@ -740,14 +775,7 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   const physics::Prediction pred =
       model.integrator->predict(loads, twist_coefficients(model, rec.twist_degrees), state.sim, state.work, u);
   for (int p : model.held_probes) state.samples[p].force = loads.points[p].force;
-  rec.physics_iterations = pred.iterations;
-  rec.physics_converged = pred.converged;
-  rec.physics_diverged = pred.diverged;
-  rec.refactorisations = pred.refactorisations;
-  rec.tangent_fallbacks = pred.tangent_fallbacks;
-  rec.cg_iterations = pred.cg_iterations;
-  rec.truncated_steps = pred.truncated_steps;
-  rec.preconditioner_failures = pred.preconditioner_failures;
+  record_prediction(pred, rec);
   state.carried_lambda = loads.contacts ? pred.contact_lambda : Eigen::VectorXd();
   // Grasped nodes follow their graspers (prescribed displacements of the free motion).
   const bool solved = usable(model, pred, u);
@@ -760,16 +788,47 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
   state.tool_records.clear();
   if (state.compliance && solved) collide_and_respond(model, state, u, rec);
 
-  // Commit (or keep the last good frame), then hand the reactions back to the sources.
-  commit_frame(model, state, u, solved, input.bad_input, rec);
-  // Carried contacts: the next solve starts where this frame ended (its loads include the contacts). A failed
-  // solve's warm start goes back to the last good frame too, never to what failed.
-  const bool restart = (model.coupling_stiffness > 0.0 && !rec.numerical_failure) || !solved;
-  if (restart && state.work.corotational.u.size() == state.sim.u.size()) state.work.corotational.u = state.sim.u;
-  feed_back(inputs, state, t1, rec);
-  feed_back_instruments(model, inputs, state, t1, rec);
+  // Commit (or keep the last good frame), or, with the interior deferred, start its solve on a second thread and
+  // place the nodes the renderer reads (exact already).
+  PendingFrame& p = state.pending;
+  p.open = true;
+  p.solved = solved;
+  p.bad_input = input.bad_input;
+  p.committed = !rec.interior_deferred;
+  if (p.committed) {
+    commit_frame(model, state, u, solved, input.bad_input, rec);
+  } else {
+    const physics::SurfaceCompliance* compliance = state.compliance.get();
+    p.interior = std::async(std::launch::async, [compliance, du = std::move(p.du)]() mutable {
+      compliance->complete_interior(du);
+      return du;
+    });
+    for (int v : model.view_nodes) state.x.row(v) = model.mesh.rest.row(v) + u.segment<3>(3 * v).transpose();
+    for (int v : compliance->nodes()) state.x.row(v) = model.mesh.rest.row(v) + u.segment<3>(3 * v).transpose();
+  }
   state.frame += 1;
   state.t = t1;
+}
+
+void step_end(const Model& model, Inputs& inputs, State& state, FrameRecord& rec) {
+  PendingFrame& p = state.pending;
+  if (!p.open) throw std::logic_error("step_end: no frame was begun (step_begin)");
+  p.open = false;
+  // A deferred interior: wait for its solve (which writes the interior only: what was drawn stays), commit.
+  if (!p.committed) {
+    const auto clock = Clock::now();
+    const Eigen::VectorXd u = p.u_free + p.interior.get();
+    state.last_correction = u - p.u_free;  // (as keep_for_next_frame has it, to the last bit)
+    rec.interior_wait_ms = ms_since(clock);
+    rec.ms[kResponse] += rec.interior_wait_ms;
+    commit_frame(model, state, u, p.solved, p.bad_input, rec);
+  }
+  // Carried contacts: the next solve starts where this frame ended (its loads include the contacts). A failed
+  // solve's warm start goes back to the last good frame too, never to what failed.
+  const bool restart = (model.coupling_stiffness > 0.0 && !rec.numerical_failure) || !p.solved;
+  if (restart && state.work.corotational.u.size() == state.sim.u.size()) state.work.corotational.u = state.sim.u;
+  feed_back(inputs, state, state.t, rec);
+  feed_back_instruments(model, inputs, state, state.t, rec);
 }
 
 }  // namespace lumen::engine

@@ -2,6 +2,7 @@
 // The compiled model (immutable after compile) and the mutable session state; one step per frame.
 #include <array>
 #include <cstdint>
+#include <future>
 #include <memory>
 #include <string>
 #include <vector>
@@ -19,6 +20,7 @@
 #include "physics/fem.hpp"
 #include "physics/integrator.hpp"
 #include "physics/mesh.hpp"
+#include "physics/surface_compliance.hpp"
 
 namespace lumen::engine {
 
@@ -112,6 +114,12 @@ struct Model {
   // null when self-collision is off.
   std::shared_ptr<const collision::CollisionSurface> collision_surface;
   std::vector<int> collision_nodes;                // their node ids (sorted): the contact compliance's nodes
+  // Nodes the renderer reads (the drawn surfaces', the probes' and the centreline camera's rings'; sorted): the
+  // contact compliance keeps their rows, so that what is drawn is exact before the interior is (State::pending).
+  std::vector<int> view_nodes;
+  // The contact compliance's budget for whole-mesh columns of its nodes, bytes (tests lower it to take the
+  // back-substitution path on small meshes).
+  long compliance_mesh_column_bytes = physics::SurfaceCompliance::kMeshColumnBytes;
   // Instruments (scene key "instruments"): their parts, flattened as collision surfaces, and the organ surface they
   // touch: the outer and the inner wall (n x 3 node ids), whose nodes are then all in collision_nodes.
   std::vector<CompiledInstrument> instruments;
@@ -171,6 +179,18 @@ Inputs make_inputs(const Scene& scene);
 // The pose source of instrument i from its track or replay (InputError for a device-only instrument, as above).
 std::unique_ptr<PoseSource> make_pose_source(const Scene& scene, size_t i);
 
+// The frame between step_begin() and step_end().
+struct PendingFrame {
+  bool solved = false;     // the prediction was usable (the frame commits its motion)
+  bool bad_input = false;  // a source gave a non-finite sample
+  bool open = false;       // between step_begin() and step_end()
+  bool committed = false;  // step_begin() committed the frame (nothing deferred; else step_end() commits it)
+  // A deferred interior: the free motion and the whole-mesh correction, exact on the colliding and view nodes only
+  // (3n each, metres), and the correction completed on a second thread (SurfaceCompliance::complete_interior).
+  Eigen::VectorXd u_free, du;
+  std::future<Eigen::VectorXd> interior;
+};
+
 // The session's mutable state.
 struct State {
   int frame = 0;        // frames done
@@ -209,6 +229,10 @@ struct State {
   GraspHolds grasp_holds;
   Eigen::VectorXd grasp_force;
   int failures = 0;                                   // frames where the last good state was kept
+  // Solve the whole-mesh correction's interior on a second thread between step_begin() and step_end() (a session
+  // that renders sets it: the render overlaps the solve), when it would back-substitute and the view rows are kept.
+  bool defer_interior = false;
+  PendingFrame pending;  // (last: destroyed first, waiting for a solve in flight)
 };
 
 State make_state(const Model& model);
@@ -222,5 +246,11 @@ Eigen::VectorXd nodal_loads(const Model& model, const State& state);
 // reactions. Fills everything in `rec` but the render and total times.
 // `inputs` holds one source per probe of the model.
 void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec);
+// step() in two halves around the render: step_begin() runs the stages and leaves state.x exact on every node the
+// renderer reads (Model::view_nodes) and state.frame, state.t at the frame's end; with state.defer_interior it may
+// leave the whole-mesh correction's interior solving on a second thread. step_end() joins it, commits the frame
+// and feeds the reactions back. Between the two, nothing may use the model's solvers; step() is both at once.
+void step_begin(const Model& model, Inputs& inputs, State& state, FrameRecord& rec);
+void step_end(const Model& model, Inputs& inputs, State& state, FrameRecord& rec);
 
 }  // namespace lumen::engine

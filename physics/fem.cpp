@@ -6,6 +6,7 @@
 
 #include <Eigen/LU>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <mutex>
 #include <sstream>
@@ -167,11 +168,14 @@ struct StaticSolver::Impl {
   std::vector<int> free_of;  // DOF -> free index, or -1 when fixed, length n
   std::vector<int> dof_of;   // free index -> DOF, length n_free
   long lnz = 0;              // nonzeros of L (the symbolic analysis' count)
+  Eigen::SparseMatrix<double> K;  // the matrix as given (3n x 3n)
   // Reused solve workspace (single right-hand side).
   mutable std::vector<double> rhs;
   mutable cholmod_dense* X = nullptr;
   mutable cholmod_dense* Y = nullptr;
   mutable cholmod_dense* E = nullptr;
+  // Whether a solve is running (the workspace and the CHOLMOD common above are one per factorisation).
+  mutable std::atomic<bool> busy{false};
 
   Impl() { cholmod_start(&common); }
   ~Impl() {
@@ -201,7 +205,8 @@ struct StaticSolver::Impl {
   }
 
   // Copies the lower triangle of K on the free DOFs into CHOLMOD, analyses and factorises it (supernodal LL^T).
-  void factorise(const Eigen::SparseMatrix<double>& K, const std::vector<char>& fixed) {
+  void factorise(const Eigen::SparseMatrix<double>& K_in, const std::vector<char>& fixed) {
+    K = K_in;
     n = static_cast<int>(K.rows());
     free_of.assign(n, -1);
     for (int d = 0; d < n; ++d)
@@ -338,8 +343,76 @@ bool StaticSolver::is_fixed_dof(int dof) const {
   return impl_->free_of[dof] < 0;
 }
 
+const Eigen::SparseMatrix<double>& StaticSolver::matrix() const { return impl_->K; }
+
+namespace {
+
+// The solver's fixed DOFs and every DOF of the boundary nodes (validated), as FixedDofs.
+std::vector<FixedDof> interior_fixed(const StaticSolver& solver, const std::vector<int>& boundary) {
+  const int n = solver.n_dofs();
+  std::vector<FixedDof> dofs;
+  for (int d = 0; d < n; ++d)
+    if (solver.is_fixed_dof(d)) dofs.push_back({d / 3, d % 3});
+  for (size_t k = 0; k < boundary.size(); ++k) {
+    if (boundary[k] < 0 || boundary[k] >= n / 3)
+      throw std::invalid_argument("InteriorSolver: boundary[" + std::to_string(k) + "] must be in [0, " +
+                                  std::to_string(n / 3) + "), got " + std::to_string(boundary[k]));
+    for (int c = 0; c < 3; ++c) dofs.push_back({boundary[k], c});
+  }
+  return dofs;
+}
+
+}  // namespace
+
+InteriorSolver::InteriorSolver(const StaticSolver& solver, const std::vector<int>& boundary)
+    : interior_(solver.matrix(), interior_fixed(solver, boundary)) {
+  // K_IB: the entries of K in an interior row and a free boundary column.
+  const Eigen::SparseMatrix<double>& K = solver.matrix();
+  std::vector<Eigen::Triplet<double>> entries;
+  for (int j = 0; j < K.outerSize(); ++j) {
+    if (solver.is_fixed_dof(j) || !interior_.is_fixed_dof(j)) continue;  // (boundary: fixed here only)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(K, j); it; ++it)
+      if (!interior_.is_fixed_dof(static_cast<int>(it.row()))) entries.emplace_back(it.row(), j, it.value());
+  }
+  coupling_.resize(K.rows(), K.cols());
+  coupling_.setFromTriplets(entries.begin(), entries.end());
+}
+
+void InteriorSolver::complete(Eigen::VectorXd& u) const {
+  if (u.size() != interior_.n_dofs())
+    throw std::invalid_argument("InteriorSolver::complete: u must have " + std::to_string(interior_.n_dofs()) +
+                                " entries, got " + std::to_string(u.size()));
+  // u_I = K_II^-1 (-K_IB u_B); the interior solver returns 0 off the interior, so only its entries are taken.
+  const Eigen::VectorXd r = -(coupling_ * u);
+  Eigen::VectorXd u_interior;
+  interior_.solve(r, u_interior);
+  for (int d = 0; d < u.size(); ++d)
+    if (!interior_.is_fixed_dof(d)) u[d] = u_interior[d];
+}
+
+namespace {
+
+// One solve at a time on a factorisation: a second caller while one runs (another thread) is a programming error,
+// refused instead of corrupting the shared workspace.
+class SolveGuard {
+ public:
+  SolveGuard(std::atomic<bool>& busy, const char* what) : busy_(busy) {
+    if (busy_.exchange(true))
+      throw std::logic_error(std::string(what) + ": the solver is already solving on another thread (one at a time)");
+  }
+  ~SolveGuard() { busy_.store(false); }
+  SolveGuard(const SolveGuard&) = delete;
+  SolveGuard& operator=(const SolveGuard&) = delete;
+
+ private:
+  std::atomic<bool>& busy_;
+};
+
+}  // namespace
+
 void StaticSolver::solve(const Eigen::VectorXd& f, Eigen::VectorXd& u) const {
   Impl& m = *impl_;
+  const SolveGuard guard(m.busy, "StaticSolver::solve");
   if (f.size() != m.n) {
     throw std::invalid_argument("StaticSolver::solve: f must have " + std::to_string(m.n) + " entries, got " +
                                 std::to_string(f.size()));
@@ -364,6 +437,7 @@ void StaticSolver::solve(const Eigen::VectorXd& f, Eigen::VectorXd& u) const {
 
 Eigen::MatrixXd StaticSolver::solve_many(const Eigen::MatrixXd& F) const {
   Impl& m = *impl_;
+  const SolveGuard guard(m.busy, "StaticSolver::solve_many");
   if (F.rows() != m.n) {
     throw std::invalid_argument("StaticSolver::solve_many: F must have " + std::to_string(m.n) + " rows, got " +
                                 std::to_string(F.rows()));

@@ -12,7 +12,8 @@ namespace lumen::physics {
 using detail::fail;
 
 SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns,
-                                     long max_mesh_column_bytes, long max_set_matrix_bytes)
+                                     long max_mesh_column_bytes, long max_set_matrix_bytes,
+                                     const std::vector<int>& view_nodes, long max_view_bytes)
     : solver_(&solver), nodes_(nodes) {
   const int n = solver.n_dofs(), n_mesh = n / 3, s = static_cast<int>(nodes_.size());
   if (block_columns < 1) fail("SurfaceCompliance: block_columns must be >= 1, got " + std::to_string(block_columns));
@@ -31,6 +32,17 @@ SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vect
   }
   if (max_set_matrix_bytes < 0)
     fail("SurfaceCompliance: max_set_matrix_bytes must be >= 0, got " + std::to_string(max_set_matrix_bytes));
+  if (max_view_bytes < 0) fail("SurfaceCompliance: max_view_bytes must be >= 0, got " + std::to_string(max_view_bytes));
+  // View nodes: in range; the ones outside the set, each once.
+  for (size_t i = 0; i < view_nodes.size(); ++i) {
+    const int v = view_nodes[i];
+    if (v < 0 || v >= n_mesh)
+      fail("SurfaceCompliance: view_nodes[" + std::to_string(i) + "] must be in [0, " + std::to_string(n_mesh) +
+           "), got " + std::to_string(v));
+    if (index_[v] < 0) view_nodes_.push_back(v);
+  }
+  std::sort(view_nodes_.begin(), view_nodes_.end());
+  view_nodes_.erase(std::unique(view_nodes_.begin(), view_nodes_.end()), view_nodes_.end());
   // A set too large for its matrix keeps its columns per node, solved on first use.
   lazy_ = 9.0 * s * s * sizeof(double) > static_cast<double>(max_set_matrix_bytes);
   if (lazy_) {
@@ -39,8 +51,13 @@ SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vect
   }
   // C by blocks of unit columns: solve, keep the rows of the set (and all rows when they fit the budget).
   const bool keep = static_cast<double>(n) * 3.0 * s * sizeof(double) <= static_cast<double>(max_mesh_column_bytes);
+  // (the view rows only without the whole-mesh columns, which hold them)
+  const int nv = static_cast<int>(view_nodes_.size());
+  const bool view = !keep && nv > 0 && s > 0 &&
+                    9.0 * nv * s * sizeof(double) <= static_cast<double>(max_view_bytes);
   C_.resize(3 * s, 3 * s);
   if (keep && s > 0) Kc_.resize(n, 3 * s);
+  if (view) V_.resize(3 * nv, 3 * s);
   for (int c0 = 0; c0 < 3 * s; c0 += block_columns) {
     const int nc = std::min(block_columns, 3 * s - c0);
     Eigen::MatrixXd F = Eigen::MatrixXd::Zero(n, nc);
@@ -48,7 +65,18 @@ SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vect
     const Eigen::MatrixXd X = solver.solve_many(F);
     for (int a = 0; a < s; ++a) C_.block(3 * a, c0, 3, nc) = X.middleRows(3 * nodes_[a], 3);
     if (Kc_.size() > 0) Kc_.middleCols(c0, nc) = X;
+    if (V_.size() > 0)
+      for (int i = 0; i < nv; ++i) V_.block(3 * i, c0, 3, nc) = X.middleRows(3 * view_nodes_[i], 3);
   }
+  // With view rows, the interior's own factorisation (when any free DOF is off the set and the view).
+  if (V_.size() == 0) return;
+  on_view_.assign(n_mesh, 0);
+  std::vector<int> boundary = nodes_;
+  boundary.insert(boundary.end(), view_nodes_.begin(), view_nodes_.end());
+  for (int v : boundary) on_view_[v] = 1;
+  bool any_interior = false;
+  for (int d = 0; d < n && !any_interior; ++d) any_interior = !on_view_[d / 3] && !solver.is_fixed_dof(d);
+  if (any_interior) interior_ = std::make_unique<InteriorSolver>(solver, boundary);
 }
 
 const Eigen::MatrixXd& SurfaceCompliance::matrix() const {
@@ -70,25 +98,46 @@ Eigen::Ref<const Eigen::MatrixXd> SurfaceCompliance::set_block(int a) const {
   return set_cols_[a];
 }
 
+namespace {
+
+// Nodes with a nonzero load in f (3n), ascending.
+std::vector<int> loaded_nodes(const Eigen::VectorXd& f) {
+  std::vector<int> loaded;
+  for (int v = 0; v < f.size() / 3; ++v)
+    if (f[3 * v] != 0.0 || f[3 * v + 1] != 0.0 || f[3 * v + 2] != 0.0) loaded.push_back(v);
+  return loaded;
+}
+
+}  // namespace
+
+bool SurfaceCompliance::needs_solve(const Eigen::VectorXd& f) const {
+  const int n = solver_->n_dofs();
+  if (f.size() != n) fail("SurfaceCompliance::needs_solve: f must have " + std::to_string(n) + " entries, got " +
+                          std::to_string(f.size()));
+  // Whether each loaded node has whole-mesh columns at hand.
+  const std::vector<int> loaded = loaded_nodes(f);
+  for (int v : loaded)
+    if (!((index_[v] >= 0 && Kc_.size() > 0) || extra_index_[v] >= 0)) return true;
+  // Summing 3 columns of 3n per loaded node against two sweeps over the factor (forward and back).
+  const double sum_cost = 3.0 * n * static_cast<double>(loaded.size());
+  const double solve_cost = 2.0 * static_cast<double>(solver_->factor_nonzeros());
+  return sum_cost > solve_cost;
+}
+
 void SurfaceCompliance::displacement(const Eigen::VectorXd& f, Eigen::VectorXd& du) {
   const int n = solver_->n_dofs();
   if (f.size() != n) fail("SurfaceCompliance::displacement: f must have " + std::to_string(n) + " entries, got " +
                           std::to_string(f.size()));
-  // Loaded nodes, and whether each has whole-mesh columns at hand.
-  std::vector<int> loaded;
-  bool all_at_hand = true;
-  for (int v = 0; v < n / 3; ++v) {
-    if (f[3 * v] == 0.0 && f[3 * v + 1] == 0.0 && f[3 * v + 2] == 0.0) continue;
-    loaded.push_back(v);
-    all_at_hand = all_at_hand && ((index_[v] >= 0 && Kc_.size() > 0) || extra_index_[v] >= 0);
-  }
-  // Summing 3 columns of 3n per loaded node against two sweeps over the factor (forward and back).
-  const double sum_cost = 3.0 * n * static_cast<double>(loaded.size());
-  const double solve_cost = 2.0 * static_cast<double>(solver_->factor_nonzeros());
-  if (!all_at_hand || sum_cost > solve_cost) {
-    solver_->solve(f, du);
+  if (needs_solve(f)) {
+    if (keeps_view_rows() && loads_only_view(f)) {
+      displacement_on_view(f, du);
+      complete_interior(du);
+    } else {
+      solver_->solve(f, du);
+    }
     return;
   }
+  const std::vector<int> loaded = loaded_nodes(f);
   du.setZero(n);
   for (int v : loaded) {
     const Eigen::Vector3d fv = f.segment<3>(3 * v);
@@ -158,14 +207,50 @@ Eigen::Matrix3d SurfaceCompliance::block(int node_a, int node_b) {
   return extra_cols_[extra_index_[node_a]].middleRows<3>(3 * node_b).transpose();
 }
 
+void SurfaceCompliance::displacement_on_view(const Eigen::VectorXd& f, Eigen::VectorXd& du) {
+  const int n = solver_->n_dofs(), s = static_cast<int>(nodes_.size()), nv = static_cast<int>(view_nodes_.size());
+  if (!keeps_view_rows()) throw std::logic_error("SurfaceCompliance::displacement_on_view: no view rows are kept");
+  if (f.size() != n) fail("SurfaceCompliance::displacement_on_view: f must have " + std::to_string(n) +
+                          " entries, got " + std::to_string(f.size()));
+  // Loaded nodes; the columns of the ones outside the set at hand (whole-mesh: they hold every row).
+  const std::vector<int> loaded = loaded_nodes(f);
+  ensure_columns(loaded);
+  // Set rows and view rows: the set's column blocks of set loads, the cached columns of outside loads.
+  Eigen::VectorXd v_set = Eigen::VectorXd::Zero(3 * s), v_view = Eigen::VectorXd::Zero(3 * nv);
+  for (int b : loaded) {
+    const Eigen::Vector3d fb = f.segment<3>(3 * b);
+    if (index_[b] >= 0) {
+      v_set.noalias() += C_.middleCols<3>(3 * index_[b]) * fb;
+      v_view.noalias() += V_.middleCols<3>(3 * index_[b]) * fb;
+    } else {
+      const Eigen::MatrixXd& X = extra_cols_[extra_index_[b]];
+      for (int a = 0; a < s; ++a) v_set.segment<3>(3 * a).noalias() += X.middleRows<3>(3 * nodes_[a]) * fb;
+      for (int i = 0; i < nv; ++i) v_view.segment<3>(3 * i).noalias() += X.middleRows<3>(3 * view_nodes_[i]) * fb;
+    }
+  }
+  du.setZero(n);
+  for (int a = 0; a < s; ++a) du.segment<3>(3 * nodes_[a]) = v_set.segment<3>(3 * a);
+  for (int i = 0; i < nv; ++i) du.segment<3>(3 * view_nodes_[i]) = v_view.segment<3>(3 * i);
+}
+
+bool SurfaceCompliance::loads_only_view(const Eigen::VectorXd& f) const {
+  if (!keeps_view_rows()) return false;
+  for (int v : loaded_nodes(f))
+    if (!on_view_[v]) return false;
+  return true;
+}
+
+void SurfaceCompliance::complete_interior(Eigen::VectorXd& du) const {
+  if (!keeps_view_rows()) throw std::logic_error("SurfaceCompliance::complete_interior: no view rows are kept");
+  if (interior_) interior_->complete(du);
+}
+
 void SurfaceCompliance::displacement_on_set(const Eigen::VectorXd& f, Eigen::VectorXd& du, const std::vector<int>& also) {
   const int n = solver_->n_dofs(), s = static_cast<int>(nodes_.size());
   if (f.size() != n) fail("SurfaceCompliance::displacement_on_set: f must have " + std::to_string(n) +
                           " entries, got " + std::to_string(f.size()));
   // Loaded nodes; columns of the ones outside the set, and of the listed outside nodes, at hand.
-  std::vector<int> loaded;
-  for (int v = 0; v < n / 3; ++v)
-    if (f[3 * v] != 0.0 || f[3 * v + 1] != 0.0 || f[3 * v + 2] != 0.0) loaded.push_back(v);
+  const std::vector<int> loaded = loaded_nodes(f);
   std::vector<int> wanted = loaded;  // the loaded nodes, and the listed ones outside the set
   for (int v : also) {
     check_node(v, "also");

@@ -2,6 +2,7 @@
 // Surface compliance: C = K^-1 of a prefactorised FEM model restricted to a node set (the inner wall), with
 // on-demand columns outside the set and the whole-mesh response to forces on few nodes.
 #include <Eigen/Core>
+#include <memory>
 #include <vector>
 
 #include "physics/fem.hpp"
@@ -26,8 +27,15 @@ class CouplingMatrix;
 class SurfaceCompliance {
  public:
   // nodes: distinct mesh node ids. Columns are computed block_columns at a time (solve_many).
-  SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns = 64,
-                    long max_mesh_column_bytes = 256L << 20, long max_set_matrix_bytes = 1L << 30);
+  // view_nodes: nodes whose response to set loads is wanted without a solve (what is drawn: the outer wall, the end
+  // caps); when the whole-mesh columns are not kept and the set is eager, their rows of the set's columns (3v x 3s)
+  // come out of the same solves and are kept if they take at most max_view_bytes (see displacement_on_view()).
+  // View nodes in the set, or repeated, count once.
+  static constexpr int kBlockColumns = 64;
+  static constexpr long kMeshColumnBytes = 256L << 20, kSetMatrixBytes = 1L << 30, kViewBytes = 512L << 20;
+  SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns = kBlockColumns,
+                    long max_mesh_column_bytes = kMeshColumnBytes, long max_set_matrix_bytes = kSetMatrixBytes,
+                    const std::vector<int>& view_nodes = {}, long max_view_bytes = kViewBytes);
 
   const StaticSolver& solver() const { return *solver_; }
   int n_nodes_mesh() const { return solver_->n_dofs() / 3; }
@@ -52,11 +60,30 @@ class SurfaceCompliance {
   int n_cached_nodes() const { return static_cast<int>(extra_nodes_.size()); }
   // Whether the whole-mesh columns of the set nodes are kept (3n x 3s, m/N).
   bool keeps_mesh_columns() const { return Kc_.size() > 0; }
+  // Whether the view nodes' rows of the set's columns are kept (3v x 3s, m/N), and those nodes (outside the set).
+  bool keeps_view_rows() const { return !view_nodes_.empty() && V_.size() > 0; }
+  const std::vector<int>& view_nodes() const { return view_nodes_; }
 
   // du = K^-1 f (3n, metres) for nodal forces f (3n, newtons). When f acts on few nodes whose whole-mesh
   // columns are at hand (kept set columns, cached outside columns) and summing them is cheaper than a
-  // back-substitution, du is that sum; otherwise one StaticSolver::solve. Both give K^-1 f to round-off.
+  // back-substitution, du is that sum; otherwise, with view rows kept and f on the set and view nodes only, the
+  // view rows and the interior's solve (displacement_on_view, complete_interior); otherwise one
+  // StaticSolver::solve. All give K^-1 f to round-off.
   void displacement(const Eigen::VectorXd& f, Eigen::VectorXd& du);
+  // Whether displacement(f) would back-substitute (f loads a node without whole-mesh columns at hand, or summing
+  // them costs more than the two sweeps over the factor).
+  bool needs_solve(const Eigen::VectorXd& f) const;
+  // du = K^-1 f on the set nodes and the view nodes only, every other entry 0 (3n, metres), from C, the view rows
+  // and the cached outside columns (solving first for the columns of loaded outside nodes not cached yet): what
+  // is drawn, exact, while the interior is solved elsewhere. Needs keeps_view_rows() (std::logic_error otherwise).
+  void displacement_on_view(const Eigen::VectorXd& f, Eigen::VectorXd& du);
+  // Whether f loads no node but the set's and the view's (complete_interior's condition).
+  bool loads_only_view(const Eigen::VectorXd& f) const;
+  // du (3n) exact on the set and view nodes for loads on them only (displacement_on_view), completed on every other
+  // node: the interior's own solve, u_I = -K_II^-1 K_IB u_B (InteriorSolver, made with the view rows), instead of a
+  // back-substitution over the whole mesh. Uses no other solver and changes nothing here, so it may run on another
+  // thread while this object is not used. Needs keeps_view_rows() (std::logic_error otherwise).
+  void complete_interior(Eigen::VectorXd& du) const;
   // du = K^-1 f on the set nodes and on the nodes listed in `also` only, every other entry 0 (3n, metres): what
   // a check of the set (the inner wall) needs, for a fraction of the whole-mesh cost.
   void displacement_on_set(const Eigen::VectorXd& f, Eigen::VectorXd& du, const std::vector<int>& also = {});
@@ -73,6 +100,10 @@ class SurfaceCompliance {
   Eigen::MatrixXd C_;                        // 3s x 3s, m/N (empty when lazy)
   std::vector<Eigen::MatrixXd> set_cols_;    // lazy: per set node, 3s x 3 (empty until solved), m/N
   Eigen::MatrixXd Kc_;                       // 3n x 3s whole-mesh columns of the set DOFs, m/N (or empty)
+  std::vector<int> view_nodes_;              // nodes outside the set whose rows are kept (sorted)
+  Eigen::MatrixXd V_;                        // 3v x 3s, rows of view_nodes_ in the set's columns, m/N (or empty)
+  std::vector<char> on_view_;                // per mesh node: 1 in the set or the view (with view rows)
+  std::unique_ptr<InteriorSolver> interior_; // the nodes off the set and the view (null: none, or no view rows)
   std::vector<int> extra_index_;             // mesh node -> position in extra_nodes_, or -1
   std::vector<int> extra_nodes_;             // nodes outside the set with cached columns
   std::vector<Eigen::MatrixXd> extra_cols_;  // per cached node: 3n x 3, K^-1 columns of its DOFs, m/N

@@ -188,5 +188,89 @@ TEST(CollideAndRespond, TheSqueezeIntersectsWithoutResponse) {
   EXPECT_GT(frames_with, 3);
 }
 
+// ---------------------------------------------------------------------------------------------------------------
+// The deferred interior (State::defer_interior): a contact frame's whole-mesh correction exact on the colliding and
+// drawn nodes at once, its interior solved on a second thread between step_begin and step_end.
+
+// The squeeze with the compliance's whole-mesh columns refused, so its correction back-substitutes (the path that
+// defers, as on large meshes).
+std::unique_ptr<Model> deferring_model(const Scene& scene) {
+  auto model = compile_model(scene);
+  model->compliance_mesh_column_bytes = 0;
+  return model;
+}
+
+// Against its serial twin (step(), nothing deferred) frame by frame: what step_begin leaves for the renderer is
+// already the twin's end state on every node the renderer reads, and after step_end the whole state and record are
+// the twin's (to round-off: the interior comes from a solve instead of the rows).
+TEST(DeferredInterior, EqualsTheSerialCorrectionFrameByFrame) {
+  const Scene scene = squeeze_scene("constraint", 30);
+  const auto model = deferring_model(scene);
+  Inputs in_deferred = make_inputs(scene), in_serial = make_inputs(scene);
+  State deferred = make_state(*model), serial = make_state(*model);
+  ASSERT_TRUE(deferred.compliance->keeps_view_rows());
+  ASSERT_FALSE(model->view_nodes.empty());
+  deferred.defer_interior = true;
+  const double scale = 0.01;  // metres: the squeeze's displacements are millimetres
+  int deferred_frames = 0;
+  for (int i = 0; i < scene.frames; ++i) {
+    FrameRecord rd, rs;
+    step(*model, in_serial, serial, rs);
+    step_begin(*model, in_deferred, deferred, rd);
+    FrameRecord again;
+    EXPECT_THROW(step_begin(*model, in_deferred, deferred, again), std::logic_error) << "frame " << rd.frame;
+    deferred_frames += rd.interior_deferred;
+    // What the renderer reads, before the join: the twin's end positions.
+    for (int v : model->view_nodes)
+      EXPECT_LE((deferred.x.row(v) - serial.x.row(v)).norm(), 1e-12 * scale) << "frame " << rd.frame << " node " << v;
+    EXPECT_EQ(deferred.frame, serial.frame);
+    step_end(*model, in_deferred, deferred, rd);
+    EXPECT_THROW(step_end(*model, in_deferred, deferred, again), std::logic_error) << "frame " << rd.frame;
+    EXPECT_LE((deferred.sim.u - serial.sim.u).cwiseAbs().maxCoeff(), 1e-12 * scale) << "frame " << rd.frame;
+    EXPECT_LE((deferred.x - serial.x).cwiseAbs().maxCoeff(), 1e-12 * scale) << "frame " << rd.frame;
+    EXPECT_LE((deferred.last_correction - serial.last_correction).cwiseAbs().maxCoeff(), 1e-12 * scale);
+    EXPECT_EQ(rd.inverted_elements, rs.inverted_elements);
+    EXPECT_EQ(rd.numerical_failure, rs.numerical_failure);
+    EXPECT_EQ(rd.response_iterations, rs.response_iterations) << "frame " << rd.frame;
+    EXPECT_EQ(rd.contacts, rs.contacts) << "frame " << rd.frame;
+    EXPECT_NEAR(rd.contact_force, rs.contact_force, 1e-9 * std::max(1.0, rs.contact_force));
+    EXPECT_NEAR(rd.max_displacement, rs.max_displacement, 1e-12 * scale);
+    ASSERT_EQ(rd.probe_displacement.size(), rs.probe_displacement.size());
+    for (size_t p = 0; p < rd.probe_displacement.size(); ++p)
+      EXPECT_LE((rd.probe_displacement[p] - rs.probe_displacement[p]).norm(), 1e-12 * scale);
+    EXPECT_FALSE(rs.interior_deferred);
+  }
+  // The squeeze's contact frames deferred (resolved ones; a fallback frame never does).
+  EXPECT_GT(deferred_frames, 5);
+}
+
+// A rendering session defers (its frames say so) and ends where the same session run serially ends; the kept
+// whole-mesh columns (the default budget on this small mesh) sum instead of solving, so nothing defers there.
+TEST(DeferredInterior, RenderingSessionEndsWhereTheSerialOneDoes) {
+  Scene scene = squeeze_scene("constraint", 24);
+  scene.render.width = 160;
+  scene.render.height = 120;
+  const auto model = deferring_model(scene);
+  auto run = [&](const Model& m, bool overlap, Points& last) {
+    SessionOptions opt;
+    opt.render = true;
+    opt.write_frames = false;
+    opt.overlap_interior = overlap;
+    opt.on_frame = [&](const Model&, const State& state, const FrameRecord&) { last = state.x; };
+    return run_session(m, make_inputs(scene), opt);
+  };
+  Points overlapped, serial, kept;
+  const SessionResult a = run(*model, true, overlapped), b = run(*model, false, serial);
+  long deferred = 0;
+  for (const FrameRecord& f : a.frames) deferred += f.interior_deferred;
+  for (const FrameRecord& f : b.frames) EXPECT_FALSE(f.interior_deferred);
+  EXPECT_GT(deferred, 5);
+  EXPECT_LE((overlapped - serial).cwiseAbs().maxCoeff(), 1e-14);
+  const auto default_model = compile_model(scene);
+  const SessionResult c = run(*default_model, true, kept);
+  for (const FrameRecord& f : c.frames) EXPECT_FALSE(f.interior_deferred) << "frame " << f.frame;
+  EXPECT_LE((kept - serial).cwiseAbs().maxCoeff(), 1e-14);
+}
+
 }  // namespace
 }  // namespace lumen::engine

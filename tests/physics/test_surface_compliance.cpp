@@ -109,5 +109,89 @@ TEST(SurfaceCompliance, DisplacementsEqualDenseTwin) {
   EXPECT_THROW(SurfaceCompliance(*m.solver, m.inner, 64, -1), std::invalid_argument);
 }
 
+// The view rows: the response on the set and the view nodes equals the dense twin K^-1 f there and is 0 elsewhere,
+// for loads on set nodes and on an outside node; the rows are kept only without the whole-mesh columns and within
+// their budget; needs_solve says what displacement() does.
+TEST(SurfaceCompliance, ViewRowsEqualDenseTwin) {
+  const Model& m = model();
+  // View: half of the outer free nodes, one inner node (in the set: ignored) and a repeat.
+  std::vector<int> view(m.outer_free.begin(), m.outer_free.begin() + m.outer_free.size() / 2);
+  view.push_back(m.inner[3]);
+  view.push_back(view.front());
+  SurfaceCompliance sc(*m.solver, m.inner, 5, 0, 1L << 30, view);
+  ASSERT_TRUE(sc.keeps_view_rows());
+  EXPECT_EQ(sc.view_nodes().size(), m.outer_free.size() / 2);
+  std::vector<char> defined(m.n(), 0);
+  for (int v : m.inner) defined[v] = 1;
+  for (int v : sc.view_nodes()) defined[v] = 1;
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> force(-0.02, 0.02);
+  for (int trial = 0; trial < 4; ++trial) {
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * m.n());
+    for (int k = 0; k < 3 + trial; ++k)
+      for (int c = 0; c < 3; ++c) f[3 * m.inner[(11 * k + trial) % m.inner.size()] + c] = force(rng);
+    // An outside load (not in the view): its whole-mesh columns are solved for on first use.
+    if (trial % 2) f.segment<3>(3 * m.outer_free[m.outer_free.size() - 1 - trial]) << force(rng), force(rng), force(rng);
+    const Eigen::VectorXd twin = m.Kinv * f;
+    EXPECT_TRUE(sc.needs_solve(f));  // no whole-mesh columns of the set: a back-substitution
+    Eigen::VectorXd du;
+    sc.displacement_on_view(f, du);
+    for (int v = 0; v < m.n(); ++v) {
+      const Eigen::Vector3d expected = defined[v] ? Eigen::Vector3d(twin.segment<3>(3 * v)) : Eigen::Vector3d::Zero();
+      EXPECT_LE((du.segment<3>(3 * v) - expected).norm(), 1e-9 * twin.norm()) << "trial " << trial << " node " << v;
+    }
+    // Loads on the set only (even trials): the interior's own solve completes du to the twin everywhere, and
+    // displacement() takes that path; with the outside load it cannot (the interior is loaded).
+    EXPECT_EQ(sc.loads_only_view(f), trial % 2 == 0) << "trial " << trial;
+    if (trial % 2 == 0) {
+      sc.complete_interior(du);
+      EXPECT_LE((du - twin).norm(), 1e-9 * twin.norm()) << "trial " << trial;
+    }
+    sc.displacement(f, du);
+    EXPECT_LE((du - twin).norm(), 1e-9 * twin.norm()) << "trial " << trial;
+  }
+  // Kept whole-mesh columns hold every row: no view rows; a budget too small for them: none either.
+  SurfaceCompliance kept(*m.solver, m.inner, 64, 256L << 20, 1L << 30, view), tight(*m.solver, m.inner, 64, 0, 1L << 30, view, 8);
+  EXPECT_FALSE(kept.keeps_view_rows());
+  EXPECT_FALSE(tight.keeps_view_rows());
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * m.n()), du;
+  f[3 * m.inner[0]] = 0.01;
+  EXPECT_FALSE(kept.needs_solve(f));
+  EXPECT_THROW(tight.displacement_on_view(f, du), std::logic_error);
+  EXPECT_THROW(SurfaceCompliance(*m.solver, m.inner, 64, 0, 1L << 30, {m.n()}), std::invalid_argument);
+  EXPECT_THROW(SurfaceCompliance(*m.solver, m.inner, 64, 0, 1L << 30, view, -1), std::invalid_argument);
+}
+
+// InteriorSolver against the dense twin: for loads on boundary nodes only, K^-1 f off the boundary from K^-1 f on
+// it; what it is given on the boundary and the fixed DOFs stays.
+TEST(InteriorSolver, CompletesTheDenseTwinFromTheBoundary) {
+  const Model& m = model();
+  std::vector<int> boundary = m.inner;
+  boundary.insert(boundary.end(), m.outer_free.begin(), m.outer_free.begin() + m.outer_free.size() / 3);
+  const InteriorSolver interior(*m.solver, boundary);
+  EXPECT_GT(interior.n_interior_dofs(), 0);
+  EXPECT_LT(interior.factor_nonzeros(), m.solver->factor_nonzeros());
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> force(-0.02, 0.02);
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * m.n());
+  for (size_t k = 0; k < boundary.size(); k += 3)
+    for (int c = 0; c < 3; ++c) f[3 * boundary[k] + c] = force(rng);
+  const Eigen::VectorXd twin = m.Kinv * f;
+  // The boundary's entries of the twin, garbage elsewhere.
+  Eigen::VectorXd u = Eigen::VectorXd::Constant(3 * m.n(), 7.0);
+  for (int v : boundary) u.segment<3>(3 * v) = twin.segment<3>(3 * v);
+  const Eigen::VectorXd given = u;
+  interior.complete(u);
+  for (int d = 0; d < u.size(); ++d) {
+    if (m.solver->is_fixed_dof(d))
+      EXPECT_EQ(u[d], given[d]) << "dof " << d;  // untouched
+    else
+      EXPECT_NEAR(u[d], twin[d], 1e-9 * twin.norm()) << "dof " << d;
+  }
+  Eigen::VectorXd wrong(5);
+  EXPECT_THROW(interior.complete(wrong), std::invalid_argument);
+  EXPECT_THROW(InteriorSolver(*m.solver, {m.n()}), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace lumen::physics
