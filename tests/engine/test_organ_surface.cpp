@@ -459,13 +459,22 @@ TEST(SurfaceWall, RefusesBadSurfacesNamingFileProblemAndWhere) {
                                                    "or {\"plane\": ...} (value \"ends\")");
 }
 
-// The program on an open surface: exit 2, the message, nothing written.
+// The program on an open surface and on a PLY file with a bad header: exit 2, the message, nothing written.
 TEST(SurfaceWall, LumenRunExitsTwoAndWritesNothing) {
   const fs::path d = lumen::test::fresh_temp_dir("lumen_organ_", "wall_cli");
   std::ofstream(d / "open.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\n";
   std::string text;
   EXPECT_EQ(run_lumen(write_scene(d, wall_scene("open.obj", 0.1, "outward")), d / "out", text), 2) << text;
   EXPECT_NE(text.find("lumen: error: " + (d / "open.obj").string() + ": not closed: edge between"), std::string::npos) << text;
+  EXPECT_TRUE(!fs::exists(d / "out") || fs::is_empty(d / "out"));
+  // A PLY file with a bad header: refused by its line before assimp reads it.
+  std::ofstream(d / "bad.ply") << "ply\nformat ascii 1.0\nelement vertex three\nproperty float x\nend_header\n";
+  text.clear();
+  EXPECT_EQ(run_lumen(write_scene(d, wall_scene("bad.ply", 0.1, "outward")), d / "out", text), 2) << text;
+  EXPECT_NE(text.find("lumen: error: " + (d / "bad.ply").string() + ": PLY header line 3: must be \"element NAME "
+                      "COUNT\" with COUNT an integer in [0, 2147483647] (\"element vertex three\")"),
+            std::string::npos)
+      << text;
   EXPECT_TRUE(!fs::exists(d / "out") || fs::is_empty(d / "out"));
 }
 
