@@ -794,8 +794,7 @@ void step_begin(const Model& model, Inputs& inputs, State& state, FrameRecord& r
   p.open = true;
   p.solved = solved;
   p.bad_input = input.bad_input;
-  p.committed = !rec.interior_deferred;
-  if (p.committed) {
+  if (!rec.interior_deferred) {
     commit_frame(model, state, u, solved, input.bad_input, rec);
   } else {
     const physics::SurfaceCompliance* compliance = state.compliance.get();
@@ -803,8 +802,8 @@ void step_begin(const Model& model, Inputs& inputs, State& state, FrameRecord& r
       compliance->complete_interior(du);
       return du;
     });
-    for (int v : model.view_nodes) state.x.row(v) = model.mesh.rest.row(v) + u.segment<3>(3 * v).transpose();
-    for (int v : compliance->nodes()) state.x.row(v) = model.mesh.rest.row(v) + u.segment<3>(3 * v).transpose();
+    for (const std::vector<int>* nodes : {&model.view_nodes, &compliance->nodes()})
+      for (int v : *nodes) state.x.row(v) = model.mesh.rest.row(v) + u.segment<3>(3 * v).transpose();
   }
   state.frame += 1;
   state.t = t1;
@@ -815,7 +814,7 @@ void step_end(const Model& model, Inputs& inputs, State& state, FrameRecord& rec
   if (!p.open) throw std::logic_error("step_end: no frame was begun (step_begin)");
   p.open = false;
   // A deferred interior: wait for its solve (which writes the interior only: what was drawn stays), commit.
-  if (!p.committed) {
+  if (p.interior.valid()) {
     const auto clock = Clock::now();
     const Eigen::VectorXd u = p.u_free + p.interior.get();
     state.last_correction = u - p.u_free;  // (as keep_for_next_frame has it, to the last bit)

@@ -184,9 +184,9 @@ struct PendingFrame {
   bool solved = false;     // the prediction was usable (the frame commits its motion)
   bool bad_input = false;  // a source gave a non-finite sample
   bool open = false;       // between step_begin() and step_end()
-  bool committed = false;  // step_begin() committed the frame (nothing deferred; else step_end() commits it)
   // A deferred interior: the free motion and the whole-mesh correction, exact on the colliding and view nodes only
-  // (3n each, metres), and the correction completed on a second thread (SurfaceCompliance::complete_interior).
+  // (3n each, metres), and the correction completed on a second thread (SurfaceCompliance::complete_interior;
+  // valid() while the frame waits for it: step_end() commits it, otherwise step_begin() did).
   Eigen::VectorXd u_free, du;
   std::future<Eigen::VectorXd> interior;
 };

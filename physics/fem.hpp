@@ -65,13 +65,12 @@ struct FixedDof {
   int component;
 };
 
-// K u = f with some nodes fixed (u = 0 there), factorised once with CHOLMOD (supernodal LL^T; the factor is
-// then kept in simplicial form, whose back-substitution is the faster one with the system's reference BLAS).
-// All vectors are full length 3n; entries of fixed DOFs in f are ignored and returned as 0 in u.
-// K is read once (its lower triangle on the free DOFs) and not kept. A solve reuses workspace inside the
-// solver, so one solver must not be used from two threads at once: a solve that starts while another runs throws
-// std::logic_error. One thread may solve while another does other work (engine: the deferred whole-mesh
-// correction).
+// K u = f with some nodes fixed (u = 0 there), factorised once with CHOLMOD (supernodal LL^T, solved on the
+// supernodal factor). All vectors are full length 3n; entries of fixed DOFs in f are ignored and returned as 0 in u.
+// K's lower triangle on the free DOFs is copied into CHOLMOD; K itself is kept (matrix(), for InteriorSolver: a copy
+// of its nonzeros, small beside the factor's). A solve reuses workspace inside the solver, so one solver must not
+// be used from two threads at once: a solve that starts while another runs throws std::logic_error. One thread may
+// solve while another does other work (engine: the deferred whole-mesh correction).
 class StaticSolver {
  public:
   // Fix whole nodes (all three components).

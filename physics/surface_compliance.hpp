@@ -61,7 +61,7 @@ class SurfaceCompliance {
   // Whether the whole-mesh columns of the set nodes are kept (3n x 3s, m/N).
   bool keeps_mesh_columns() const { return Kc_.size() > 0; }
   // Whether the view nodes' rows of the set's columns are kept (3v x 3s, m/N), and those nodes (outside the set).
-  bool keeps_view_rows() const { return !view_nodes_.empty() && V_.size() > 0; }
+  bool keeps_view_rows() const { return V_.size() > 0; }
   const std::vector<int>& view_nodes() const { return view_nodes_; }
 
   // du = K^-1 f (3n, metres) for nodal forces f (3n, newtons). When f acts on few nodes whose whole-mesh
