@@ -151,9 +151,11 @@ void detect_tool_contacts(const Model& model, State& state, const Points& x0, co
 }
 
 HeldContact remeasured(const HeldContact& h, const State& state) {
-  const Points& y = state.tool_points[h.part];
   Eigen::Vector3d p[4];
-  for (int k = 0; k < 4; ++k) p[k] = h.on_tool(k) ? y.row(h.c.v[k]).transpose() : state.x.row(h.c.v[k]).transpose();
+  for (int k = 0; k < 4; ++k) {
+    const Points& from = h.on_tool(k) ? state.tool_points[static_cast<size_t>(h.part)] : state.x;
+    p[k] = from.row(h.c.v[k]).transpose();
+  }
   HeldContact out = h;
   out.c.toi = 0.0;
   if (h.c.kind == collision::FeatureKind::VertexFace) {

@@ -51,10 +51,11 @@ void compile_instruments(const Scene& scene, Model& model);
 void detect_tool_contacts(const Model& model, State& state, const Points& x0, const Points& x1, double gap,
                           std::vector<HeldContact>& out, collision::CollisionStats* stats);
 
-// A tool contact held from the last frame, re-measured at the frame's start (organ at state.x, the part at
-// state.tool_points): its features' closest points (barycentric s, t on the face, or along the two edges) and
-// toi = 0. A held contact sits at the gap, so detection (which reports closer pairs) does not refresh it, and the
-// tool has slid along the organ since it was found.
+// A contact held from the last frame (a tool contact, or a self-contact when h.part < 0), re-measured at the
+// frame's start (organ at state.x, a part at state.tool_points): its features' closest points (barycentric s, t on
+// the face, or along the two edges) and toi = 0. A held contact sits at the gap, so detection (which reports
+// closer pairs) does not refresh it, and its features have slid along each other since it was found: its row
+// then takes the direction between the closest points now, not between the points that were closest then.
 HeldContact remeasured(const HeldContact& h, const State& state);
 
 // The row of a tool contact: its organ vertices at x0 -> x1 (moving with u), its part's vertices at

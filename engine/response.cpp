@@ -333,12 +333,12 @@ void end_tool_sweeps(const Model& model, State& state, const ResponseRounds& rr)
     add_tool_stiffness(model, state, contacts, rr.rows, rr.solved.lambda, state.tool_records);
 }
 
-// The constraint response's warm start: last frame's held self-contacts and tool contacts (these re-measured at
-// the frame's start), all guessed to push, with their multipliers.
+// The constraint response's warm start: last frame's held self-contacts and tool contacts, re-measured at the
+// frame's start, all guessed to push, with their multipliers.
 void warm_start(const Model& model, const State& state, ResponseRounds& rr) {
   for (size_t i = 0; i < state.active.size(); ++i) {
     const FeatureKey key = key_of(state.active[i]);
-    rr.active.emplace(key, HeldContact{state.active[i], -1, 0});
+    rr.active.emplace(key, remeasured(HeldContact{state.active[i], -1, 0}, state));
     rr.pushing.insert(key);
     if (i < state.active_lambda.size()) rr.carried[key] = state.active_lambda[i];
     if (static_cast<Eigen::Index>(i) < state.carried_lambda.size()) rr.in_solve[key] = state.carried_lambda[i];
