@@ -172,6 +172,45 @@ TEST(ContactRow, AHeldSelfContactIsReMeasuredWhereItsFeaturesAreNow) {
   EXPECT_GT(std::abs(stale_value - brute_distance(state.x)), 1e-4);
 }
 
+// The same for an edge-edge contact: after the edges slid along each other, the re-measured row is the segments'
+// distance (brute force over a 2000 x 2000 grid of their parameters) and its gradient (central differences).
+TEST(ContactRow, AHeldEdgeEdgeContactIsReMeasuredWhereItsFeaturesAreNow) {
+  Points rest = Points::Zero(4, 3);
+  State state;
+  state.x.resize(4, 3);
+  state.x << 0.0, 0.0, 0.0, 0.002, 0.0002, 0.0,   // edge ab along x
+      0.0013, -0.0009, 0.00011, 0.0007, 0.0011, 0.00012;  // edge cd across it, 0.1 mm above
+  collision::Contact found{collision::FeatureKind::EdgeEdge, {0, 1, 2, 3}, 0.3, 0.15, 0.8};
+  const HeldContact h = remeasured(HeldContact{found, -1, 0}, state);
+  EXPECT_EQ(h.c.toi, 0.0);
+  const ContactRow row = contact_row(h.c, rest, state.x, state.x, 1e-4);
+  double value = 0.0;
+  for (int k = 0; k < 4; ++k) value += row.weight[k] * row.n.dot(state.x.row(row.node[k]).transpose());
+  double brute = 1e300;
+  const int m = 2000;
+  for (int i = 0; i <= m; ++i)
+    for (int j = 0; j <= m; ++j) {
+      const double a = double(i) / m, b = double(j) / m;
+      const Eigen::Vector3d p = ((1 - a) * state.x.row(0) + a * state.x.row(1)).transpose();
+      const Eigen::Vector3d q = ((1 - b) * state.x.row(2) + b * state.x.row(3)).transpose();
+      brute = std::min(brute, (p - q).norm());
+    }
+  EXPECT_NEAR(value, brute, 0.0025 / m);
+  const double h_step = 1e-7;
+  for (int k = 0; k < 4; ++k)
+    for (int a = 0; a < 3; ++a) {
+      Points xp = state.x, xm = state.x;
+      xp(k, a) += h_step;
+      xm(k, a) -= h_step;
+      const double fd = (collision::segment_segment_distance(xp.row(0).transpose(), xp.row(1).transpose(),
+                                                             xp.row(2).transpose(), xp.row(3).transpose()) -
+                         collision::segment_segment_distance(xm.row(0).transpose(), xm.row(1).transpose(),
+                                                             xm.row(2).transpose(), xm.row(3).transpose())) /
+                        (2 * h_step);
+      EXPECT_NEAR(row.weight[k] * row.n[a], fd, 1e-6) << "vertex " << k << " axis " << a;
+    }
+}
+
 // ---------------------------------------------------------------------------------------------------------------
 // Whole sessions: a coarse tube squeezed shut by two opposite probes; with either response the inner wall never
 // intersects (exact check, independent of the CCD code), and the walls really meet.
