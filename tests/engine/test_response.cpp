@@ -118,97 +118,78 @@ TEST(ContactRow, TouchingFeaturesUseTheGeometricNormal) {
   }
 }
 
-// A self-contact held from the last frame is re-measured where its features are at the frame's start: after the
-// vertex slid along the face (and the face tilted), its row is the distance to the face's closest point now, and
-// its gradient (weights times normal) the distance's, by central finite differences; the contact as found (its
-// old barycentric point) would give neither. Truth: the distance by brute force over a fine barycentric grid.
-TEST(ContactRow, AHeldSelfContactIsReMeasuredWhereItsFeaturesAreNow) {
-  Points rest = Points::Zero(4, 3);
+// Four points' feature distance by the library's closest-point code: vertex 0 to triangle 123, or segment 01 to
+// segment 23, metres.
+double feature_distance(collision::FeatureKind kind, const Points& x) {
+  auto p = [&](int k) -> Eigen::Vector3d { return x.row(k).transpose(); };
+  return kind == collision::FeatureKind::VertexFace ? collision::point_triangle_distance(p(0), p(1), p(2), p(3))
+                                                    : collision::segment_segment_distance(p(0), p(1), p(2), p(3));
+}
+
+// A row's value H u at positions x of four nodes whose rest positions are 0 (so u = x), metres.
+double row_value_at(const ContactRow& row, const Points& x) {
+  return physics::row_values({row}, Eigen::Map<const Eigen::VectorXd>(x.data(), x.size()))[0];
+}
+
+// A contact held from the last frame, re-measured where its four features' points are now (x, rest 0): its row's
+// value is the brute-force distance (to `spacing`), and its gradient (weights times normal) the distance's, by
+// central finite differences.
+void expect_remeasured_row_is_the_distance(const collision::Contact& found, const Points& x, double brute,
+                                           double spacing) {
   State state;
-  state.x.resize(4, 3);
-  state.x << 0.0012, 0.0007, 0.0001,   // vertex, 0.1 mm above the face and slid 0.7 mm along it
-      0.0, 0.0, 0.0, 0.002, 0.0, 0.00002, 0.0, 0.002, -0.00001;
-  collision::Contact found{collision::FeatureKind::VertexFace, {0, 1, 2, 3}, 0.4, 0.2, 0.1};
+  state.x = x;
   const HeldContact h = remeasured(HeldContact{found, -1, 0}, state);
   EXPECT_EQ(h.c.toi, 0.0);
-  const double gap = 1e-4;
-  const ContactRow row = contact_row(h.c, rest, state.x, state.x, gap);
-  auto value = [&](const Points& x) {
-    double v = 0.0;
-    for (int k = 0; k < 4; ++k) v += row.weight[k] * row.n.dot(x.row(row.node[k]).transpose());
-    return v;
-  };
-  // Brute force: the closest of 400 x 400 barycentric samples.
-  auto brute_distance = [](const Points& x) {
-    double best = 1e300;
-    const int m = 400;
-    for (int i = 0; i <= m; ++i)
-      for (int j = 0; i + j <= m; ++j) {
-        const double b = double(i) / m, c = double(j) / m;
-        const Eigen::Vector3d q = ((1 - b - c) * x.row(1) + b * x.row(2) + c * x.row(3)).transpose();
-        best = std::min(best, (x.row(0).transpose() - q).norm());
-      }
-    return best;
-  };
-  const double sample_spacing = 0.002 / 400;
-  EXPECT_NEAR(value(state.x), brute_distance(state.x), sample_spacing);
-  // Gradient: each vertex coordinate by central differences of the distance.
+  const ContactRow row = contact_row(h.c, Points::Zero(4, 3), x, x, 1e-4);
+  EXPECT_NEAR(row_value_at(row, x), brute, spacing);
   const double h_step = 1e-7;
   for (int k = 0; k < 4; ++k)
     for (int a = 0; a < 3; ++a) {
-      Points xp = state.x, xm = state.x;
+      Points xp = x, xm = x;
       xp(k, a) += h_step;
       xm(k, a) -= h_step;
-      const double fd = (collision::point_triangle_distance(xp.row(0).transpose(), xp.row(1).transpose(), xp.row(2).transpose(), xp.row(3).transpose()) -
-                         collision::point_triangle_distance(xm.row(0).transpose(), xm.row(1).transpose(), xm.row(2).transpose(), xm.row(3).transpose())) /
-                        (2 * h_step);
+      const double fd = (feature_distance(found.kind, xp) - feature_distance(found.kind, xm)) / (2 * h_step);
       EXPECT_NEAR(row.weight[k] * row.n[a], fd, 1e-6) << "vertex " << k << " axis " << a;
     }
-  // The contact as it was found measures the vertex against its old barycentric point: off by a fraction of a
-  // millimetre here (the check above can fail).
-  const ContactRow stale = contact_row(found, rest, state.x, state.x, gap);
-  double stale_value = 0.0;
-  for (int k = 0; k < 4; ++k) stale_value += stale.weight[k] * stale.n.dot(state.x.row(stale.node[k]).transpose());
-  EXPECT_GT(std::abs(stale_value - brute_distance(state.x)), 1e-4);
 }
 
-// The same for an edge-edge contact: after the edges slid along each other, the re-measured row is the segments'
-// distance (brute force over a 1000 x 1000 grid of their parameters) and its gradient (central differences).
+// Vertex-face: after the vertex slid 0.7 mm along the face (and the face tilted), the re-measured row is the
+// distance to the face's closest point now; the contact as found (its old barycentric point) is off by a fraction
+// of a millimetre (the check can fail). Truth: the closest of 400 x 400 barycentric samples.
+TEST(ContactRow, AHeldSelfContactIsReMeasuredWhereItsFeaturesAreNow) {
+  Points x(4, 3);
+  x << 0.0012, 0.0007, 0.0001,   // vertex, 0.1 mm above the face and slid 0.7 mm along it
+      0.0, 0.0, 0.0, 0.002, 0.0, 0.00002, 0.0, 0.002, -0.00001;
+  const collision::Contact found{collision::FeatureKind::VertexFace, {0, 1, 2, 3}, 0.4, 0.2, 0.1};
+  double brute = 1e300;
+  const int m = 400;
+  for (int i = 0; i <= m; ++i)
+    for (int j = 0; i + j <= m; ++j) {
+      const double b = double(i) / m, c = double(j) / m;
+      const Eigen::Vector3d q = ((1 - b - c) * x.row(1) + b * x.row(2) + c * x.row(3)).transpose();
+      brute = std::min(brute, (x.row(0).transpose() - q).norm());
+    }
+  expect_remeasured_row_is_the_distance(found, x, brute, 0.002 / m);
+  const ContactRow stale = contact_row(found, Points::Zero(4, 3), x, x, 1e-4);
+  EXPECT_GT(std::abs(row_value_at(stale, x) - brute), 1e-4);
+}
+
+// Edge-edge: after the edges slid along each other. Truth: the closest of 1000 x 1000 pairs of their parameters.
 TEST(ContactRow, AHeldEdgeEdgeContactIsReMeasuredWhereItsFeaturesAreNow) {
-  Points rest = Points::Zero(4, 3);
-  State state;
-  state.x.resize(4, 3);
-  state.x << 0.0, 0.0, 0.0, 0.002, 0.0002, 0.0,   // edge ab along x
+  Points x(4, 3);
+  x << 0.0, 0.0, 0.0, 0.002, 0.0002, 0.0,   // edge ab along x
       0.0013, -0.0009, 0.00011, 0.0007, 0.0011, 0.00012;  // edge cd across it, 0.1 mm above
-  collision::Contact found{collision::FeatureKind::EdgeEdge, {0, 1, 2, 3}, 0.3, 0.15, 0.8};
-  const HeldContact h = remeasured(HeldContact{found, -1, 0}, state);
-  EXPECT_EQ(h.c.toi, 0.0);
-  const ContactRow row = contact_row(h.c, rest, state.x, state.x, 1e-4);
-  double value = 0.0;
-  for (int k = 0; k < 4; ++k) value += row.weight[k] * row.n.dot(state.x.row(row.node[k]).transpose());
+  const collision::Contact found{collision::FeatureKind::EdgeEdge, {0, 1, 2, 3}, 0.3, 0.15, 0.8};
   double brute = 1e300;
   const int m = 1000;
   for (int i = 0; i <= m; ++i)
     for (int j = 0; j <= m; ++j) {
       const double a = double(i) / m, b = double(j) / m;
-      const Eigen::Vector3d p = ((1 - a) * state.x.row(0) + a * state.x.row(1)).transpose();
-      const Eigen::Vector3d q = ((1 - b) * state.x.row(2) + b * state.x.row(3)).transpose();
+      const Eigen::Vector3d p = ((1 - a) * x.row(0) + a * x.row(1)).transpose();
+      const Eigen::Vector3d q = ((1 - b) * x.row(2) + b * x.row(3)).transpose();
       brute = std::min(brute, (p - q).norm());
     }
-  EXPECT_NEAR(value, brute, 0.0025 / m);
-  const double h_step = 1e-7;
-  for (int k = 0; k < 4; ++k)
-    for (int a = 0; a < 3; ++a) {
-      Points xp = state.x, xm = state.x;
-      xp(k, a) += h_step;
-      xm(k, a) -= h_step;
-      const double fd = (collision::segment_segment_distance(xp.row(0).transpose(), xp.row(1).transpose(),
-                                                             xp.row(2).transpose(), xp.row(3).transpose()) -
-                         collision::segment_segment_distance(xm.row(0).transpose(), xm.row(1).transpose(),
-                                                             xm.row(2).transpose(), xm.row(3).transpose())) /
-                        (2 * h_step);
-      EXPECT_NEAR(row.weight[k] * row.n[a], fd, 1e-6) << "vertex " << k << " axis " << a;
-    }
+  expect_remeasured_row_is_the_distance(found, x, brute, 0.0025 / m);
 }
 
 // ---------------------------------------------------------------------------------------------------------------
