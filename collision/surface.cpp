@@ -219,6 +219,8 @@ void validate_motion(const CollisionSurface& surface, const PointsRef& x0, const
 // CollisionWorkspace
 
 struct CollisionWorkspace::Impl {
+  static constexpr std::size_t kVertexMove = 6;  // doubles per vertex in `move`: start xyz, end xyz
+  static constexpr std::size_t kNodeMove = 12;   // doubles per node in `node_move`: start box, end box
   using AnyBoxes = std::variant<BvhBoxes<6>, BvhBoxes<14>, BvhBoxes<18>, BvhBoxes<26>>;
 
   int k = 26;
@@ -232,9 +234,11 @@ struct CollisionWorkspace::Impl {
   std::vector<double> proj;             // vertex projections on the k-DOP axes at x0 then x1, n_points x k
   std::vector<double> vbox;             // swept axis-aligned box of each vertex: lo xyz, hi xyz, n_points x 6
   double feature_pad = 0.0;             // feature-box overlap margin: 2 gap plus rounding, metres
+  double pad_rounding = 0.0;            // its rounding part (64 eps times the largest coordinate), metres
   std::vector<FeaturePair> tested;      // the feature pairs run by the last detect_self call
-  // detect_self_moved: per-vertex moves (n_points x 3), and per BVH node whether a flagged vertex is under it and
-  // the box of the moves under it (lo xyz, hi xyz).
+  // detect_self_moved: per-vertex moves at the sweep's start and end (n_points x 6: start xyz, end xyz), and per
+  // BVH node whether a flagged vertex is under it and the boxes of the moves under it (n_nodes x 12: start lo xyz,
+  // start hi xyz, end lo xyz, end hi xyz).
   std::vector<double> move;
   std::vector<std::uint8_t> node_flagged;
   std::vector<double> node_move;
@@ -254,6 +258,9 @@ struct CollisionWorkspace::Impl {
       default: boxes.emplace<BvhBoxes<26>>(); break;
     }
   }
+
+  // The feature-box pre-test's margin at a gap: both features' inflation plus rounding, metres.
+  double pad_for(double gap) const { return 2.0 * gap * (1.0 + 1e-12) + pad_rounding; }
 
   // Swept k-DOPs of all triangles of s over x0 -> x1 (each the k-DOP of its 6 vertex positions), inflated
   // by gap, written to out(t). The vertex projections are computed once per vertex.
@@ -283,7 +290,8 @@ struct CollisionWorkspace::Impl {
         scale = std::max({scale, std::abs(b[a]), std::abs(b[3 + a])});
       }
     }
-    feature_pad = 2.0 * gap * (1.0 + 1e-12) + 64.0 * std::numeric_limits<double>::epsilon() * scale;
+    pad_rounding = 64.0 * std::numeric_limits<double>::epsilon() * scale;
+    feature_pad = pad_for(gap);
     for (int t = 0; t < s.num_triangles(); ++t) {
       Kdop<K>& box = out(t);
       const double* p[3];
@@ -305,56 +313,63 @@ struct CollisionWorkspace::Impl {
     b.refit(s.bvh());
   }
 
-  // Per BVH node of s, bottom-up: whether a flagged vertex is under it and the box of the moves under it.
+  // Per BVH node of s, bottom-up: whether a flagged vertex is under it and the boxes of the moves under it (moves:
+  // n_points x 6 as in `move`, or null for none).
   void mark_nodes(const CollisionSurface& s, const std::uint8_t* flagged, const double* moves) {
     const BvhTopology& topo = s.bvh();
     const std::size_t n = static_cast<std::size_t>(topo.num_nodes());
     node_flagged.assign(n, 0);
-    node_move.assign(6 * n, 0.0);
+    node_move.assign(kNodeMove * n, 0.0);
     for (int i = topo.num_nodes() - 1; i >= 0; --i) {
       const BvhTopology::Node& nd = topo.node(i);
-      double* box = &node_move[6 * static_cast<std::size_t>(i)];
+      double* box = &node_move[kNodeMove * static_cast<std::size_t>(i)];
       if (nd.prim < 0) {
-        // Internal: the union of its children.
-        const double* l = &node_move[6 * static_cast<std::size_t>(nd.left)];
-        const double* r = &node_move[6 * static_cast<std::size_t>(nd.right)];
-        for (int d = 0; d < 3; ++d) {
-          box[d] = std::min(l[d], r[d]);
-          box[3 + d] = std::max(l[3 + d], r[3 + d]);
-        }
+        // Internal: the union of its children, at each end.
+        const double* l = &node_move[kNodeMove * static_cast<std::size_t>(nd.left)];
+        const double* r = &node_move[kNodeMove * static_cast<std::size_t>(nd.right)];
+        for (int e = 0; e < 12; e += 6)
+          for (int d = 0; d < 3; ++d) {
+            box[e + d] = std::min(l[e + d], r[e + d]);
+            box[e + 3 + d] = std::max(l[e + 3 + d], r[e + 3 + d]);
+          }
         node_flagged[static_cast<std::size_t>(i)] = node_flagged[static_cast<std::size_t>(nd.left)] |
                                                      node_flagged[static_cast<std::size_t>(nd.right)];
         continue;
       }
       // Leaf: its triangle's three vertices.
       const int* t = s.triangle(nd.prim);
-      for (int d = 0; d < 3; ++d) {
-        box[d] = std::numeric_limits<double>::infinity();
-        box[3 + d] = -std::numeric_limits<double>::infinity();
-      }
+      for (int e = 0; e < 12; e += 6)
+        for (int d = 0; d < 3; ++d) {
+          box[e + d] = std::numeric_limits<double>::infinity();
+          box[e + 3 + d] = -std::numeric_limits<double>::infinity();
+        }
       for (int j = 0; j < 3; ++j) {
         if (flagged && flagged[t[j]]) node_flagged[static_cast<std::size_t>(i)] = 1;
-        for (int d = 0; d < 3; ++d) {
-          const double m = moves ? moves[3 * static_cast<std::size_t>(t[j]) + static_cast<std::size_t>(d)] : 0.0;
-          box[d] = std::min(box[d], m);
-          box[3 + d] = std::max(box[3 + d], m);
-        }
+        for (int e = 0; e < 2; ++e)
+          for (int d = 0; d < 3; ++d) {
+            const double m = moves ? moves[kVertexMove * static_cast<std::size_t>(t[j]) + static_cast<std::size_t>(3 * e + d)] : 0.0;
+            box[6 * e + d] = std::min(box[6 * e + d], m);
+            box[6 * e + 3 + d] = std::max(box[6 * e + 3 + d], m);
+          }
       }
     }
   }
 
   // Whether BVH nodes a and b can hold a selected pair: a flag under either, or moves under them differing by at
-  // least the margin somewhere (the largest difference of two points of their boxes).
+  // least the margin somewhere, at the start or at the end (the largest difference of two points of their boxes).
   bool node_pair_wanted(int a, int b, double margin2) const {
     if (node_flagged[static_cast<std::size_t>(a)] || node_flagged[static_cast<std::size_t>(b)]) return true;
-    const double* p = &node_move[6 * static_cast<std::size_t>(a)];
-    const double* q = &node_move[6 * static_cast<std::size_t>(b)];
-    double d2 = 0.0;
-    for (int d = 0; d < 3; ++d) {
-      const double span = std::max(p[3 + d] - q[d], q[3 + d] - p[d]);
-      d2 += span * span;
+    const double* p = &node_move[kNodeMove * static_cast<std::size_t>(a)];
+    const double* q = &node_move[kNodeMove * static_cast<std::size_t>(b)];
+    for (int e = 0; e < 12; e += 6) {
+      double d2 = 0.0;
+      for (int d = 0; d < 3; ++d) {
+        const double span = std::max(p[e + 3 + d] - q[e + d], q[e + 3 + d] - p[e + d]);
+        d2 += span * span;
+      }
+      if (d2 >= margin2) return true;
     }
-    return d2 >= margin2;
+    return false;
   }
 
   // Reset the per-call candidates and statistics.
@@ -409,7 +424,8 @@ struct SelfDetector {
   double margin2 = 0.0;  // squared margin
   bool restricted = false;
 
-  // Whether vertex sets a and b hold a selected pair: a flag, or a relative move of at least the margin.
+  // Whether vertex sets a and b hold a selected pair: a flag, or a relative move of at least the margin at the
+  // sweep's start or end.
   bool wanted(const int* a, int na, const int* b, int nb) const {
     if (!restricted) return true;
     for (int i = 0; i < na; ++i)
@@ -418,12 +434,13 @@ struct SelfDetector {
       if (flagged && flagged[b[j]]) return true;
     if (!move) return false;
     for (int i = 0; i < na; ++i)
-      for (int j = 0; j < nb; ++j) {
-        const double* da = move + 3 * static_cast<std::size_t>(a[i]);
-        const double* db = move + 3 * static_cast<std::size_t>(b[j]);
-        const double dx = da[0] - db[0], dy = da[1] - db[1], dz = da[2] - db[2];
-        if (dx * dx + dy * dy + dz * dz >= margin2) return true;
-      }
+      for (int j = 0; j < nb; ++j)
+        for (std::size_t e = 0; e < WsImpl::kVertexMove; e += 3) {
+          const double* da = move + WsImpl::kVertexMove * static_cast<std::size_t>(a[i]) + e;
+          const double* db = move + WsImpl::kVertexMove * static_cast<std::size_t>(b[j]) + e;
+          const double dx = da[0] - db[0], dy = da[1] - db[1], dz = da[2] - db[2];
+          if (dx * dx + dy * dy + dz * dz >= margin2) return true;
+        }
     return false;
   }
 
@@ -502,9 +519,30 @@ struct SelfDetector {
     }
   }
 
+  // A detection at a wider gap than the contacts it reports (detect_self_near): each hit flags its vertices in
+  // `near` and is tested again at `gap` (with that gap's pre-test), and only those hits are reported.
+  struct Narrow {
+    double gap = 0.0;            // the reported contacts' gap, metres (below the detection's)
+    std::uint8_t* near = nullptr;  // n_points entries
+  };
+
+  // Report a hit of the pass's gap: as it is, or (narrowing) flagged and tested again at the narrow gap.
+  template <class Test>
+  void report(const int* v, FeatureKind kind, const CcdHit& hit, const Narrow* narrow, Test&& test_at,
+              std::vector<Contact>& out) {
+    if (!narrow) {
+      out.push_back(Contact{kind, {v[0], v[1], v[2], v[3]}, hit.toi, hit.s, hit.t});
+      return;
+    }
+    for (int k = 0; k < 4; ++k) narrow->near[v[k]] = 1;
+    CcdHit again;
+    if (test_at(narrow->gap, w.pad_for(narrow->gap), &again))
+      out.push_back(Contact{kind, {v[0], v[1], v[2], v[3]}, again.toi, again.s, again.t});
+  }
+
   // Sort the candidates (and drop repeats) and run each feature pair's elementary test once, in sorted order.
   void run_features(const PointsRef& x0, const PointsRef& x1, double gap, std::vector<Contact>& out,
-                    CollisionStats* stats) {
+                    CollisionStats* stats, const Narrow* narrow = nullptr) {
     sort_unique(w.vf_keys, w.sort_tmp, s.point_bits() + s.tri_bits());
     sort_unique(w.ee_keys, w.sort_tmp, 2 * s.edge_bits());
     w.tested.reserve(w.vf_keys.size() + w.ee_keys.size());
@@ -515,10 +553,13 @@ struct SelfDetector {
       const int* f = s.triangle(static_cast<int>(key & ((std::uint64_t{1} << s.tri_bits()) - 1)));
       w.tested.push_back(FeaturePair{FeatureKind::VertexFace, {p, f[0], f[1], f[2]}});
       // Swept boxes apart: the elementary test would say no.
-      if (!feature_boxes_overlap(vbox, &p, 1, vbox, f, 3, w.feature_pad)) continue;
+      auto test_at = [&](double g, double pad, CcdHit* hit) {
+        return feature_boxes_overlap(vbox, &p, 1, vbox, f, 3, pad) && vf_test(x0, x1, p, x0, x1, f, g, hit);
+      };
       CcdHit hit;
-      if (vf_test(x0, x1, p, x0, x1, f, gap, &hit)) {
-        out.push_back(Contact{FeatureKind::VertexFace, {p, f[0], f[1], f[2]}, hit.toi, hit.s, hit.t});
+      if (test_at(gap, w.feature_pad, &hit)) {
+        const int v[4] = {p, f[0], f[1], f[2]};
+        report(v, FeatureKind::VertexFace, hit, narrow, test_at, out);
         if (w.classify) w.hit_vf.push_back(key);
       }
     }
@@ -527,10 +568,13 @@ struct SelfDetector {
       const int* e = s.edge(static_cast<int>(key >> s.edge_bits()));
       const int* g = s.edge(static_cast<int>(key & ((std::uint64_t{1} << s.edge_bits()) - 1)));
       w.tested.push_back(FeaturePair{FeatureKind::EdgeEdge, {e[0], e[1], g[0], g[1]}});
-      if (!feature_boxes_overlap(vbox, e, 2, vbox, g, 2, w.feature_pad)) continue;
+      auto test_at = [&](double gg, double pad, CcdHit* hit) {
+        return feature_boxes_overlap(vbox, e, 2, vbox, g, 2, pad) && ee_test(x0, x1, e, x0, x1, g, gg, hit);
+      };
       CcdHit hit;
-      if (ee_test(x0, x1, e, x0, x1, g, gap, &hit)) {
-        out.push_back(Contact{FeatureKind::EdgeEdge, {e[0], e[1], g[0], g[1]}, hit.toi, hit.s, hit.t});
+      if (test_at(gap, w.feature_pad, &hit)) {
+        const int v[4] = {e[0], e[1], g[0], g[1]};
+        report(v, FeatureKind::EdgeEdge, hit, narrow, test_at, out);
         if (w.classify) w.hit_ee.push_back(key);
       }
     }
@@ -562,6 +606,32 @@ void detect_self(const CollisionSurface& surface, CollisionWorkspace& ws, const 
   det.run_features(x0, x1, gap, out, stats);
 }
 
+void detect_self_near(const CollisionSurface& surface, CollisionWorkspace& ws, const PointsRef& x0, const PointsRef& x1,
+                      double gap, double near_gap, std::vector<Contact>& out, std::vector<std::uint8_t>& near,
+                      CollisionStats* stats) {
+  WsImpl& w = workspace_impl(ws);
+  validate_motion(surface, x0, x1, gap);
+  check_gap(near_gap);
+  if (!(near_gap >= gap)) {
+    std::ostringstream msg;
+    msg << "near_gap must be >= gap (" << gap << " m), got " << near_gap;
+    throw std::invalid_argument(msg.str());
+  }
+  require_bvh(surface);
+  out.clear();
+  near.assign(static_cast<std::size_t>(surface.num_points()), 0);
+  w.begin_call();
+  SelfDetector det{surface, w};
+  // detect_self at the near gap; its hits flag their vertices and are tested again at the contact gap.
+  with_k(w.k, [&](auto k_tag) {
+    constexpr int K = decltype(k_tag)::value;
+    w.refit<K>(surface, x0, x1, near_gap);
+    std::get<BvhBoxes<K>>(w.boxes).self_pairs(surface.bvh(), [&](int ta, int tb) { det.add_candidates(ta, tb); });
+  });
+  const SelfDetector::Narrow narrow{gap, near.data()};
+  det.run_features(x0, x1, near_gap, out, stats, &narrow);
+}
+
 namespace {
 
 // Check a move filter against the surface (sizes, finite reference, margin).
@@ -571,6 +641,8 @@ void check_filter(const CollisionSurface& surface, const MoveFilter& f) {
                                 std::to_string(surface.num_points()));
   }
   if (f.x1_ref) check_points(*f.x1_ref, surface.num_points(), "x1_ref");
+  if (f.x0_ref && !f.x1_ref) throw std::invalid_argument("x0_ref given without x1_ref");
+  if (f.x0_ref) check_points(*f.x0_ref, surface.num_points(), "x0_ref");
   if (!(f.margin >= 0.0) || !std::isfinite(f.margin)) {
     std::ostringstream msg;
     msg << "margin must be finite and >= 0 metres, got " << f.margin;
@@ -593,11 +665,17 @@ void detect_self_moved(const CollisionSurface& surface, CollisionWorkspace& ws, 
   det.restricted = true;
   det.flagged = filter.flagged ? filter.flagged->data() : nullptr;
   det.margin2 = filter.margin * filter.margin;
-  // Each used vertex's move since the reference.
+  // Each used vertex's move since the reference, at the sweep's start (0 when it starts where the reference did)
+  // and at its end.
   if (filter.x1_ref) {
-    w.move.assign(static_cast<std::size_t>(3 * surface.num_points()), 0.0);
-    for (const int v : surface.used_vertices())
-      for (int d = 0; d < 3; ++d) w.move[static_cast<std::size_t>(3 * v + d)] = x1(v, d) - (*filter.x1_ref)(v, d);
+    w.move.assign(WsImpl::kVertexMove * static_cast<std::size_t>(surface.num_points()), 0.0);
+    for (const int v : surface.used_vertices()) {
+      double* m = &w.move[WsImpl::kVertexMove * static_cast<std::size_t>(v)];
+      for (int d = 0; d < 3; ++d) {
+        m[d] = filter.x0_ref ? x0(v, d) - (*filter.x0_ref)(v, d) : 0.0;
+        m[3 + d] = x1(v, d) - (*filter.x1_ref)(v, d);
+      }
+    }
     det.move = w.move.data();
   }
   w.mark_nodes(surface, det.flagged, det.move);

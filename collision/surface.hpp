@@ -167,15 +167,26 @@ void validate_motion(const CollisionSurface& surface, const PointsRef& x0, const
 // Throws std::logic_error when the surface has no BVH yet.
 void detect_self(const CollisionSurface& surface, CollisionWorkspace& ws, const PointsRef& x0, const PointsRef& x1,
                  double gap, std::vector<Contact>& out, CollisionStats* stats = nullptr);
+// detect_self at `gap` (the same contacts, times and order) by one detection at the wider `near_gap` whose hits are
+// tested again at `gap`, and the proof a later detection can restrict itself with (MoveFilter): near (resized to
+// n_points) flags every vertex of a feature pair found within near_gap; every pair without a flagged vertex stayed
+// farther than near_gap apart all along x0 -> x1. Statistics of the near_gap pass (contacts: those at gap).
+// Throws std::invalid_argument as detect_self does, and for near_gap below gap.
+void detect_self_near(const CollisionSurface& surface, CollisionWorkspace& ws, const PointsRef& x0, const PointsRef& x1,
+                      double gap, double near_gap, std::vector<Contact>& out, std::vector<std::uint8_t>& near,
+                      CollisionStats* stats = nullptr);
 // Which feature pairs a restricted self-detection tests: those with a flagged vertex, and those whose vertices
-// moved relative to each other since reference end positions x1_ref by at least `margin` metres, the relative
-// move of a pair being max |d_i - d_j| over a vertex i of one feature and j of the other (d = x1 - x1_ref). Both
-// motions start at the same x0, so a pair's separation differs between the two at every time by at most its
-// relative move: a pair clear by more than g + margin on the reference motion is clear by more than g on this one.
+// moved relative to each other since a reference motion x0_ref -> x1_ref by at least `margin` metres, at the
+// sweep's start or at its end; the relative move of a pair at an end is max |d_i - d_j| over a vertex i of one
+// feature and j of the other (d = x0 - x0_ref at the start, x1 - x1_ref at the end; without x0_ref the sweep
+// starts where the reference did, d = 0 there). Along both sweeps every vertex moves linearly in the same time, so
+// a pair's separation differs between the two at every time by at most the larger of its two relative moves: a
+// pair clear by more than g + margin all along the reference motion is clear by more than g on this one.
 struct MoveFilter {
   const PointsRef* x1_ref = nullptr;         // n_points x 3; null: no move test (flags only)
   double margin = 0.0;                       // metres, >= 0
   const std::vector<std::uint8_t>* flagged = nullptr;  // n_points entries (nonzero: flagged); null: none
+  const PointsRef* x0_ref = nullptr;         // n_points x 3 (needs x1_ref); null: the reference started at x0
 };
 // detect_self restricted to the pairs `filter` selects: the BVH is refitted in full, but the traversal skips node
 // pairs whose vertices can hold no selected pair (none flagged, and the moves under the two nodes, as boxes, differ

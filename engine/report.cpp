@@ -92,6 +92,7 @@ nlohmann::json frame_json(const FrameRecord& r) {
   for (int s = 0; s < kStageCount; ++s) j[std::string(stage_name(s)) + "_ms"] = r.ms[s];
   j["over_budget"] = r.over_budget;
   j["bv_overlaps"] = r.bv_overlaps;
+  j["full_detection"] = r.full_detection;
   j["feature_tests"] = r.feature_tests;
   j["contacts"] = r.contacts;
   j["response_iterations"] = r.response_iterations;

@@ -39,6 +39,9 @@ struct FrameRecord {
   bool over_budget = false;
   // Collision statistics (zero when self-collision is off).
   long bv_overlaps = 0, feature_tests = 0, contacts = 0;
+  // The frame's first detection tested every wall feature pair (collision.detection "full", or a new proximity
+  // reference); false when it was restricted by the last one.
+  bool full_detection = true;
   int response_iterations = 0;
   bool fallback = false;              // the safe fallback ended this frame's motion early
   bool contact_rows_capped = false;   // ... because its contacts exceeded collision.max_contact_rows

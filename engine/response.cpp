@@ -119,6 +119,12 @@ constexpr double kEqualityTolerance = 1e-9;   // paper response: metres
 // the first detection, by this share of the difference between that detection's gap and the re-check's (the
 // other half is the spare that keeps a skipped pair clear of the re-check's gap).
 constexpr double kRecheckMarginShare = 0.5;
+// Restricted first detections: the full one that makes their reference runs at this many gaps (the pairs it proves
+// clear stay clear while their relative moves stay below the difference), and is run again once a restricted one
+// meets more than this share of its leaf-box overlaps (its vertices have moved too far for the proof to prune). Chosen
+// by the first detections' leaf-box overlaps summed over three scenes (factor 2, 3, 5; share 0.3, 0.5, 0.7).
+constexpr double kNearGapFactor = 3.0;
+constexpr double kReferenceOverlapShare = 0.3;
 
 // One frame's response rounds: the active constraints and the last solve.
 struct ResponseRounds {
@@ -231,24 +237,60 @@ void flag_reference_contacts(const Model& model, const RecheckReference& ref, st
   for (const int v : ref.contact_nodes) flagged[static_cast<size_t>(v)] = 1;
 }
 
+// The walls' contacts of a frame's first detection (state.x -> x1 within gap) into state.contacts: restricted by the
+// proximity reference when there is one (and the scene asks for it), otherwise in full at the near gap, which makes
+// the next reference. Returns whether it was full.
+bool detect_walls_first(const Model& model, State& state, const Points& x1, double gap,
+                        collision::CollisionStats& stats) {
+  const collision::CollisionSurface& surface = *model.collision_surface;
+  ProximityReference& ref = state.proximity;
+  if (model.collision.detection == Detection::kFull) {
+    collision::detect_self(surface, *state.detector, state.x, x1, gap, state.contacts, &stats);
+    return true;
+  }
+  if (ref.valid() && ref.near_gap > gap) {
+    const collision::PointsRef x0_ref(ref.x0), x1_ref(ref.x1);
+    const collision::MoveFilter filter{&x1_ref, ref.near_gap - gap, &ref.near, &x0_ref};
+    collision::detect_self_moved(surface, *state.detector, state.x, x1, gap, filter, state.contacts, &stats);
+    // Too much left to test: the next first detection makes a new reference.
+    if (static_cast<double>(stats.bv_overlaps) > kReferenceOverlapShare * static_cast<double>(ref.overlaps))
+      ref = ProximityReference{};
+    return false;
+  }
+  ref.near_gap = kNearGapFactor * gap;
+  collision::detect_self_near(surface, *state.detector, state.x, x1, gap, ref.near_gap, state.contacts, ref.near, &stats);
+  ref.x0 = state.x;
+  ref.x1 = x1;
+  ref.overlaps = stats.bv_overlaps;
+  return true;
+}
+
 // Every contact of the organ motion state.x -> x1 within gap: the walls' self-contacts (when they collide) and the
 // instruments' contacts along their sweeps; `out` is cleared first. With a reference (a re-check at a smaller
 // gap), the walls' features that provably stay clear since it are not tested again (the instruments' sweeps are).
-void detect_all(const Model& model, State& state, const Points& x1, double gap, std::vector<HeldContact>& out,
-                collision::CollisionStats* stats, const RecheckReference* ref = nullptr) {
+// A frame's first detection (`first`) goes through the proximity reference (detect_walls_first); its return says
+// whether the walls were tested in full (always, for the other detections).
+bool detect_all(const Model& model, State& state, const Points& x1, double gap, std::vector<HeldContact>& out,
+                collision::CollisionStats* stats, const RecheckReference* ref = nullptr, bool first = false) {
   out.clear();
+  bool full = true;
   if (model.collision_surface && ref && ref->gap > gap) {
     flag_reference_contacts(model, *ref, state.recheck_flags);
     const collision::PointsRef x1_ref(ref->x1);
     const collision::MoveFilter filter{&x1_ref, kRecheckMarginShare * (ref->gap - gap), &state.recheck_flags};
     collision::detect_self_moved(*model.collision_surface, *state.detector, state.x, x1, gap, filter, state.contacts,
                                  stats);
+  } else if (model.collision_surface && first) {
+    collision::CollisionStats walls;
+    full = detect_walls_first(model, state, x1, gap, walls);
+    if (stats) *stats = walls;
   } else if (model.collision_surface) {
     collision::detect_self(*model.collision_surface, *state.detector, state.x, x1, gap, state.contacts, stats);
   }
   if (model.collision_surface)
     for (const collision::Contact& c : state.contacts) out.push_back(HeldContact{c, -1, 0});
   if (!model.tool_parts.empty()) detect_tool_contacts(model, state, state.x, x1, gap, out, stats);
+  return full;
 }
 
 // The first detection as a re-check's reference (none when the scene asks for full re-checks).
@@ -379,11 +421,11 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   clock = Clock::now();
   collision::CollisionStats stats;
   std::vector<HeldContact> found;
-  detect_all(model, state, x1, cs.gap, found, &stats);
+  rec.full_detection = detect_all(model, state, x1, cs.gap, found, &stats, nullptr, true);
   if (predict && found.empty() && rr.active.empty()) {
     x1 = x_free;
     collision::CollisionStats again;
-    detect_all(model, state, x1, cs.gap, found, &again);
+    rec.full_detection = detect_all(model, state, x1, cs.gap, found, &again, nullptr, true) || rec.full_detection;
     stats.bv_overlaps += again.bv_overlaps;  // the frame's counters cover both detections, as its time does
     stats.feature_tests += again.feature_tests;
     stats.contacts = again.contacts;

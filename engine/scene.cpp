@@ -28,6 +28,7 @@ constexpr const char* kSolverNames[] = {"quasi_static", "dynamic"};
 constexpr const char* kResponseNames[] = {"paper", "constraint"};
 constexpr const char* kLcpSolverNames[] = {"active_set", "nncg"};
 constexpr const char* kRecheckNames[] = {"restricted", "full"};
+constexpr const char* kDetectionNames[] = {"restricted", "full"};
 constexpr const char* kCouplingNames[] = {"correct", "carried"};
 constexpr const char* kTangentNames[] = {"warped", "projected", "exact"};
 constexpr const char* kMethodNames[] = {"pcg", "chord"};
@@ -583,7 +584,7 @@ void read_render(const Reader& r, const json& m, const Scene& s, RenderSpec& spe
 
 void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
   r.only_keys(m, "collision", {"self", "kdop", "response", "gap", "max_iterations", "max_contact_rows", "surfaces", "lcp", "lcp_sweeps",
-                               "coupling", "recheck"});
+                               "coupling", "recheck", "detection"});
   if (m.contains("surfaces")) {
     const json& list = m.at("surfaces");
     if (!list.is_array() || list.empty()) r.fail("collision.surfaces", "must be a non-empty array of wall names", &list);
@@ -604,6 +605,8 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
   if (m.contains("response")) spec.response = r.choice<ResponseKind>(m.at("response"), "collision.response", kResponseNames);
   if (m.contains("lcp")) spec.lcp = r.choice<LcpSolver>(m.at("lcp"), "collision.lcp", kLcpSolverNames);
   if (m.contains("recheck")) spec.recheck = r.choice<Recheck>(m.at("recheck"), "collision.recheck", kRecheckNames);
+  if (m.contains("detection"))
+    spec.detection = r.choice<Detection>(m.at("detection"), "collision.detection", kDetectionNames);
   if (m.contains("gap")) spec.gap = r.number_in(m.at("gap"), "collision.gap", 0.0, 0.01, false, false);
   if (m.contains("max_iterations"))
     spec.max_iterations = r.integer_in(m.at("max_iterations"), "collision.max_iterations", 1, 100);
@@ -977,6 +980,7 @@ const char* name_of(SolverType v) { return kSolverNames[static_cast<int>(v)]; }
 const char* name_of(ResponseKind v) { return kResponseNames[static_cast<int>(v)]; }
 const char* name_of(LcpSolver v) { return kLcpSolverNames[static_cast<int>(v)]; }
 const char* name_of(Recheck v) { return kRecheckNames[static_cast<int>(v)]; }
+const char* name_of(Detection v) { return kDetectionNames[static_cast<int>(v)]; }
 const char* name_of(ContactCoupling v) { return kCouplingNames[static_cast<int>(v)]; }
 const char* name_of(Tangent v) { return kTangentNames[static_cast<int>(v)]; }
 const char* name_of(SolveMethod v) { return kMethodNames[static_cast<int>(v)]; }

@@ -51,6 +51,7 @@ enum class SolverType { kQuasiStatic, kDynamic };     // "quasi_static" | "dynam
 enum class ResponseKind { kPaper, kConstraint };      // "paper" | "constraint"
 enum class LcpSolver { kActiveSet, kNncg };           // "active_set" | "nncg"
 enum class Recheck { kRestricted, kFull };            // "restricted" | "full"
+enum class Detection { kRestricted, kFull };          // "restricted" | "full"
 enum class ContactCoupling { kCorrect, kCarried };    // "correct" | "carried"
 enum class Tangent { kWarped, kProjected, kExact };  // "warped" | "projected" | "exact"
 enum class SolveMethod { kPcg, kChord };              // "pcg" | "chord"
@@ -65,6 +66,7 @@ const char* name_of(SolverType v);
 const char* name_of(ResponseKind v);
 const char* name_of(LcpSolver v);
 const char* name_of(Recheck v);
+const char* name_of(Detection v);
 const char* name_of(ContactCoupling v);
 const char* name_of(Tangent v);
 const char* name_of(SolveMethod v);
@@ -136,6 +138,12 @@ struct CollisionSpec {
   // difference of the two gaps, or with a vertex in one of its contacts; the others provably stay clear) or
   // "full" (every feature again: the twin the restricted one is tested against, bit for bit).
   Recheck recheck = Recheck::kRestricted;
+  // The frame's first detection of the walls (key "detection"): "restricted" (the default: only the wall features
+  // near each other on the last full detection, which ran at a wider gap, or whose vertices moved relative to each
+  // other since its sweep by at least the two gaps' difference; the others provably stay clear; a full one again
+  // once the restricted one does 30 % of its work) or "full" (every feature every frame: the twin the restricted
+  // one is tested against, bit for bit).
+  Detection detection = Detection::kRestricted;
   // How the contacts meet a corotational quasi-static solve (key "coupling"): "correct" (the contact-free
   // solution is corrected on the rest compliance) or "carried" (the last frame's contacts, re-linearised at the
   // frame's start, enter the nonlinear equilibrium by an augmented Lagrangian; the response then corrects what

@@ -333,6 +333,7 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
   r["collision"] = {{"self", model.collision.self}, {"kdop", model.collision.kdop},
                     {"response", name_of(model.collision.response)}, {"lcp", name_of(model.collision.lcp)},
                     {"recheck", name_of(model.collision.recheck)},
+                    {"detection", name_of(model.collision.detection)},
                     {"coupling", name_of(model.collision.coupling)}, {"gap_m", model.collision.gap},
                     {"surfaces", model.collision.outer_wall ? nlohmann::json{"inner", "outer"} : nlohmann::json{"inner"}}};
   r["render"] = {{"enabled", opt.render}, {"width", rs.width}, {"height", rs.height}, {"camera", name_of(rs.camera)}};

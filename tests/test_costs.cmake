@@ -23,6 +23,8 @@ set(lumen_test_costs
   "RestrictedRecheck.FindsWhatTheFullRecheckFindsWhenAProbePressesTheTube 11"
   "InstrumentScenes.TwoToolsPinchTheLumenShutWithoutIntersection 11"
   "RestrictedRecheck.FindsWhatTheFullRecheckFindsWhenTheWallsMeet 9"
+  "RestrictedDetection.FindsWhatTheFullDetectionFindsWhenTheWallsMeet 10"
+  "RestrictedDetection.FindsWhatTheFullDetectionFindsWhenTwoToolsPinchTheLumenShut 10"
   "InstrumentScenes.ScopeInTheLumenPressesTheInnerWallWithoutIntersection 9"
   "InstrumentScenes.ProbePressNeverPenetratesAndTheOrganPushesBack 8"
   "Quadratic.PaperMeshSizesAndTimings 8"

@@ -593,9 +593,10 @@ TEST(SelfCollision, EmptyAndSingleTriangle) {
 
 // detect_self_moved against its twin, detect_self with its contacts filtered by the definition (a flagged vertex,
 // or two vertices of the two features whose moves since the reference differ by at least the margin): the same
-// contacts, times and order, on random pinched tubes with random flags and a random smooth reference. Returns the
-// number of selected contacts.
-std::size_t check_moved_equals_filtered_full(int k, unsigned seed) {
+// contacts, times and order, on random pinched tubes with random flags and a random smooth reference (with_start:
+// a reference that also started elsewhere, x0_ref, so that moves at both ends count). Returns the number of selected
+// contacts.
+std::size_t check_moved_equals_filtered_full(int k, unsigned seed, bool with_start = false) {
   const double len = kTwinLength, gap = 1e-4, margin = 2e-4;
   std::mt19937 rng(seed);
   const PinchedFrame pf = random_pinched_frame(seed, rng);
@@ -607,6 +608,12 @@ std::size_t check_moved_equals_filtered_full(int k, unsigned seed) {
   const double zc = len * u(rng), width = 0.2 * len;
   for (Eigen::Index i = 0; i < x1.rows(); ++i)
     x1_ref(i, 1) += 1e-3 * std::exp(-std::pow((rest(i, 2) - zc) / width, 2));
+  // The start's reference: x0 off by another bump, across the tube (or x0 itself).
+  Points x0_ref = x0;
+  const double zs = len * u(rng);
+  if (with_start)
+    for (Eigen::Index i = 0; i < x0.rows(); ++i)
+      x0_ref(i, 0) -= 1e-3 * std::exp(-std::pow((rest(i, 2) - zs) / width, 2));
   std::bernoulli_distribution coin(0.05);
   std::vector<std::uint8_t> flags(static_cast<std::size_t>(rest.rows()));
   for (auto& f : flags) f = coin(rng);
@@ -614,15 +621,18 @@ std::size_t check_moved_equals_filtered_full(int k, unsigned seed) {
   CollisionWorkspace ws(k);
   std::vector<Contact> full, moved;
   detect_self(surface, ws, x0, x1, gap, full);
-  const PointsRef ref(x1_ref);
-  detect_self_moved(surface, ws, x0, x1, gap, MoveFilter{&ref, margin, &flags}, moved);
+  const PointsRef ref(x1_ref), ref0(x0_ref);
+  detect_self_moved(surface, ws, x0, x1, gap, MoveFilter{&ref, margin, &flags, with_start ? &ref0 : nullptr}, moved);
   // The definition, pair by pair.
+  auto relative = [](const Points& x, const Points& r, int i, int j) {
+    return ((x.row(i) - r.row(i)) - (x.row(j) - r.row(j))).norm();
+  };
   auto selected = [&](const Contact& c) {
     const int n_first = c.kind == FeatureKind::VertexFace ? 1 : 2;
     for (int a = 0; a < 4; ++a) {
       if (flags[static_cast<std::size_t>(c.v[a])]) return true;
       for (int b = n_first; b < 4; ++b)
-        if (a < n_first && ((x1.row(c.v[a]) - x1_ref.row(c.v[a])) - (x1.row(c.v[b]) - x1_ref.row(c.v[b]))).norm() >= margin)
+        if (a < n_first && std::max(relative(x1, x1_ref, c.v[a], c.v[b]), relative(x0, x0_ref, c.v[a], c.v[b])) >= margin)
           return true;
     }
     return false;
@@ -663,6 +673,145 @@ TEST(SelfCollision, MovedDetectionEqualsTheFullOneFilteredByTheDefinition) {
   EXPECT_GT(selected, 10u);
 }
 
+// The same with a reference that started elsewhere too (a later frame against an earlier one): moves at the start
+// count as well.
+TEST(SelfCollision, MovedDetectionAgainstAnEarlierSweepEqualsTheFullOneFilteredByTheDefinition) {
+  std::size_t selected = 0;
+  for (int k : {6, 26}) {
+    for (unsigned seed : {3u, 4u, 5u}) selected += check_moved_equals_filtered_full(k, seed, true);
+  }
+  EXPECT_GT(selected, 10u);
+}
+
+// detect_self_near against its two twins: its contacts are detect_self's at the gap (same times, parameters and
+// order), and its near flags are exactly the vertices of detect_self's contacts at the near gap.
+TEST(SelfCollision, NearDetectionReportsTheGapsContactsAndFlagsThePairsWithinTheNearGap) {
+  const double gap = 1e-4, near_gap = 4e-4;
+  long more_near = 0;
+  for (int k : {6, 26}) {
+    for (unsigned seed : {3u, 4u, 5u}) {
+      std::mt19937 rng(seed);
+      const PinchedFrame pf = random_pinched_frame(seed, rng);
+      CollisionSurface surface(pf.tris, pf.rest);
+      CollisionWorkspace ws(k);
+      std::vector<Contact> out, at_gap, at_near;
+      std::vector<std::uint8_t> near;
+      CollisionStats st;
+      detect_self_near(surface, ws, pf.x0, pf.x1, gap, near_gap, out, near, &st);
+      detect_self(surface, ws, pf.x0, pf.x1, gap, at_gap);
+      detect_self(surface, ws, pf.x0, pf.x1, near_gap, at_near);
+      const std::string where = "k = " + std::to_string(k) + " seed = " + std::to_string(seed);
+      ASSERT_EQ(out.size(), at_gap.size()) << where;
+      for (std::size_t i = 0; i < out.size(); ++i) {
+        EXPECT_EQ(static_cast<int>(out[i].kind), static_cast<int>(at_gap[i].kind)) << where;
+        EXPECT_TRUE(std::equal(out[i].v, out[i].v + 4, at_gap[i].v)) << where;
+        EXPECT_EQ(out[i].toi, at_gap[i].toi) << where;
+        EXPECT_EQ(out[i].s, at_gap[i].s) << where;
+        EXPECT_EQ(out[i].t, at_gap[i].t) << where;
+      }
+      EXPECT_EQ(st.contacts, static_cast<long>(out.size())) << where;
+      std::vector<std::uint8_t> expected(static_cast<std::size_t>(pf.rest.rows()), 0);
+      for (const Contact& c : at_near)
+        for (int v : c.v) expected[static_cast<std::size_t>(v)] = 1;
+      EXPECT_TRUE(near == expected) << where;
+      more_near += static_cast<long>(at_near.size() - at_gap.size());
+    }
+  }
+  EXPECT_GT(more_near, 0) << "the near gap finds nothing the gap does not: the flags prove little";
+}
+
+// The frame-to-frame use, against the brute-force twin: a near detection of one sweep proves every unflagged pair
+// clear by the near gap, so a later sweep restricted to the flagged vertices and to the pairs that moved relative to
+// each other by at least near_gap - gap (at either end, against that sweep) finds exactly what detect_self finds on
+// it, while testing fewer pairs.
+TEST(SelfCollision, ADetectionRestrictedByAnEarlierNearDetectionFindsEveryContact) {
+  const double gap = 1e-4, near_gap = 4e-4, len = kTwinLength;
+  long found = 0, new_contacts = 0, tests_restricted = 0, tests_full = 0;
+  for (int k : {6, 26}) {
+    for (unsigned seed : {3u, 4u, 5u, 6u}) {
+      std::mt19937 rng(seed);
+      const PinchedFrame pf = random_pinched_frame(seed, rng);
+      CollisionSurface surface(pf.tris, pf.rest);
+      CollisionWorkspace ws(k);
+      std::vector<Contact> ignored;
+      std::vector<std::uint8_t> near;
+      detect_self_near(surface, ws, pf.x0, pf.x1, gap, near_gap, ignored, near);
+      // The next sweep: the reference's with the walls closing further, smoothly (the top and bottom walls move
+      // towards each other by up to 0.4 mm at the start and 1.2 mm at the end, more near a random point along
+      // the tube), so that pairs farther than the near gap on the reference come into contact, some by relative
+      // moves above the margin and many neighbours by less.
+      std::uniform_real_distribution<double> u(0.0, 1.0);
+      Points x0b = pf.x0, x1b = pf.x1;
+      const double zc = len * u(rng), width = 0.3 * len;
+      for (Eigen::Index i = 0; i < x0b.rows(); ++i) {
+        const double side = pf.rest(i, 1) / kTwinRadius;  // +1 on top, -1 at the bottom
+        const double bump = 0.5 + 0.5 * std::exp(-std::pow((pf.rest(i, 2) - zc) / width, 2));
+        x0b(i, 1) -= 2e-4 * side * bump;
+        x1b(i, 1) -= 6e-4 * side * bump;
+      }
+      const PointsRef r0(pf.x0), r1(pf.x1);
+      std::vector<Contact> restricted, full;
+      CollisionStats sr, sf;
+      detect_self_moved(surface, ws, x0b, x1b, gap, MoveFilter{&r1, near_gap - gap, &near, &r0}, restricted, &sr);
+      detect_self(surface, ws, x0b, x1b, gap, full, &sf);
+      const std::string where = "k = " + std::to_string(k) + " seed = " + std::to_string(seed);
+      ASSERT_EQ(restricted.size(), full.size()) << where;
+      for (std::size_t i = 0; i < full.size(); ++i) {
+        EXPECT_TRUE(std::equal(restricted[i].v, restricted[i].v + 4, full[i].v)) << where;
+        EXPECT_EQ(restricted[i].toi, full[i].toi) << where;
+      }
+      found += static_cast<long>(full.size());
+      std::vector<Contact> on_reference;
+      detect_self(surface, ws, pf.x0, pf.x1, near_gap, on_reference);
+      const auto known = contact_set(on_reference);
+      for (const ContactKey& c : contact_set(full)) new_contacts += !known.count(c);
+      tests_restricted += sr.feature_tests;
+      tests_full += sf.feature_tests;
+    }
+  }
+  EXPECT_GT(found, 20);
+  EXPECT_GT(new_contacts, 0) << "every contact was within the near gap on the reference: the test proves little";
+  EXPECT_LT(tests_restricted, tests_full) << "the restriction skipped nothing: the test proves little";
+}
+
+// The case the margin decides: on the reference the walls are held flattened 0.9 mm apart (farther than the near
+// gap: only the folds at the sides are flagged), and the next sweep squeezes them through each other. Every contact must come from the move
+// test at margin near_gap - gap; with a margin larger than the walls' relative moves (2 mm) they are missed, so this
+// case would catch a margin that is too large.
+TEST(SelfCollision, ARestrictedDetectionFindsWallsThatWereApartOnTheReference) {
+  const double gap = 1e-4, near_gap = 4e-4, len = kTwinLength;
+  Points rest;
+  Tris tris;
+  make_tube(10, 14, kTwinRadius, len, rest, tris);
+  // Flatten the tube towards y = 0 around mid-length: y scaled by 1 - depth at the middle.
+  auto flattened = [&](double depth) {
+    Points x = rest;
+    for (Eigen::Index i = 0; i < x.rows(); ++i)
+      x(i, 1) *= 1.0 - depth * std::exp(-std::pow((rest(i, 2) - 0.5 * len) / (0.2 * len), 2));
+    return x;
+  };
+  const Points ref = flattened(0.953), x1 = flattened(1.02);
+  for (int k : {6, 26}) {
+    CollisionSurface surface(tris, rest);
+    CollisionWorkspace ws(k);
+    std::vector<Contact> at_ref, restricted, full, wrong;
+    std::vector<std::uint8_t> near;
+    detect_self_near(surface, ws, ref, ref, gap, near_gap, at_ref, near);
+    EXPECT_TRUE(at_ref.empty());
+    const PointsRef r(ref);
+    detect_self_moved(surface, ws, ref, x1, gap, MoveFilter{&r, near_gap - gap, &near, &r}, restricted);
+    detect_self(surface, ws, ref, x1, gap, full);
+    ASSERT_GT(full.size(), 10u) << "k = " << k;
+    EXPECT_EQ(contact_set(restricted), contact_set(full)) << "k = " << k;
+    const long unflagged = std::count_if(full.begin(), full.end(), [&near](const Contact& c) {
+      return std::none_of(c.v, c.v + 4, [&near](int v) { return near[static_cast<std::size_t>(v)] != 0; });
+    });
+    EXPECT_GT(unflagged, 10) << "k = " << k << ": the contacts are flagged, the move test decides nothing";
+    detect_self_moved(surface, ws, ref, x1, gap, MoveFilter{&r, 2e-3, &near, &r}, wrong);
+    EXPECT_LT(wrong.size(), full.size()) << "k = " << k << ": a 2 mm margin misses nothing here";
+  }
+}
+
 TEST(SelfCollision, MovedDetectionRefusesABadFilterNamingIt) {
   Points rest;
   Tris tris;
@@ -686,6 +835,10 @@ TEST(SelfCollision, MovedDetectionRefusesABadFilterNamingIt) {
   EXPECT_EQ(message(MoveFilter{&ref, 0.0, nullptr}),
             "x1_ref has 2 rows, expected n_points = " + std::to_string(rest.rows()));
   EXPECT_EQ(message(MoveFilter{nullptr, -1.0, nullptr}), "margin must be finite and >= 0 metres, got -1");
+  const PointsRef full_ref(rest);
+  EXPECT_EQ(message(MoveFilter{nullptr, 0.0, nullptr, &full_ref}), "x0_ref given without x1_ref");
+  EXPECT_EQ(message(MoveFilter{&full_ref, 0.0, nullptr, &ref}),
+            "x0_ref has 2 rows, expected n_points = " + std::to_string(rest.rows()));
 }
 
 }  // namespace

@@ -1,8 +1,11 @@
 // The response's restricted re-check against its brute-force twin, the full re-check (collision.recheck "full":
-// every wall feature tested again in every round), on the real frames of shipped scenes: the two runs must find the
-// same contacts in every round, so every frame's positions, contacts, rounds and forces are bit-identical.
+// every wall feature tested again in every round), and the restricted first detection against its twin, the full
+// one (collision.detection "full": every wall feature every frame), on the real frames of shipped scenes: the two
+// runs must find the same contacts in every round, so every frame's positions, contacts, rounds and forces are
+// bit-identical.
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <string>
 
 #include "engine/simulation.hpp"
@@ -11,16 +14,20 @@ using namespace lumen::engine;
 
 namespace {
 
-// Frames whose response took at least one re-check, and at least two (a re-check found something).
+// Frames whose response took at least one re-check, and at least two (a re-check found something); frames whose
+// first detection was restricted, and among them those that found contacts.
 struct RoundCounts {
   int rechecked = 0, refound = 0;
+  int restricted_first = 0, restricted_found = 0;
 };
 
-RoundCounts expect_restricted_equals_full(const std::string& file) {
+// Run a shipped scene (the defaults: both restricted) beside its twin (`make_full` turns one restriction off).
+RoundCounts expect_twins_equal(const std::string& file, const std::function<void(Scene&)>& make_full) {
   Scene restricted = load_scene(std::string(LUMEN_SOURCE_DIR) + "/scenes/" + file);
   EXPECT_EQ(restricted.collision.recheck, Recheck::kRestricted) << "the default";
+  EXPECT_EQ(restricted.collision.detection, Detection::kRestricted) << "the default";
   Scene full = restricted;
-  full.collision.recheck = Recheck::kFull;
+  make_full(full);
   const auto model_r = compile_model(restricted);
   const auto model_f = compile_model(full);
   Inputs inputs_r = make_inputs(restricted), inputs_f = make_inputs(full);
@@ -44,8 +51,18 @@ RoundCounts expect_restricted_equals_full(const std::string& file) {
     }
     counts.rechecked += r.response_iterations >= 1;
     counts.refound += r.response_iterations >= 2;
+    counts.restricted_first += !r.full_detection;
+    counts.restricted_found += !r.full_detection && r.response_iterations >= 1;
   }
   return counts;
+}
+
+RoundCounts expect_restricted_equals_full(const std::string& file) {
+  return expect_twins_equal(file, [](Scene& s) { s.collision.recheck = Recheck::kFull; });
+}
+
+RoundCounts expect_restricted_first_equals_full(const std::string& file) {
+  return expect_twins_equal(file, [](Scene& s) { s.collision.detection = Detection::kFull; });
 }
 
 }  // namespace
@@ -70,4 +87,21 @@ TEST(RestrictedRecheck, FindsWhatTheFullRecheckFindsWhenTheWallsMeet) {
     const RoundCounts c = expect_restricted_equals_full(file);
     EXPECT_GT(c.rechecked, 10) << file;
   }
+}
+
+// The frames' first detections, restricted by the last full one's proximity (collision.detection "restricted"),
+// against the full ones. Self-contacts only: the squeeze and the full closure, whose walls come into contact on
+// restricted frames, and tool and wall contacts together in the two-tool pinch.
+TEST(RestrictedDetection, FindsWhatTheFullDetectionFindsWhenTheWallsMeet) {
+  for (const char* file : {"fig5-squeeze.json", "full-closure.json"}) {
+    const RoundCounts c = expect_restricted_first_equals_full(file);
+    EXPECT_GT(c.restricted_first, 10) << file << ": few restricted first detections, the twin proves little";
+    EXPECT_GT(c.restricted_found, 5) << file << ": no restricted first detection found a contact";
+  }
+}
+
+TEST(RestrictedDetection, FindsWhatTheFullDetectionFindsWhenTwoToolsPinchTheLumenShut) {
+  const RoundCounts c = expect_restricted_first_equals_full("instrument-two-tools-pinch.json");
+  EXPECT_GT(c.restricted_first, 10);
+  EXPECT_GT(c.restricted_found, 5);
 }
