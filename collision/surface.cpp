@@ -519,22 +519,22 @@ struct SelfDetector {
     }
   }
 
-  // A detection at a wider gap than the contacts it reports (detect_self_near): each hit flags its vertices in
-  // `near` and is tested again at `gap` (with that gap's pre-test), and only those hits are reported.
+  // A detection at a wider gap than the contacts it reports (detect_self_near): each hit's key goes to `near` and
+  // the hit is tested again at `gap` (with that gap's pre-test), and only those hits are reported.
   struct Narrow {
-    double gap = 0.0;            // the reported contacts' gap, metres (below the detection's)
-    std::uint8_t* near = nullptr;  // n_points entries
+    double gap = 0.0;              // the reported contacts' gap, metres (below the detection's)
+    NearFeatures* near = nullptr;  // the hits' keys
   };
 
-  // Report a hit of the pass's gap: as it is, or (narrowing) flagged and tested again at the narrow gap.
+  // Report a hit of the pass's gap: as it is, or (narrowing) kept as near and tested again at the narrow gap.
   template <class Test>
-  void report(const int* v, FeatureKind kind, const CcdHit& hit, const Narrow* narrow, Test&& test_at,
-              std::vector<Contact>& out) {
+  void report(const int* v, FeatureKind kind, std::uint64_t key, const CcdHit& hit, const Narrow* narrow,
+              Test&& test_at, std::vector<Contact>& out) {
     if (!narrow) {
       out.push_back(Contact{kind, {v[0], v[1], v[2], v[3]}, hit.toi, hit.s, hit.t});
       return;
     }
-    for (int k = 0; k < 4; ++k) narrow->near[v[k]] = 1;
+    (kind == FeatureKind::VertexFace ? narrow->near->vf : narrow->near->ee).push_back(key);
     CcdHit again;
     if (test_at(narrow->gap, w.pad_for(narrow->gap), &again))
       out.push_back(Contact{kind, {v[0], v[1], v[2], v[3]}, again.toi, again.s, again.t});
@@ -559,7 +559,7 @@ struct SelfDetector {
       CcdHit hit;
       if (test_at(gap, w.feature_pad, &hit)) {
         const int v[4] = {p, f[0], f[1], f[2]};
-        report(v, FeatureKind::VertexFace, hit, narrow, test_at, out);
+        report(v, FeatureKind::VertexFace, key, hit, narrow, test_at, out);
         if (w.classify) w.hit_vf.push_back(key);
       }
     }
@@ -574,7 +574,7 @@ struct SelfDetector {
       CcdHit hit;
       if (test_at(gap, w.feature_pad, &hit)) {
         const int v[4] = {e[0], e[1], g[0], g[1]};
-        report(v, FeatureKind::EdgeEdge, hit, narrow, test_at, out);
+        report(v, FeatureKind::EdgeEdge, key, hit, narrow, test_at, out);
         if (w.classify) w.hit_ee.push_back(key);
       }
     }
@@ -607,7 +607,7 @@ void detect_self(const CollisionSurface& surface, CollisionWorkspace& ws, const 
 }
 
 void detect_self_near(const CollisionSurface& surface, CollisionWorkspace& ws, const PointsRef& x0, const PointsRef& x1,
-                      double gap, double near_gap, std::vector<Contact>& out, std::vector<std::uint8_t>& near,
+                      double gap, double near_gap, std::vector<Contact>& out, NearFeatures& near,
                       CollisionStats* stats) {
   WsImpl& w = workspace_impl(ws);
   validate_motion(surface, x0, x1, gap);
@@ -619,16 +619,17 @@ void detect_self_near(const CollisionSurface& surface, CollisionWorkspace& ws, c
   }
   require_bvh(surface);
   out.clear();
-  near.assign(static_cast<std::size_t>(surface.num_points()), 0);
+  near.vf.clear();
+  near.ee.clear();
   w.begin_call();
   SelfDetector det{surface, w};
-  // detect_self at the near gap; its hits flag their vertices and are tested again at the contact gap.
+  // detect_self at the near gap; its hits are kept (keys, in sorted order) and tested again at the contact gap.
   with_k(w.k, [&](auto k_tag) {
     constexpr int K = decltype(k_tag)::value;
     w.refit<K>(surface, x0, x1, near_gap);
     std::get<BvhBoxes<K>>(w.boxes).self_pairs(surface.bvh(), [&](int ta, int tb) { det.add_candidates(ta, tb); });
   });
-  const SelfDetector::Narrow narrow{gap, near.data()};
+  const SelfDetector::Narrow narrow{gap, &near};
   det.run_features(x0, x1, near_gap, out, stats, &narrow);
 }
 
@@ -642,6 +643,13 @@ void check_filter(const CollisionSurface& surface, const MoveFilter& f) {
   }
   if (f.x1_ref) check_points(*f.x1_ref, surface.num_points(), "x1_ref");
   if (f.x0_ref && !f.x1_ref) throw std::invalid_argument("x0_ref given without x1_ref");
+  if (f.near) {
+    const std::uint64_t vf_end = std::uint64_t{1} << (surface.point_bits() + surface.tri_bits());
+    const std::uint64_t ee_end = std::uint64_t{1} << (2 * surface.edge_bits());
+    if (std::any_of(f.near->vf.begin(), f.near->vf.end(), [vf_end](std::uint64_t k) { return k >= vf_end; }) ||
+        std::any_of(f.near->ee.begin(), f.near->ee.end(), [ee_end](std::uint64_t k) { return k >= ee_end; }))
+      throw std::invalid_argument("near holds a feature pair outside this surface");
+  }
   if (f.x0_ref) check_points(*f.x0_ref, surface.num_points(), "x0_ref");
   if (!(f.margin >= 0.0) || !std::isfinite(f.margin)) {
     std::ostringstream msg;
@@ -687,6 +695,11 @@ void detect_self_moved(const CollisionSurface& surface, CollisionWorkspace& ws, 
     w.refit<K>(surface, x0, x1, gap);
     std::get<BvhBoxes<K>>(w.boxes).self_pairs_where(surface.bvh(), keep, [&](int ta, int tb) { det.add_candidates(ta, tb); });
   });
+  // The listed pairs, always (sort_unique drops the ones the traversal found too).
+  if (filter.near) {
+    w.vf_keys.insert(w.vf_keys.end(), filter.near->vf.begin(), filter.near->vf.end());
+    w.ee_keys.insert(w.ee_keys.end(), filter.near->ee.begin(), filter.near->ee.end());
+  }
   det.run_features(x0, x1, gap, out, stats);
 }
 

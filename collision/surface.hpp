@@ -167,15 +167,24 @@ void validate_motion(const CollisionSurface& surface, const PointsRef& x0, const
 // Throws std::logic_error when the surface has no BVH yet.
 void detect_self(const CollisionSurface& surface, CollisionWorkspace& ws, const PointsRef& x0, const PointsRef& x1,
                  double gap, std::vector<Contact>& out, CollisionStats* stats = nullptr);
+// Feature pairs of one surface, kept from one detection for later ones (detect_self_near, MoveFilter): the keys
+// detect_self sorts its candidates by, ascending. vf: vertex id << tri_bits | triangle id; ee: edge id << edge_bits |
+// edge id, first < second (CollisionSurface's bit widths and ids).
+struct NearFeatures {
+  std::vector<std::uint64_t> vf, ee;
+  std::size_t size() const { return vf.size() + ee.size(); }
+};
+
 // detect_self at `gap` (the same contacts, times and order) by one detection at the wider `near_gap` whose hits are
-// tested again at `gap`, and the proof a later detection can restrict itself with (MoveFilter): near (resized to
-// n_points) flags every vertex of a feature pair found within near_gap; every pair without a flagged vertex stayed
-// farther than near_gap apart all along x0 -> x1. Statistics of the near_gap pass (contacts: those at gap).
+// tested again at `gap`, and the proof a later detection can restrict itself with (MoveFilter): `near` gets every
+// feature pair found within near_gap (the pairs of detect_self at near_gap); every other pair stayed farther than
+// near_gap apart all along x0 -> x1. Statistics of the near_gap pass (contacts: those at gap).
 // Throws std::invalid_argument as detect_self does, and for near_gap below gap.
 void detect_self_near(const CollisionSurface& surface, CollisionWorkspace& ws, const PointsRef& x0, const PointsRef& x1,
-                      double gap, double near_gap, std::vector<Contact>& out, std::vector<std::uint8_t>& near,
+                      double gap, double near_gap, std::vector<Contact>& out, NearFeatures& near,
                       CollisionStats* stats = nullptr);
-// Which feature pairs a restricted self-detection tests: those with a flagged vertex, and those whose vertices
+// Which feature pairs a restricted self-detection tests: those with a flagged vertex, those listed as near, and
+// those whose vertices
 // moved relative to each other since a reference motion x0_ref -> x1_ref by at least `margin` metres, at the
 // sweep's start or at its end; the relative move of a pair at an end is max |d_i - d_j| over a vertex i of one
 // feature and j of the other (d = x0 - x0_ref at the start, x1 - x1_ref at the end; without x0_ref the sweep
@@ -187,6 +196,7 @@ struct MoveFilter {
   double margin = 0.0;                       // metres, >= 0
   const std::vector<std::uint8_t>* flagged = nullptr;  // n_points entries (nonzero: flagged); null: none
   const PointsRef* x0_ref = nullptr;         // n_points x 3 (needs x1_ref); null: the reference started at x0
+  const NearFeatures* near = nullptr;        // pairs tested whatever they moved (detect_self_near's); null: none
 };
 // detect_self restricted to the pairs `filter` selects: the BVH is refitted in full, but the traversal skips node
 // pairs whose vertices can hold no selected pair (none flagged, and the moves under the two nodes, as boxes, differ

@@ -250,7 +250,7 @@ bool detect_walls_first(const Model& model, State& state, const Points& x1, doub
   }
   if (ref.valid() && ref.near_gap > gap) {
     const collision::PointsRef x0_ref(ref.x0), x1_ref(ref.x1);
-    const collision::MoveFilter filter{&x1_ref, ref.near_gap - gap, &ref.near, &x0_ref};
+    const collision::MoveFilter filter{&x1_ref, ref.near_gap - gap, nullptr, &x0_ref, &ref.near};
     collision::detect_self_moved(surface, *state.detector, state.x, x1, gap, filter, state.contacts, &stats);
     // Too much left to test: the next first detection makes a new reference.
     if (static_cast<double>(stats.bv_overlaps) > kReferenceOverlapShare * static_cast<double>(ref.overlaps))

@@ -192,14 +192,14 @@ struct PendingFrame {
 };
 
 // The walls' proximity reference for the frames' first detections (collision.detection "restricted"): the sweep of
-// the last full first detection, which ran at the near gap, and the nodes of its wall feature pairs found within it.
-// Every other wall pair stayed farther apart than near_gap all along that sweep, so a later sweep need test only the
-// flagged nodes' pairs and the pairs whose vertices moved relative to each other since it by at least near_gap minus
-// the later gap (collision::MoveFilter). A fact about positions only: it stays true whatever the frames do after.
+// the last full first detection, which ran at the near gap, and its wall feature pairs found within it. Every other
+// wall pair stayed farther apart than near_gap all along that sweep, so a later sweep need test only those pairs and
+// the pairs whose vertices moved relative to each other since it by at least near_gap minus the later gap
+// (collision::MoveFilter). A fact about positions only: it stays true whatever the frames do after.
 struct ProximityReference {
   Points x0, x1;                    // the sweep, n_nodes x 3, metres (empty: none yet)
   double near_gap = 0.0;            // metres
-  std::vector<std::uint8_t> near;   // per node, 1 in a wall feature pair within near_gap
+  collision::NearFeatures near;     // the wall feature pairs within near_gap
   long overlaps = 0;                // leaf-box overlaps of that full detection (what a restricted one is weighed against)
   bool valid() const { return x0.rows() > 0; }
 };

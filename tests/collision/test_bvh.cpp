@@ -683,9 +683,33 @@ TEST(SelfCollision, MovedDetectionAgainstAnEarlierSweepEqualsTheFullOneFilteredB
   EXPECT_GT(selected, 10u);
 }
 
+// A contact's feature pair as NearFeatures keys it (kind, key), found by scanning the surface's triangles and edges.
+std::pair<int, std::uint64_t> near_key(const CollisionSurface& s, const Contact& c) {
+  if (c.kind == FeatureKind::VertexFace) {
+    for (int t = 0; t < s.num_triangles(); ++t)
+      if (std::equal(c.v + 1, c.v + 4, s.triangle(t)))
+        return {0, (static_cast<std::uint64_t>(c.v[0]) << s.tri_bits()) | static_cast<std::uint64_t>(t)};
+  } else {
+    int e[2] = {-1, -1};
+    for (int j = 0; j < 2; ++j)
+      for (int i = 0; i < s.num_edges(); ++i)
+        if (s.edge(i)[0] == c.v[2 * j] && s.edge(i)[1] == c.v[2 * j + 1]) e[j] = i;
+    return {1, (static_cast<std::uint64_t>(std::min(e[0], e[1])) << s.edge_bits()) |
+                   static_cast<std::uint64_t>(std::max(e[0], e[1]))};
+  }
+  return {-1, 0};
+}
+
+std::set<std::pair<int, std::uint64_t>> near_set(const NearFeatures& n) {
+  std::set<std::pair<int, std::uint64_t>> s;
+  for (std::uint64_t k : n.vf) s.insert({0, k});
+  for (std::uint64_t k : n.ee) s.insert({1, k});
+  return s;
+}
+
 // detect_self_near against its two twins: its contacts are detect_self's at the gap (same times, parameters and
-// order), and its near flags are exactly the vertices of detect_self's contacts at the near gap.
-TEST(SelfCollision, NearDetectionReportsTheGapsContactsAndFlagsThePairsWithinTheNearGap) {
+// order), and its near pairs are exactly detect_self's contacts at the near gap.
+TEST(SelfCollision, NearDetectionReportsTheGapsContactsAndKeepsThePairsWithinTheNearGap) {
   const double gap = 1e-4, near_gap = 4e-4;
   long more_near = 0;
   for (int k : {6, 26}) {
@@ -695,7 +719,7 @@ TEST(SelfCollision, NearDetectionReportsTheGapsContactsAndFlagsThePairsWithinThe
       CollisionSurface surface(pf.tris, pf.rest);
       CollisionWorkspace ws(k);
       std::vector<Contact> out, at_gap, at_near;
-      std::vector<std::uint8_t> near;
+      NearFeatures near;
       CollisionStats st;
       detect_self_near(surface, ws, pf.x0, pf.x1, gap, near_gap, out, near, &st);
       detect_self(surface, ws, pf.x0, pf.x1, gap, at_gap);
@@ -710,18 +734,19 @@ TEST(SelfCollision, NearDetectionReportsTheGapsContactsAndFlagsThePairsWithinThe
         EXPECT_EQ(out[i].t, at_gap[i].t) << where;
       }
       EXPECT_EQ(st.contacts, static_cast<long>(out.size())) << where;
-      std::vector<std::uint8_t> expected(static_cast<std::size_t>(pf.rest.rows()), 0);
-      for (const Contact& c : at_near)
-        for (int v : c.v) expected[static_cast<std::size_t>(v)] = 1;
-      EXPECT_TRUE(near == expected) << where;
+      std::set<std::pair<int, std::uint64_t>> expected;
+      for (const Contact& c : at_near) expected.insert(near_key(surface, c));
+      EXPECT_EQ(near.size(), at_near.size()) << where;
+      EXPECT_TRUE(near_set(near) == expected) << where;
+      EXPECT_TRUE(std::is_sorted(near.vf.begin(), near.vf.end()) && std::is_sorted(near.ee.begin(), near.ee.end()));
       more_near += static_cast<long>(at_near.size() - at_gap.size());
     }
   }
-  EXPECT_GT(more_near, 0) << "the near gap finds nothing the gap does not: the flags prove little";
+  EXPECT_GT(more_near, 0) << "the near gap finds nothing the gap does not: the test proves little";
 }
 
-// The frame-to-frame use, against the brute-force twin: a near detection of one sweep proves every unflagged pair
-// clear by the near gap, so a later sweep restricted to the flagged vertices and to the pairs that moved relative to
+// The frame-to-frame use, against the brute-force twin: a near detection of one sweep proves every pair it does not
+// keep clear by the near gap, so a later sweep restricted to the kept pairs and to the pairs that moved relative to
 // each other by at least near_gap - gap (at either end, against that sweep) finds exactly what detect_self finds on
 // it, while testing fewer pairs.
 TEST(SelfCollision, ADetectionRestrictedByAnEarlierNearDetectionFindsEveryContact) {
@@ -734,7 +759,7 @@ TEST(SelfCollision, ADetectionRestrictedByAnEarlierNearDetectionFindsEveryContac
       CollisionSurface surface(pf.tris, pf.rest);
       CollisionWorkspace ws(k);
       std::vector<Contact> ignored;
-      std::vector<std::uint8_t> near;
+      NearFeatures near;
       detect_self_near(surface, ws, pf.x0, pf.x1, gap, near_gap, ignored, near);
       // The next sweep: the reference's with the walls closing further, smoothly (the top and bottom walls move
       // towards each other by up to 0.4 mm at the start and 1.2 mm at the end, more near a random point along
@@ -752,7 +777,7 @@ TEST(SelfCollision, ADetectionRestrictedByAnEarlierNearDetectionFindsEveryContac
       const PointsRef r0(pf.x0), r1(pf.x1);
       std::vector<Contact> restricted, full;
       CollisionStats sr, sf;
-      detect_self_moved(surface, ws, x0b, x1b, gap, MoveFilter{&r1, near_gap - gap, &near, &r0}, restricted, &sr);
+      detect_self_moved(surface, ws, x0b, x1b, gap, MoveFilter{&r1, near_gap - gap, nullptr, &r0, &near}, restricted, &sr);
       detect_self(surface, ws, x0b, x1b, gap, full, &sf);
       const std::string where = "k = " + std::to_string(k) + " seed = " + std::to_string(seed);
       ASSERT_EQ(restricted.size(), full.size()) << where;
@@ -775,7 +800,7 @@ TEST(SelfCollision, ADetectionRestrictedByAnEarlierNearDetectionFindsEveryContac
 }
 
 // The case the margin decides: on the reference the walls are held flattened 0.9 mm apart (farther than the near
-// gap: only the folds at the sides are flagged), and the next sweep squeezes them through each other. Every contact must come from the move
+// gap: only pairs at the folds at the sides are near), and the next sweep squeezes them through each other. Every contact must come from the move
 // test at margin near_gap - gap; with a margin larger than the walls' relative moves (2 mm) they are missed, so this
 // case would catch a margin that is too large.
 TEST(SelfCollision, ARestrictedDetectionFindsWallsThatWereApartOnTheReference) {
@@ -795,19 +820,20 @@ TEST(SelfCollision, ARestrictedDetectionFindsWallsThatWereApartOnTheReference) {
     CollisionSurface surface(tris, rest);
     CollisionWorkspace ws(k);
     std::vector<Contact> at_ref, restricted, full, wrong;
-    std::vector<std::uint8_t> near;
+    NearFeatures near;
     detect_self_near(surface, ws, ref, ref, gap, near_gap, at_ref, near);
     EXPECT_TRUE(at_ref.empty());
     const PointsRef r(ref);
-    detect_self_moved(surface, ws, ref, x1, gap, MoveFilter{&r, near_gap - gap, &near, &r}, restricted);
+    detect_self_moved(surface, ws, ref, x1, gap, MoveFilter{&r, near_gap - gap, nullptr, &r, &near}, restricted);
     detect_self(surface, ws, ref, x1, gap, full);
     ASSERT_GT(full.size(), 10u) << "k = " << k;
     EXPECT_EQ(contact_set(restricted), contact_set(full)) << "k = " << k;
-    const long unflagged = std::count_if(full.begin(), full.end(), [&near](const Contact& c) {
-      return std::none_of(c.v, c.v + 4, [&near](int v) { return near[static_cast<std::size_t>(v)] != 0; });
+    const auto kept = near_set(near);
+    const long not_near = std::count_if(full.begin(), full.end(), [&](const Contact& c) {
+      return kept.count(near_key(surface, c)) == 0;
     });
-    EXPECT_GT(unflagged, 10) << "k = " << k << ": the contacts are flagged, the move test decides nothing";
-    detect_self_moved(surface, ws, ref, x1, gap, MoveFilter{&r, 2e-3, &near, &r}, wrong);
+    EXPECT_GT(not_near, 10) << "k = " << k << ": the contacts were near already, the move test decides nothing";
+    detect_self_moved(surface, ws, ref, x1, gap, MoveFilter{&r, 2e-3, nullptr, &r, &near}, wrong);
     EXPECT_LT(wrong.size(), full.size()) << "k = " << k << ": a 2 mm margin misses nothing here";
   }
 }
@@ -837,6 +863,9 @@ TEST(SelfCollision, MovedDetectionRefusesABadFilterNamingIt) {
   EXPECT_EQ(message(MoveFilter{nullptr, -1.0, nullptr}), "margin must be finite and >= 0 metres, got -1");
   const PointsRef full_ref(rest);
   EXPECT_EQ(message(MoveFilter{nullptr, 0.0, nullptr, &full_ref}), "x0_ref given without x1_ref");
+  NearFeatures alien;
+  alien.vf.push_back(~std::uint64_t{0});
+  EXPECT_EQ(message(MoveFilter{nullptr, 0.0, nullptr, nullptr, &alien}), "near holds a feature pair outside this surface");
   EXPECT_EQ(message(MoveFilter{&full_ref, 0.0, nullptr, &ref}),
             "x0_ref has 2 rows, expected n_points = " + std::to_string(rest.rows()));
 }
