@@ -396,6 +396,19 @@ void warm_start(const Model& model, const State& state, ResponseRounds& rr) {
 
 }  // namespace
 
+void prime_proximity(const Model& model, State& state) {
+  if (!model.collision_surface || model.collision.detection != Detection::kRestricted) return;
+  ProximityReference& ref = state.proximity;
+  ref.near_gap = kNearGapFactor * model.collision.gap;
+  std::vector<collision::Contact> at_rest;
+  collision::CollisionStats stats;
+  collision::detect_self_near(*model.collision_surface, *state.detector, state.x, state.x, model.collision.gap,
+                              ref.near_gap, at_rest, ref.near, &stats);
+  ref.x0 = state.x;
+  ref.x1 = state.x;
+  ref.overlaps = stats.bv_overlaps;
+}
+
 void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, FrameRecord& rec) {
   const int n = model.mesh.n_nodes();
   const CollisionSpec& cs = model.collision;

@@ -70,4 +70,10 @@ void weights_of(const collision::Contact& c, double w[4]);
 // and fallback flag; CCD time goes to rec.ms[kCollision], the rest to rec.ms[kResponse].
 void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, FrameRecord& rec);
 
+// The walls' first proximity reference, taken on the state's positions at rest (a full detection of the resting
+// walls at the near gap; State::proximity), so that the first frame's detection is already restricted and the
+// workspace's buffers are allocated before the frames are timed. Nothing when the walls do not collide or the
+// scene asks for full first detections.
+void prime_proximity(const Model& model, State& state);
+
 }  // namespace lumen::engine

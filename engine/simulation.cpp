@@ -561,6 +561,7 @@ State make_state(const Model& model) {
     sort_unique(probe_nodes);
     s.compliance->ensure_columns(probe_nodes);
   }
+  prime_proximity(model, s);
   return s;
 }
 
