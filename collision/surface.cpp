@@ -418,7 +418,8 @@ using WsImpl = CollisionWorkspace::Impl;
 struct SelfDetector {
   const CollisionSurface& s;
   WsImpl& w;
-  // Restricted detection (detect_self_moved): flags and per-vertex moves (n_points x 3, row-major), or null.
+  // Restricted detection (detect_self_moved): flags and per-vertex moves (n_points x 6, row-major: start xyz, end
+  // xyz, WsImpl::kVertexMove), or null.
   const std::uint8_t* flagged = nullptr;
   const double* move = nullptr;
   double margin2 = 0.0;  // squared margin
@@ -611,10 +612,9 @@ void detect_self_near(const CollisionSurface& surface, CollisionWorkspace& ws, c
                       CollisionStats* stats) {
   WsImpl& w = workspace_impl(ws);
   validate_motion(surface, x0, x1, gap);
-  check_gap(near_gap);
-  if (!(near_gap >= gap)) {
+  if (!(near_gap >= gap) || !std::isfinite(near_gap)) {
     std::ostringstream msg;
-    msg << "near_gap must be >= gap (" << gap << " m), got " << near_gap;
+    msg << "near_gap must be finite and >= gap (" << gap << " m), got " << near_gap;
     throw std::invalid_argument(msg.str());
   }
   require_bvh(surface);
@@ -644,10 +644,25 @@ void check_filter(const CollisionSurface& surface, const MoveFilter& f) {
   if (f.x1_ref) check_points(*f.x1_ref, surface.num_points(), "x1_ref");
   if (f.x0_ref && !f.x1_ref) throw std::invalid_argument("x0_ref given without x1_ref");
   if (f.near) {
-    const std::uint64_t vf_end = std::uint64_t{1} << (surface.point_bits() + surface.tri_bits());
-    const std::uint64_t ee_end = std::uint64_t{1} << (2 * surface.edge_bits());
-    if (std::any_of(f.near->vf.begin(), f.near->vf.end(), [vf_end](std::uint64_t k) { return k >= vf_end; }) ||
-        std::any_of(f.near->ee.begin(), f.near->ee.end(), [ee_end](std::uint64_t k) { return k >= ee_end; }))
+    // Every key a feature pair of this surface that detect_self could test: ids in range, edges in order, no shared
+    // vertex.
+    const std::uint64_t tri_mask = (std::uint64_t{1} << surface.tri_bits()) - 1;
+    const std::uint64_t edge_mask = (std::uint64_t{1} << surface.edge_bits()) - 1;
+    const auto bad_vf = [&](std::uint64_t k) {
+      const std::uint64_t p = k >> surface.tri_bits(), t = k & tri_mask;
+      return p >= static_cast<std::uint64_t>(surface.num_points()) ||
+             t >= static_cast<std::uint64_t>(surface.num_triangles()) ||
+             has_vertex(surface.triangle(static_cast<int>(t)), static_cast<int>(p));
+    };
+    const auto bad_ee = [&](std::uint64_t k) {
+      const std::uint64_t e = k >> surface.edge_bits(), g = k & edge_mask;
+      if (e >= g || g >= static_cast<std::uint64_t>(surface.num_edges())) return true;
+      const int* a = surface.edge(static_cast<int>(e));
+      const int* b = surface.edge(static_cast<int>(g));
+      return a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1];
+    };
+    if (std::any_of(f.near->vf.begin(), f.near->vf.end(), bad_vf) ||
+        std::any_of(f.near->ee.begin(), f.near->ee.end(), bad_ee))
       throw std::invalid_argument("near holds a feature pair outside this surface");
   }
   if (f.x0_ref) check_points(*f.x0_ref, surface.num_points(), "x0_ref");

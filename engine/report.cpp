@@ -93,6 +93,7 @@ nlohmann::json frame_json(const FrameRecord& r) {
   j["over_budget"] = r.over_budget;
   j["bv_overlaps"] = r.bv_overlaps;
   j["full_detection"] = r.full_detection;
+  j["first_contacts"] = r.first_contacts;
   j["feature_tests"] = r.feature_tests;
   j["contacts"] = r.contacts;
   j["response_iterations"] = r.response_iterations;

@@ -42,6 +42,7 @@ struct FrameRecord {
   // The frame's first detection tested every wall feature pair (collision.detection "full", or a new proximity
   // reference); false when it was restricted by the last one.
   bool full_detection = true;
+  long first_contacts = 0;  // the walls' self-contacts the frame's first detection found
   int response_iterations = 0;
   bool fallback = false;              // the safe fallback ended this frame's motion early
   bool contact_rows_capped = false;   // ... because its contacts exceeded collision.max_contact_rows

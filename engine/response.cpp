@@ -5,6 +5,7 @@
 #include <map>
 #include <set>
 
+#include "collision/ccd.hpp"
 #include "engine/clock.hpp"
 #include "engine/grasp.hpp"
 #include "engine/instrument_contact.hpp"
@@ -125,6 +126,11 @@ constexpr double kRecheckMarginShare = 0.5;
 // by the first detections' leaf-box overlaps summed over three scenes (factor 2, 3, 5; share 0.3, 0.5, 0.7).
 constexpr double kNearGapFactor = 3.0;
 constexpr double kReferenceOverlapShare = 0.3;
+// What the restricted first detection's margin (the two gaps' difference) keeps spare, metres: the elementary tests
+// may report a pair up to two tolerances beyond the gap (false positives, collision::CcdOptions), so a skipped pair
+// is kept clear of that too, with as much again for rounding; the full twin then finds nothing it skips, short of a
+// test that reaches its work bound (reported whatever the distance; none in the twin tests).
+constexpr double kMarginSpare = 4.0 * collision::CcdOptions{}.tolerance;
 
 // One frame's response rounds: the active constraints and the last solve.
 struct ResponseRounds {
@@ -248,9 +254,10 @@ bool detect_walls_first(const Model& model, State& state, const Points& x1, doub
     collision::detect_self(surface, *state.detector, state.x, x1, gap, state.contacts, &stats);
     return true;
   }
-  if (ref.valid() && ref.near_gap > gap) {
+  const double margin = ref.near_gap - gap - kMarginSpare;
+  if (ref.valid() && margin > 0.0) {
     const collision::PointsRef x0_ref(ref.x0), x1_ref(ref.x1);
-    const collision::MoveFilter filter{&x1_ref, ref.near_gap - gap, nullptr, &x0_ref, &ref.near};
+    const collision::MoveFilter filter{&x1_ref, margin, nullptr, &x0_ref, &ref.near};
     collision::detect_self_moved(surface, *state.detector, state.x, x1, gap, filter, state.contacts, &stats);
     // Too much left to test: the next first detection makes a new reference.
     if (static_cast<double>(stats.bv_overlaps) > kReferenceOverlapShare * static_cast<double>(ref.overlaps))
@@ -443,6 +450,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     stats.feature_tests += again.feature_tests;
     stats.contacts = again.contacts;
   }
+  rec.first_contacts = std::count_if(found.begin(), found.end(), [](const HeldContact& h) { return !h.is_tool(); });
   const RecheckReference reference = reference_of(model, x1, cs.gap, found);
   const RecheckReference* restrict_to = reference.gap > 0.0 ? &reference : nullptr;
   rec.bv_overlaps = stats.bv_overlaps;

@@ -140,7 +140,7 @@ struct CollisionSpec {
   Recheck recheck = Recheck::kRestricted;
   // The frame's first detection of the walls (key "detection"): "restricted" (the default: only the wall features
   // near each other on the last full detection, which ran at a wider gap, or whose vertices moved relative to each
-  // other since its sweep by at least the two gaps' difference; the others provably stay clear; a full one again
+  // other since its sweep by at least the two gaps' difference less a spare; the others stay clear; a full one again
   // once the restricted one does 30 % of its work) or "full" (every feature every frame: the twin the restricted
   // one is tested against, bit for bit).
   Detection detection = Detection::kRestricted;

@@ -596,24 +596,28 @@ TEST(SelfCollision, EmptyAndSingleTriangle) {
 // contacts, times and order, on random pinched tubes with random flags and a random smooth reference (with_start:
 // a reference that also started elsewhere, x0_ref, so that moves at both ends count). Returns the number of selected
 // contacts.
-std::size_t check_moved_equals_filtered_full(int k, unsigned seed, bool with_start = false) {
+// start_only (with_start): adds the selected contacts that only their move at the start selects.
+std::size_t check_moved_equals_filtered_full(int k, unsigned seed, bool with_start = false,
+                                             std::size_t* start_only = nullptr) {
   const double len = kTwinLength, gap = 1e-4, margin = 2e-4;
   std::mt19937 rng(seed);
   const PinchedFrame pf = random_pinched_frame(seed, rng);
   const Points &rest = pf.rest, &x0 = pf.x0, &x1 = pf.x1;
   const Tris& tris = pf.tris;
-  // The reference: x1 off by a smooth bump along the tube (moves up to 1 mm, relative moves around the margin).
+  // The reference: x1 off by a smooth bump along the tube (moves up to 1 mm, relative moves around the margin; 0.1 mm
+  // with_start, so that the start's moves select pairs of their own).
   Points x1_ref = x1;
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const double zc = len * u(rng), width = 0.2 * len;
   for (Eigen::Index i = 0; i < x1.rows(); ++i)
-    x1_ref(i, 1) += 1e-3 * std::exp(-std::pow((rest(i, 2) - zc) / width, 2));
-  // The start's reference: x0 off by another bump, across the tube (or x0 itself).
+    x1_ref(i, 1) += (with_start ? 1e-4 : 1e-3) * std::exp(-std::pow((rest(i, 2) - zc) / width, 2));
+  // The start's reference: x0 with the walls another bump apart (top and bottom moved by up to 0.3 mm in
+  // opposite directions, so pairs across the lumen move relative to each other), or x0 itself.
   Points x0_ref = x0;
   const double zs = len * u(rng);
   if (with_start)
     for (Eigen::Index i = 0; i < x0.rows(); ++i)
-      x0_ref(i, 0) -= 1e-3 * std::exp(-std::pow((rest(i, 2) - zs) / width, 2));
+      x0_ref(i, 1) += 3e-4 * (rest(i, 1) / kTwinRadius) * std::exp(-std::pow((rest(i, 2) - zs) / width, 2));
   std::bernoulli_distribution coin(0.05);
   std::vector<std::uint8_t> flags(static_cast<std::size_t>(rest.rows()));
   for (auto& f : flags) f = coin(rng);
@@ -640,6 +644,18 @@ std::size_t check_moved_equals_filtered_full(int k, unsigned seed, bool with_sta
   std::vector<Contact> expected;
   for (const Contact& c : full)
     if (selected(c)) expected.push_back(c);
+  // Selected by the start alone: no flag, and every end move below the margin.
+  auto by_end = [&](const Contact& c) {
+    const int n_first = c.kind == FeatureKind::VertexFace ? 1 : 2;
+    for (int a = 0; a < 4; ++a) {
+      if (flags[static_cast<std::size_t>(c.v[a])]) return true;
+      for (int b = n_first; b < 4; ++b)
+        if (a < n_first && relative(x1, x1_ref, c.v[a], c.v[b]) >= margin) return true;
+    }
+    return false;
+  };
+  if (start_only)
+    for (const Contact& c : expected) *start_only += !by_end(c);
   EXPECT_EQ(moved.size(), expected.size()) << "k = " << k << " seed = " << seed;
   if (moved.size() != expected.size()) return 0;
   if (!full.empty()) {
@@ -676,11 +692,12 @@ TEST(SelfCollision, MovedDetectionEqualsTheFullOneFilteredByTheDefinition) {
 // The same with a reference that started elsewhere too (a later frame against an earlier one): moves at the start
 // count as well.
 TEST(SelfCollision, MovedDetectionAgainstAnEarlierSweepEqualsTheFullOneFilteredByTheDefinition) {
-  std::size_t selected = 0;
+  std::size_t selected = 0, start_only = 0;
   for (int k : {6, 26}) {
-    for (unsigned seed : {3u, 4u, 5u}) selected += check_moved_equals_filtered_full(k, seed, true);
+    for (unsigned seed : {3u, 4u, 5u}) selected += check_moved_equals_filtered_full(k, seed, true, &start_only);
   }
   EXPECT_GT(selected, 10u);
+  EXPECT_GT(start_only, 0u) << "no contact was selected by its start move alone: ignoring x0_ref would pass";
 }
 
 // A contact's feature pair as NearFeatures keys it (kind, key), found by scanning the surface's triangles and edges.
@@ -782,8 +799,11 @@ TEST(SelfCollision, ADetectionRestrictedByAnEarlierNearDetectionFindsEveryContac
       const std::string where = "k = " + std::to_string(k) + " seed = " + std::to_string(seed);
       ASSERT_EQ(restricted.size(), full.size()) << where;
       for (std::size_t i = 0; i < full.size(); ++i) {
+        EXPECT_EQ(static_cast<int>(restricted[i].kind), static_cast<int>(full[i].kind)) << where;
         EXPECT_TRUE(std::equal(restricted[i].v, restricted[i].v + 4, full[i].v)) << where;
         EXPECT_EQ(restricted[i].toi, full[i].toi) << where;
+        EXPECT_EQ(restricted[i].s, full[i].s) << where;
+        EXPECT_EQ(restricted[i].t, full[i].t) << where;
       }
       found += static_cast<long>(full.size());
       std::vector<Contact> on_reference;
@@ -863,9 +883,30 @@ TEST(SelfCollision, MovedDetectionRefusesABadFilterNamingIt) {
   EXPECT_EQ(message(MoveFilter{nullptr, -1.0, nullptr}), "margin must be finite and >= 0 metres, got -1");
   const PointsRef full_ref(rest);
   EXPECT_EQ(message(MoveFilter{nullptr, 0.0, nullptr, &full_ref}), "x0_ref given without x1_ref");
-  NearFeatures alien;
-  alien.vf.push_back(~std::uint64_t{0});
-  EXPECT_EQ(message(MoveFilter{nullptr, 0.0, nullptr, nullptr, &alien}), "near holds a feature pair outside this surface");
+  // Keys outside the surface: beyond the bit widths, an edge id past the count within them, a vertex of its own
+  // face, and two edges out of order.
+  ASSERT_LT(surface.num_edges(), 1 << surface.edge_bits());
+  const std::uint64_t past_edges = static_cast<std::uint64_t>(surface.num_edges());  // edge 0 with edge num_edges
+  const std::uint64_t own_vertex =
+      (static_cast<std::uint64_t>(surface.triangle(0)[0]) << surface.tri_bits()) | std::uint64_t{0};
+  const std::uint64_t out_of_order = (std::uint64_t{5} << surface.edge_bits()) | std::uint64_t{2};
+  for (const auto& [vf, ee] : std::vector<std::pair<std::uint64_t, std::uint64_t>>{
+           {~std::uint64_t{0}, 0}, {0, past_edges}, {own_vertex, 0}, {0, out_of_order}}) {
+    NearFeatures alien;
+    if (ee == 0) alien.vf.push_back(vf);
+    else alien.ee.push_back(ee);
+    EXPECT_EQ(message(MoveFilter{nullptr, 0.0, nullptr, nullptr, &alien}), "near holds a feature pair outside this surface")
+        << vf << " " << ee;
+  }
+  // detect_self_near names its wider gap.
+  NearFeatures near;
+  std::string near_message = "no throw";
+  try {
+    detect_self_near(surface, ws, rest, rest, 1e-4, 5e-5, out, near);
+  } catch (const std::invalid_argument& e) {
+    near_message = e.what();
+  }
+  EXPECT_EQ(near_message, "near_gap must be finite and >= gap (0.0001 m), got 5e-05");
   EXPECT_EQ(message(MoveFilter{&full_ref, 0.0, nullptr, &ref}),
             "x0_ref has 2 rows, expected n_points = " + std::to_string(rest.rows()));
 }

@@ -15,7 +15,7 @@ using namespace lumen::engine;
 namespace {
 
 // Frames whose response took at least one re-check, and at least two (a re-check found something); frames whose
-// first detection was restricted, and among them those that found contacts.
+// first detection was restricted, and among them those where it found wall contacts.
 struct RoundCounts {
   int rechecked = 0, refound = 0;
   int restricted_first = 0, restricted_found = 0;
@@ -52,7 +52,8 @@ RoundCounts expect_twins_equal(const std::string& file, const std::function<void
     counts.rechecked += r.response_iterations >= 1;
     counts.refound += r.response_iterations >= 2;
     counts.restricted_first += !r.full_detection;
-    counts.restricted_found += !r.full_detection && r.response_iterations >= 1;
+    counts.restricted_found += !r.full_detection && r.first_contacts > 0;
+    EXPECT_EQ(r.first_contacts, f.first_contacts) << where;
   }
   return counts;
 }
