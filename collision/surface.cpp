@@ -327,8 +327,8 @@ struct CollisionWorkspace::Impl {
         // Internal: the union of its children, at each end.
         const double* l = &node_move[kNodeMove * static_cast<std::size_t>(nd.left)];
         const double* r = &node_move[kNodeMove * static_cast<std::size_t>(nd.right)];
-        for (int e = 0; e < 12; e += 6)
-          for (int d = 0; d < 3; ++d) {
+        for (std::size_t e = 0; e < kNodeMove; e += 6)
+          for (std::size_t d = 0; d < 3; ++d) {
             box[e + d] = std::min(l[e + d], r[e + d]);
             box[e + 3 + d] = std::max(l[e + 3 + d], r[e + 3 + d]);
           }
@@ -338,8 +338,8 @@ struct CollisionWorkspace::Impl {
       }
       // Leaf: its triangle's three vertices.
       const int* t = s.triangle(nd.prim);
-      for (int e = 0; e < 12; e += 6)
-        for (int d = 0; d < 3; ++d) {
+      for (std::size_t e = 0; e < kNodeMove; e += 6)
+        for (std::size_t d = 0; d < 3; ++d) {
           box[e + d] = std::numeric_limits<double>::infinity();
           box[e + 3 + d] = -std::numeric_limits<double>::infinity();
         }
@@ -361,9 +361,9 @@ struct CollisionWorkspace::Impl {
     if (node_flagged[static_cast<std::size_t>(a)] || node_flagged[static_cast<std::size_t>(b)]) return true;
     const double* p = &node_move[kNodeMove * static_cast<std::size_t>(a)];
     const double* q = &node_move[kNodeMove * static_cast<std::size_t>(b)];
-    for (int e = 0; e < 12; e += 6) {
+    for (std::size_t e = 0; e < kNodeMove; e += 6) {
       double d2 = 0.0;
-      for (int d = 0; d < 3; ++d) {
+      for (std::size_t d = 0; d < 3; ++d) {
         const double span = std::max(p[e + 3 + d] - q[e + d], q[e + 3 + d] - p[e + d]);
         d2 += span * span;
       }
@@ -520,6 +520,16 @@ struct SelfDetector {
     }
   }
 
+  // Refit the swept leaves and internal nodes at `gap`, then collect the candidates of every overlapping leaf pair by
+  // self-traversal (detect_self, detect_self_near).
+  void collect_all(const PointsRef& x0, const PointsRef& x1, double gap) {
+    with_k(w.k, [&](auto k_tag) {
+      constexpr int K = decltype(k_tag)::value;
+      w.refit<K>(s, x0, x1, gap);
+      std::get<BvhBoxes<K>>(w.boxes).self_pairs(s.bvh(), [this](int ta, int tb) { add_candidates(ta, tb); });
+    });
+  }
+
   // A detection at a wider gap than the contacts it reports (detect_self_near): each hit's key goes to `near` and
   // the hit is tested again at `gap` (with that gap's pre-test), and only those hits are reported.
   struct Narrow {
@@ -598,12 +608,7 @@ void detect_self(const CollisionSurface& surface, CollisionWorkspace& ws, const 
   out.clear();
   w.begin_call();
   SelfDetector det{surface, w};
-  // Refit the swept leaves and internal nodes, then collect overlapping leaf pairs by self-traversal.
-  with_k(w.k, [&](auto k_tag) {
-    constexpr int K = decltype(k_tag)::value;
-    w.refit<K>(surface, x0, x1, gap);
-    std::get<BvhBoxes<K>>(w.boxes).self_pairs(surface.bvh(), [&](int ta, int tb) { det.add_candidates(ta, tb); });
-  });
+  det.collect_all(x0, x1, gap);
   det.run_features(x0, x1, gap, out, stats);
 }
 
@@ -624,11 +629,7 @@ void detect_self_near(const CollisionSurface& surface, CollisionWorkspace& ws, c
   w.begin_call();
   SelfDetector det{surface, w};
   // detect_self at the near gap; its hits are kept (keys, in sorted order) and tested again at the contact gap.
-  with_k(w.k, [&](auto k_tag) {
-    constexpr int K = decltype(k_tag)::value;
-    w.refit<K>(surface, x0, x1, near_gap);
-    std::get<BvhBoxes<K>>(w.boxes).self_pairs(surface.bvh(), [&](int ta, int tb) { det.add_candidates(ta, tb); });
-  });
+  det.collect_all(x0, x1, near_gap);
   const SelfDetector::Narrow narrow{gap, &near};
   det.run_features(x0, x1, near_gap, out, stats, &narrow);
 }

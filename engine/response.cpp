@@ -243,6 +243,19 @@ void flag_reference_contacts(const Model& model, const RecheckReference& ref, st
   for (const int v : ref.contact_nodes) flagged[static_cast<size_t>(v)] = 1;
 }
 
+// A new proximity reference: the walls' full detection of state.x -> x1 at the near gap, its contacts at `gap` into
+// `contacts`.
+void take_proximity_reference(const Model& model, State& state, const Points& x1, double gap,
+                              std::vector<collision::Contact>& contacts, collision::CollisionStats& stats) {
+  ProximityReference& ref = state.proximity;
+  ref.near_gap = kNearGapFactor * gap;
+  collision::detect_self_near(*model.collision_surface, *state.detector, state.x, x1, gap, ref.near_gap, contacts,
+                              ref.near, &stats);
+  ref.x0 = state.x;
+  ref.x1 = x1;
+  ref.overlaps = stats.bv_overlaps;
+}
+
 // The walls' contacts of a frame's first detection (state.x -> x1 within gap) into state.contacts: restricted by the
 // proximity reference when there is one (and the scene asks for it), otherwise in full at the near gap, which makes
 // the next reference. Returns whether it was full.
@@ -264,11 +277,7 @@ bool detect_walls_first(const Model& model, State& state, const Points& x1, doub
       ref = ProximityReference{};
     return false;
   }
-  ref.near_gap = kNearGapFactor * gap;
-  collision::detect_self_near(surface, *state.detector, state.x, x1, gap, ref.near_gap, state.contacts, ref.near, &stats);
-  ref.x0 = state.x;
-  ref.x1 = x1;
-  ref.overlaps = stats.bv_overlaps;
+  take_proximity_reference(model, state, x1, gap, state.contacts, stats);
   return true;
 }
 
@@ -405,15 +414,9 @@ void warm_start(const Model& model, const State& state, ResponseRounds& rr) {
 
 void prime_proximity(const Model& model, State& state) {
   if (!model.collision_surface || model.collision.detection != Detection::kRestricted) return;
-  ProximityReference& ref = state.proximity;
-  ref.near_gap = kNearGapFactor * model.collision.gap;
   std::vector<collision::Contact> at_rest;
   collision::CollisionStats stats;
-  collision::detect_self_near(*model.collision_surface, *state.detector, state.x, state.x, model.collision.gap,
-                              ref.near_gap, at_rest, ref.near, &stats);
-  ref.x0 = state.x;
-  ref.x1 = state.x;
-  ref.overlaps = stats.bv_overlaps;
+  take_proximity_reference(model, state, state.x, model.collision.gap, at_rest, stats);
 }
 
 void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, FrameRecord& rec) {

@@ -591,6 +591,18 @@ TEST(SelfCollision, EmptyAndSingleTriangle) {
   EXPECT_EQ(st.bv_overlaps, 0);
 }
 
+// Two contact lists equal entry by entry: kind, vertices, time and parameters (an ASSERT on the sizes first).
+void expect_same_contacts(const std::vector<Contact>& got, const std::vector<Contact>& want, const std::string& where) {
+  ASSERT_EQ(got.size(), want.size()) << where;
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    EXPECT_EQ(static_cast<int>(got[i].kind), static_cast<int>(want[i].kind)) << where;
+    EXPECT_TRUE(std::equal(got[i].v, got[i].v + 4, want[i].v)) << where;
+    EXPECT_EQ(got[i].toi, want[i].toi) << where;
+    EXPECT_EQ(got[i].s, want[i].s) << where;
+    EXPECT_EQ(got[i].t, want[i].t) << where;
+  }
+}
+
 // detect_self_moved against its twin, detect_self with its contacts filtered by the definition (a flagged vertex,
 // or two vertices of the two features whose moves since the reference differ by at least the margin): the same
 // contacts, times and order, on random pinched tubes with random flags and a random smooth reference (with_start:
@@ -631,41 +643,31 @@ std::size_t check_moved_equals_filtered_full(int k, unsigned seed, bool with_sta
   auto relative = [](const Points& x, const Points& r, int i, int j) {
     return ((x.row(i) - r.row(i)) - (x.row(j) - r.row(j))).norm();
   };
-  auto selected = [&](const Contact& c) {
+  // (start: whether the moves at the sweep's start count.)
+  auto selected_by = [&](const Contact& c, bool start) {
     const int n_first = c.kind == FeatureKind::VertexFace ? 1 : 2;
     for (int a = 0; a < 4; ++a) {
       if (flags[static_cast<std::size_t>(c.v[a])]) return true;
       for (int b = n_first; b < 4; ++b)
-        if (a < n_first && std::max(relative(x1, x1_ref, c.v[a], c.v[b]), relative(x0, x0_ref, c.v[a], c.v[b])) >= margin)
+        if (a < n_first && std::max(relative(x1, x1_ref, c.v[a], c.v[b]),
+                                    start ? relative(x0, x0_ref, c.v[a], c.v[b]) : 0.0) >= margin)
           return true;
     }
     return false;
   };
+  auto selected = [&](const Contact& c) { return selected_by(c, true); };
   std::vector<Contact> expected;
   for (const Contact& c : full)
     if (selected(c)) expected.push_back(c);
   // Selected by the start alone: no flag, and every end move below the margin.
-  auto by_end = [&](const Contact& c) {
-    const int n_first = c.kind == FeatureKind::VertexFace ? 1 : 2;
-    for (int a = 0; a < 4; ++a) {
-      if (flags[static_cast<std::size_t>(c.v[a])]) return true;
-      for (int b = n_first; b < 4; ++b)
-        if (a < n_first && relative(x1, x1_ref, c.v[a], c.v[b]) >= margin) return true;
-    }
-    return false;
-  };
   if (start_only)
-    for (const Contact& c : expected) *start_only += !by_end(c);
+    for (const Contact& c : expected) *start_only += !selected_by(c, false);
   EXPECT_EQ(moved.size(), expected.size()) << "k = " << k << " seed = " << seed;
   if (moved.size() != expected.size()) return 0;
   if (!full.empty()) {
     EXPECT_LT(expected.size(), full.size()) << "every contact selected: the filter proves little";
   }
-  for (std::size_t i = 0; i < expected.size(); ++i) {
-    EXPECT_EQ(static_cast<int>(moved[i].kind), static_cast<int>(expected[i].kind));
-    EXPECT_TRUE(std::equal(moved[i].v, moved[i].v + 4, expected[i].v));
-    EXPECT_EQ(moved[i].toi, expected[i].toi);
-  }
+  expect_same_contacts(moved, expected, "k = " + std::to_string(k) + " seed = " + std::to_string(seed));
   // Every vertex flagged, or a zero margin: detect_self exactly, statistics included.
   CollisionStats s_full, s_all, s_zero;
   detect_self(surface, ws, x0, x1, gap, full, &s_full);
@@ -742,14 +744,7 @@ TEST(SelfCollision, NearDetectionReportsTheGapsContactsAndKeepsThePairsWithinThe
       detect_self(surface, ws, pf.x0, pf.x1, gap, at_gap);
       detect_self(surface, ws, pf.x0, pf.x1, near_gap, at_near);
       const std::string where = "k = " + std::to_string(k) + " seed = " + std::to_string(seed);
-      ASSERT_EQ(out.size(), at_gap.size()) << where;
-      for (std::size_t i = 0; i < out.size(); ++i) {
-        EXPECT_EQ(static_cast<int>(out[i].kind), static_cast<int>(at_gap[i].kind)) << where;
-        EXPECT_TRUE(std::equal(out[i].v, out[i].v + 4, at_gap[i].v)) << where;
-        EXPECT_EQ(out[i].toi, at_gap[i].toi) << where;
-        EXPECT_EQ(out[i].s, at_gap[i].s) << where;
-        EXPECT_EQ(out[i].t, at_gap[i].t) << where;
-      }
+      expect_same_contacts(out, at_gap, where);
       EXPECT_EQ(st.contacts, static_cast<long>(out.size())) << where;
       std::set<std::pair<int, std::uint64_t>> expected;
       for (const Contact& c : at_near) expected.insert(near_key(surface, c));
@@ -797,14 +792,7 @@ TEST(SelfCollision, ADetectionRestrictedByAnEarlierNearDetectionFindsEveryContac
       detect_self_moved(surface, ws, x0b, x1b, gap, MoveFilter{&r1, near_gap - gap, nullptr, &r0, &near}, restricted, &sr);
       detect_self(surface, ws, x0b, x1b, gap, full, &sf);
       const std::string where = "k = " + std::to_string(k) + " seed = " + std::to_string(seed);
-      ASSERT_EQ(restricted.size(), full.size()) << where;
-      for (std::size_t i = 0; i < full.size(); ++i) {
-        EXPECT_EQ(static_cast<int>(restricted[i].kind), static_cast<int>(full[i].kind)) << where;
-        EXPECT_TRUE(std::equal(restricted[i].v, restricted[i].v + 4, full[i].v)) << where;
-        EXPECT_EQ(restricted[i].toi, full[i].toi) << where;
-        EXPECT_EQ(restricted[i].s, full[i].s) << where;
-        EXPECT_EQ(restricted[i].t, full[i].t) << where;
-      }
+      expect_same_contacts(restricted, full, where);
       found += static_cast<long>(full.size());
       std::vector<Contact> on_reference;
       detect_self(surface, ws, pf.x0, pf.x1, near_gap, on_reference);
