@@ -75,9 +75,19 @@ void prepare_output_dir(const std::string& dir) {
   fs::remove(probe, ec);
 }
 
+// Where a contact frame's whole-mesh interior is solved, to compare: before the render (--serial-correction), or
+// while it renders only (--in-frame-correction); by default on into the next frame (SessionOptions).
+struct CorrectionFlags {
+  bool serial = false, in_frame = false;
+  void apply_to(engine::SessionOptions& opt) const {
+    opt.overlap_interior = !serial;
+    opt.pipeline_interior = !in_frame;
+  }
+};
+
 int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool no_render, std::string video,
             bool export_surface, bool export_volume, bool check, const std::string& positions_path,
-            const std::string& replay_dir, bool serial_correction) {
+            const std::string& replay_dir, const CorrectionFlags& correction) {
   // Load and validate everything before touching the output folder.
   engine::Scene scene = engine::load_scene(scene_path);
   if (out_dir.empty()) out_dir = (fs::path("out") / scene.name).string();
@@ -97,7 +107,7 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
   if (!video.empty()) prepare_output_dir(fs::path(video).parent_path().empty() ? "." : fs::path(video).parent_path().string());
   opt.out_dir = out_dir;
   opt.render = !no_render;
-  opt.overlap_interior = !serial_correction;
+  correction.apply_to(opt);
   opt.write_frames = !no_render;
   opt.video_path = no_render ? std::string() : video;
   opt.export_surface = export_surface;
@@ -109,7 +119,7 @@ int cmd_run(const std::string& scene_path, std::string out_dir, int frames, bool
   // Final node positions (for comparing runs to a baseline): the committed state after the last frame.
   Points final_positions;
   if (!positions_path.empty())
-    opt.on_frame = [&](const engine::Model&, const engine::State& state, const engine::FrameRecord&) {
+    opt.on_end = [&](const engine::Model&, const engine::State& state, const engine::FrameRecord&) {
       final_positions = state.x;
     };
 
@@ -169,7 +179,7 @@ int cmd_serve(const std::string& scene_path, std::string out_dir, int frames, bo
 }
 
 int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_render, int kdop, bool classify,
-              bool serial_correction) {
+              const CorrectionFlags& correction) {
   engine::Scene scene = engine::load_scene(scene_path);
   if (kdop > 0 && kdop != 6 && kdop != 14 && kdop != 18 && kdop != 26)
     throw engine::InputError("--kdop: must be one of 6, 14, 18, 26 (value " + std::to_string(kdop) + ")");
@@ -180,7 +190,7 @@ int cmd_bench(const std::string& scene_path, int frames, bool json, bool no_rend
   opt.frames = frames;
   opt.classify_overlaps = classify;
   opt.render = !no_render;
-  opt.overlap_interior = !serial_correction;
+  correction.apply_to(opt);
   opt.write_frames = false;
   engine::SessionResult result = engine::run_session(*model, std::move(inputs), opt);
   if (json) {
@@ -219,9 +229,11 @@ int main(int argc, char** argv) {
   int frames = -1, kdop = 0, port = engine::kDefaultIgtlPort;
   bool classify = false;
   bool no_render = false, export_surface = false, export_volume = false, json = false, check = false;
-  bool serial_correction = false;
+  CorrectionFlags correction;
   const char* serial_help = "solve a contact frame's whole-mesh correction before rendering instead of on the second "
                             "core while it renders (to compare)";
+  const char* in_frame_help = "wait for a contact frame's whole-mesh correction after its render instead of letting "
+                              "it solve on into the next frame (to compare)";
 
   CLI::App* run = app.add_subcommand("run", "run a scene: PNG frames, optional MP4, report.json");
   run->add_option("scene", scene_path, "scene file (JSON)")->required();
@@ -235,7 +247,8 @@ int main(int argc, char** argv) {
   run->add_option("--positions", positions_path, "write the final node positions as CSV (x, y, z per node, metres)");
   run->add_flag("--check", check, "count intersecting inner-wall triangle pairs, and instrument-organ pairs, on every frame (exact predicates)");
 
-  run->add_flag("--serial-correction", serial_correction, serial_help);
+  run->add_flag("--serial-correction", correction.serial, serial_help);
+  run->add_flag("--in-frame-correction", correction.in_frame, in_frame_help);
   run->add_option("--replay", replay_dir, "play back a served session (its --out folder): its poses and frame count");
 
   CLI::App* serve = app.add_subcommand("serve", "serve a scene over OpenIGTLink: devices drive its instruments, "
@@ -254,7 +267,8 @@ int main(int argc, char** argv) {
   bench->add_flag("--no-render", no_render, "leave rendering out");
   bench->add_option("--kdop", kdop, "override the scene's k-DOP (6, 14, 18, 26)");
   bench->add_flag("--classify-overlaps", classify, "count bounding-volume overlaps with and without contact");
-  bench->add_flag("--serial-correction", serial_correction, serial_help);
+  bench->add_flag("--serial-correction", correction.serial, serial_help);
+  bench->add_flag("--in-frame-correction", correction.in_frame, in_frame_help);
 
   CLI::App* ccd = app.add_subcommand("ccd", "run every CCD query of a file; print positives, misses, timings");
   ccd->add_option("file", ccd_file, "query file (CSV, see tests/data/ccd/README.md)")->required();
@@ -276,9 +290,9 @@ int main(int argc, char** argv) {
 
   try {
     if (*run) return cmd_run(scene_path, out_dir, frames, no_render, video, export_surface, export_volume, check,
-                               positions_path, replay_dir, serial_correction);
+                               positions_path, replay_dir, correction);
     if (*serve) return cmd_serve(scene_path, out_dir, frames, no_render, host, port);
-    if (*bench) return cmd_bench(scene_path, frames, json, no_render, kdop, classify, serial_correction);
+    if (*bench) return cmd_bench(scene_path, frames, json, no_render, kdop, classify, correction);
     if (*ccd) return cmd_ccd(ccd_file, json);
   } catch (const engine::InputError& e) {
     std::fprintf(stderr, "lumen: error: %s\n", e.what());

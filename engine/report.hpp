@@ -50,7 +50,9 @@ struct FrameRecord {
   // motion it ended (the stop's time fraction); 1 when no fallback ran.
   double fallback_kept = 1.0;
   // The whole-mesh correction's interior (the nodes neither colliding nor drawn) was solved on a second thread while
-  // the frame rendered; the wait for it after the render, milliseconds (also counted in the response stage).
+  // the frame rendered (pipelined: and while the next frame ran up to its response). interior_wait_ms: this frame's
+  // wait for such a solve, its own after the render or the last frame's after its response, milliseconds (also
+  // counted in the response stage).
   bool interior_deferred = false;
   double interior_wait_ms = 0.0;
   long intersecting_pairs = -1;       // exact check (--check), -1 when not run

@@ -430,6 +430,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   // frame), so where the walls already touch the sweep stays short instead of passing deep through each other.
   const bool predict = state.last_correction.size() == u.size() && !state.last_correction.isZero(0.0);
   Points x1 = predict ? positions(u_free + state.last_correction) : x_free;
+  bool x1_predicted = predict;  // x1 is still that prediction
 
   // Active constraints: last frame's held contacts (warm start, constraint response) plus every new one. The
   // contacts that pushed last time are the active-set solver's first guess.
@@ -447,6 +448,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   rec.full_detection = detect_all(model, state, x1, cs.gap, found, &stats, nullptr, true);
   if (predict && found.empty() && rr.active.empty()) {
     x1 = x_free;
+    x1_predicted = false;
     collision::CollisionStats again;
     rec.full_detection = detect_all(model, state, x1, cs.gap, found, &again, nullptr, true) || rec.full_detection;
     stats.bv_overlaps += again.bv_overlaps;  // the frame's counters cover both detections, as its time does
@@ -481,6 +483,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     // The correction is exact on the colliding walls (all the check reads); the rest of the mesh follows at the end.
     u = u_free + rr.solved.correction;
     x1 = positions(u);
+    x1_predicted = false;
     rec.ms[kResponse] += ms_since(clock);
 
     // Re-check the corrected motion with one CCD pass at a fraction of the gap (the rows ask for the full gap, so
@@ -524,6 +527,13 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     x1 = positions(u);
     rec.ms[kResponse] += ms_since(clock);
   }
+
+  // A pipelined last frame commits now that the rounds are done: before the fallback, which reads the whole state,
+  // and before this frame's correction replaces the last one. A trial motion still on the prediction takes the last
+  // correction's interior, whole only now.
+  const bool settling = state.pending.in_flight.interior.valid();
+  wait_for_last_frame(model, state, rec);
+  if (settling && x1_predicted) x1 = positions(u_free + state.last_correction);
 
   // Unresolved after the last round: the safe fallback.
   if (!resolved) {

@@ -69,6 +69,9 @@ void weights_of(const collision::Contact& c, double w[4]);
 // there, short of their target poses). Fills rec's collision statistics, response iterations
 // and fallback flag; CCD time goes to rec.ms[kCollision], the rest to rec.ms[kResponse].
 void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, FrameRecord& rec);
+// A pipelined last frame still in flight (State::pipeline_interior): settle() it; the wait is this frame's
+// (rec.interior_wait_ms, and in the response stage).
+void wait_for_last_frame(const Model& model, State& state, FrameRecord& rec);
 
 // The walls' first proximity reference, taken on the state's positions at rest (a full detection of the resting
 // walls at the near gap; State::proximity), so that the first frame's detection is already restricted and the

@@ -381,6 +381,8 @@ SessionResult run_session_on(const Model& model, Inputs& inputs, const SessionOp
   io.frames = std::max(frames, 1);
   State state = make_state(model);
   state.defer_interior = io.renderer != nullptr && opt.overlap_interior;
+  state.pipeline_interior = state.defer_interior && opt.pipeline_interior && !model.integrator->predicts_from_state() &&
+                            model.coupling_stiffness == 0.0 && !opt.on_frame && !opt.export_volume;
   // Warm-up draw of the rest state: the GL driver's one-time set-up (shader compilation) happens at load time,
   // not in the first frame's budget.
   if (io.renderer) {
@@ -397,6 +399,7 @@ SessionResult run_session_on(const Model& model, Inputs& inputs, const SessionOp
   for (int i = 0; i < frames; ++i) {
     if (opt.before_frame && !opt.before_frame(i)) break;
     result.frames.push_back(run_frame(model, opt, io, inputs, state));
+    file_commits(state, result.frames.data(), result.frames.size());  // (a pipelined last frame's commit)
     over_budget += result.frames.back().over_budget;
     if (tty && (i % 10 == 9 || i + 1 == frames)) {
       const double wall = std::chrono::duration<double>(Clock::now() - session_start).count();
@@ -405,6 +408,10 @@ SessionResult run_session_on(const Model& model, Inputs& inputs, const SessionOp
     }
   }
   if (tty) std::fprintf(stderr, "\n");
+  // The last frame's commit, when pipelined.
+  settle(model, state);
+  file_commits(state, result.frames.data(), result.frames.size());
+  if (opt.on_end && !result.frames.empty()) opt.on_end(model, state, result.frames.back());
   if (io.writer) result.writer = io.writer->finish();
   if (io.export_volume) write_text_file((io.out / "volume.pvd").string(), volume_pvd(io.volume_frames));
   result.report = session_report(model, opt, result, state);

@@ -26,11 +26,17 @@ struct SessionOptions {
   // Solve the interior of a contact frame's whole-mesh correction on the second core while the frame renders (when
   // it would back-substitute; State::defer_interior). Off: the frame does it before rendering, as without a render.
   bool overlap_interior = true;
+  // ... and leave it solving into the next frame, until that frame's response is done (State::pipeline_interior),
+  // for a model whose prediction reads no committed state (linear quasi-static), in a session with no on_frame and
+  // no volume export (they read the whole state of every frame). Off: each frame waits for its own after the render.
+  bool pipeline_interior = true;
   bool progress = false;        // progress line on stderr
   bool classify_overlaps = false;  // k-DOP study: split bounding-volume overlaps into with / without contact
   // Called after every frame with the committed state (off the frame's budget: not timed), e.g. by studies
   // that measure the deformed shape. Empty: none.
   std::function<void(const Model&, const State&, const FrameRecord&)> on_frame;
+  // Called once after the last frame with the committed state and the last frame's record (not timed). Empty: none.
+  std::function<void(const Model&, const State&, const FrameRecord&)> on_end;
   // Called before frame i (0-based) starts; false ends the session there (an interrupt). Paces a real-time
   // session (lumen serve). Empty: every frame runs.
   std::function<bool(int)> before_frame;

@@ -667,26 +667,24 @@ bool usable(const Model& model, const physics::Prediction& pred, const Eigen::Ve
   return d.size() == 0 || d.rowwise().norm().maxCoeff() <= model.max_displacement;
 }
 
-// Commit the frame's end displacement u (solved: usable()), or keep the last good state.
-void commit_frame(const Model& model, State& state, const Eigen::VectorXd& u, bool solved, bool bad_input,
-                  FrameRecord& rec) {
-  const bool finite = solved;  // (usable() has checked u)
-  Points x1;
-  if (finite) {
-    x1 = positions_of(model, u);
-    rec.inverted_elements = count_inverted(x1, model.mesh.tets);
-  }
-  rec.numerical_failure = !finite || bad_input;
-  rec.bad_input = bad_input;
-  if (rec.numerical_failure) ++state.failures;
-  if (finite) {
+// Commit the frame's end displacement u (solved: usable()), or keep the last good state; what the commit adds to
+// the frame's record (its probe points' displacements at load_points, where they attached in that frame).
+CommitRecord commit_frame(const Model& model, State& state, int frame, const Eigen::VectorXd& u, bool solved,
+                          const std::vector<SurfacePoint>& load_points) {
+  CommitRecord c;
+  c.frame = frame;
+  if (solved) {
+    Points x1 = positions_of(model, u);
+    c.inverted_elements = count_inverted(x1, model.mesh.tets);
     model.integrator->commit(u, state.sim);
     state.x = std::move(x1);
   }
-  rec.kinetic_energy = model.integrator->kinetic_energy(state.sim);
-  rec.max_displacement = 0.0;
+  c.kinetic_energy = model.integrator->kinetic_energy(state.sim);
   for (int i = 0; i < model.mesh.n_nodes(); ++i)
-    rec.max_displacement = std::max(rec.max_displacement, state.sim.u.segment<3>(3 * i).norm());
+    c.max_displacement = std::max(c.max_displacement, state.sim.u.segment<3>(3 * i).norm());
+  const Eigen::Map<const Points> uu(state.sim.u.data(), state.sim.u.size() / 3, 3);
+  for (const SurfacePoint& p : load_points) c.probe_displacement.push_back(point_of(uu, p));
+  return c;
 }
 
 // The contacts held at the end of the last frame as rows at the frame's start positions, with their whole
@@ -712,17 +710,13 @@ void record_prediction(const physics::Prediction& pred, FrameRecord& rec) {
   rec.preconditioner_failures = pred.preconditioner_failures;
 }
 
-// Reaction at each probe point (a probe in equilibrium: equal and opposite to its force), handed back; the
-// point's displacement recorded.
+// Reaction at each probe point (a probe in equilibrium: equal and opposite to its force), handed back.
 void feed_back(Inputs& inputs, const State& state, double t1, FrameRecord& rec) {
   rec.reactions.clear();
-  rec.probe_displacement.clear();
   for (size_t i = 0; i < inputs.sources.size(); ++i) {
     const Eigen::Vector3d reaction = -state.samples[i].force;
     rec.reactions.push_back(reaction);
     inputs.sources[i]->feedback(t1, reaction);
-    const Eigen::Map<const Points> u(state.sim.u.data(), state.sim.u.size() / 3, 3);
-    rec.probe_displacement.push_back(point_of(u, state.load_points[i]));
   }
 }
 
@@ -783,23 +777,32 @@ void step_begin(const Model& model, Inputs& inputs, State& state, FrameRecord& r
   if (solved) hold_grasped_nodes(model, state, u);
   rec.ms[kPhysics] = ms_since(clock);
 
-  // Collide and respond: contacts constrain the solve on the contact compliance, CCD re-checks.
+  // Collide and respond: contacts constrain the solve on the contact compliance, CCD re-checks (and settle a
+  // pipelined last frame once the response is done).
   std::fill(state.in_contact.begin(), state.in_contact.end(), 0);
   state.contacts.clear();
   state.tool_records.clear();
   if (state.compliance && solved) collide_and_respond(model, state, u, rec);
+  wait_for_last_frame(model, state, rec);
 
   // Commit (or keep the last good frame), or, with the interior deferred, start its solve on a second thread and
-  // place the nodes the renderer reads (exact already).
+  // place the nodes the renderer and the next frame's collision read (exact already).
+  rec.numerical_failure = !solved || input.bad_input;
+  rec.bad_input = input.bad_input;
+  if (rec.numerical_failure) ++state.failures;
   PendingFrame& p = state.pending;
   p.open = true;
   p.solved = solved;
   p.bad_input = input.bad_input;
   if (!rec.interior_deferred) {
-    commit_frame(model, state, u, solved, input.bad_input, rec);
+    commit_frame(model, state, rec.frame, u, solved, state.load_points).apply_to(rec);
   } else {
     const physics::SurfaceCompliance* compliance = state.compliance.get();
-    p.interior = std::async(std::launch::async, [compliance, du = std::move(p.du)]() mutable {
+    InteriorInFlight& f = p.in_flight;
+    f.frame = rec.frame;
+    f.u_free = std::move(p.u_free);
+    f.load_points = state.load_points;
+    f.interior = std::async(std::launch::async, [compliance, du = std::move(p.du)]() mutable {
       compliance->complete_interior(du);
       return du;
     });
@@ -814,14 +817,12 @@ void step_end(const Model& model, Inputs& inputs, State& state, FrameRecord& rec
   PendingFrame& p = state.pending;
   if (!p.open) throw std::logic_error("step_end: no frame was begun (step_begin)");
   p.open = false;
-  // A deferred interior: wait for its solve (which writes the interior only: what was drawn stays), commit.
-  if (p.interior.valid()) {
-    const auto clock = Clock::now();
-    const Eigen::VectorXd u = p.u_free + p.interior.get();
-    state.last_correction = u - p.u_free;  // (as keep_for_next_frame has it, to the last bit)
-    rec.interior_wait_ms = ms_since(clock);
+  // A deferred interior: wait for its solve (which writes the interior only: what was drawn stays) and commit;
+  // pipelined, the next frame does.
+  if (p.in_flight.interior.valid() && !state.pipeline_interior) {
+    rec.interior_wait_ms = settle(model, state);
     rec.ms[kResponse] += rec.interior_wait_ms;
-    commit_frame(model, state, u, p.solved, p.bad_input, rec);
+    file_commits(state, &rec, 1);
   }
   // Carried contacts: the next solve starts where this frame ended (its loads include the contacts). A failed
   // solve's warm start goes back to the last good frame too, never to what failed.
@@ -829,6 +830,41 @@ void step_end(const Model& model, Inputs& inputs, State& state, FrameRecord& rec
   if (restart && state.work.corotational.u.size() == state.sim.u.size()) state.work.corotational.u = state.sim.u;
   feed_back(inputs, state, state.t, rec);
   feed_back_instruments(model, inputs, state, state.t, rec);
+}
+
+void wait_for_last_frame(const Model& model, State& state, FrameRecord& rec) {
+  const double waited = settle(model, state);
+  rec.interior_wait_ms += waited;
+  rec.ms[kResponse] += waited;
+}
+
+double settle(const Model& model, State& state) {
+  InteriorInFlight& f = state.pending.in_flight;
+  if (!f.interior.valid()) return 0.0;
+  const auto clock = Clock::now();
+  const Eigen::VectorXd u = f.u_free + f.interior.get();
+  const double waited = ms_since(clock);
+  state.last_correction = u - f.u_free;  // (as keep_for_next_frame has it, to the last bit)
+  state.pending.committed.push_back(commit_frame(model, state, f.frame, u, true, f.load_points));
+  f = InteriorInFlight{};
+  return waited;
+}
+
+void file_commits(State& state, FrameRecord* frames, size_t n) {
+  for (const CommitRecord& c : state.pending.committed) {
+    FrameRecord* rec = std::find_if(frames, frames + n, [&](const FrameRecord& r) { return r.frame == c.frame; });
+    if (rec == frames + n)
+      throw std::logic_error("file_commits: frame " + std::to_string(c.frame) + " is not among the records given");
+    c.apply_to(*rec);
+  }
+  state.pending.committed.clear();
+}
+
+void CommitRecord::apply_to(FrameRecord& rec) const {
+  rec.inverted_elements = inverted_elements;
+  rec.kinetic_energy = kinetic_energy;
+  rec.max_displacement = max_displacement;
+  rec.probe_displacement = probe_displacement;
 }
 
 }  // namespace lumen::engine

@@ -179,16 +179,38 @@ Inputs make_inputs(const Scene& scene);
 // The pose source of instrument i from its track or replay (InputError for a device-only instrument, as above).
 std::unique_ptr<PoseSource> make_pose_source(const Scene& scene, size_t i);
 
+// What a frame's commit adds to its record (FrameRecord's fields of the same names). A pipelined frame
+// (State::pipeline_interior) commits during the next one: its fields wait in PendingFrame::committed until the
+// session files them into the frame's record (file_commits).
+struct CommitRecord {
+  int frame = 0;                                    // the frame committed (1-based)
+  int inverted_elements = 0;
+  double kinetic_energy = 0.0;
+  double max_displacement = 0.0;                    // metres
+  std::vector<Eigen::Vector3d> probe_displacement;  // one per probe, metres
+  void apply_to(FrameRecord& rec) const;
+};
+
+// A frame whose whole-mesh correction's interior is solving on a second thread
+// (SurfaceCompliance::complete_interior): its free motion (3n, metres), what its commit needs, and the solve.
+struct InteriorInFlight {
+  int frame = 0;                          // 1-based
+  Eigen::VectorXd u_free;
+  std::vector<SurfacePoint> load_points;  // where its probes attached (the next frame may move them)
+  std::future<Eigen::VectorXd> interior;  // valid() until the frame commits
+};
+
 // The frame between step_begin() and step_end().
 struct PendingFrame {
   bool solved = false;     // the prediction was usable (the frame commits its motion)
   bool bad_input = false;  // a source gave a non-finite sample
   bool open = false;       // between step_begin() and step_end()
   // A deferred interior: the free motion and the whole-mesh correction, exact on the colliding and view nodes only
-  // (3n each, metres), and the correction completed on a second thread (SurfaceCompliance::complete_interior;
-  // valid() while the frame waits for it: step_end() commits it, otherwise step_begin() did).
+  // (3n each, metres), as the response leaves them for step_begin() to launch.
   Eigen::VectorXd u_free, du;
-  std::future<Eigen::VectorXd> interior;
+  // The launched solve: step_end() commits it, or with State::pipeline_interior the next frame does (settle()).
+  InteriorInFlight in_flight;
+  std::vector<CommitRecord> committed;  // pipelined frames committed, not yet filed into their records
 };
 
 // The walls' proximity reference for the frames' first detections (collision.detection "restricted"): the sweep of
@@ -246,6 +268,11 @@ struct State {
   // Solve the whole-mesh correction's interior on a second thread between step_begin() and step_end() (a session
   // that renders sets it: the render overlaps the solve), when it would back-substitute and the view rows are kept.
   bool defer_interior = false;
+  // With defer_interior, leave the interior solving past step_end() until the next frame's response is done
+  // (settle()), so that it overlaps the next frame's physics and collision as well. Only for an integrator that
+  // predicts from the loads alone: until it commits, state.x and state.sim are exact only on the colliding and
+  // drawn nodes (all that the next frame reads before settle()), and its record's commit fields are filed late.
+  bool pipeline_interior = false;
   PendingFrame pending;  // (last: destroyed first, waiting for a solve in flight)
 };
 
@@ -266,5 +293,12 @@ void step(const Model& model, Inputs& inputs, State& state, FrameRecord& rec);
 // and feeds the reactions back. Between the two, nothing may use the model's solvers; step() is both at once.
 void step_begin(const Model& model, Inputs& inputs, State& state, FrameRecord& rec);
 void step_end(const Model& model, Inputs& inputs, State& state, FrameRecord& rec);
+// Commit a frame whose interior is still solving (State::pipeline_interior), after waiting for the solve; its
+// commit's fields go to state.pending.committed. Returns the milliseconds waited (0 when nothing was in flight).
+// The frames call it once their response is done; a session calls it before anything reads the whole state.
+double settle(const Model& model, State& state);
+// Moves the commit fields of state.pending.committed into the records of their frames among frames[0, n) (matched
+// by frame number); a commit of a frame not there is a logic_error.
+void file_commits(State& state, FrameRecord* frames, size_t n);
 
 }  // namespace lumen::engine

@@ -92,6 +92,9 @@ class Integrator {
   virtual double kinetic_energy(const SimState&) const { return 0.0; }
   // Whether a DOF is fixed (prescribed or held at rest).
   virtual bool is_fixed_dof(int dof) const { return contact_solver().is_fixed_dof(dof); }
+  // Whether predict() reads the committed state (SimState: a warm start, a velocity). One that does not lets a
+  // rendering session commit a frame's whole-mesh interior during the next frame (engine: State::pipeline_interior).
+  virtual bool predicts_from_state() const { return true; }
 };
 
 // Nodal force vector of the loads (3n, newtons): each point's force spread over its nodes by its weights.
@@ -111,6 +114,7 @@ class LinearQuasiStatic final : public Integrator {
                      IntegratorWork& work, Eigen::VectorXd& u1) const override;
   const StaticSolver& contact_solver() const override { return solver_; }
   const HeldPoints* held_points() const override { return held_.points.empty() ? nullptr : &held_; }
+  bool predicts_from_state() const override { return false; }  // (u = K^-1 f: the loads alone)
   const LoadResponse& load_response() const { return response_; }
 
  private:

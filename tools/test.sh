@@ -14,8 +14,11 @@ line_tables=-g1
 # file (an anonymous namespace) must not be another file's of the same target: shared helpers live in
 # physics/detail/ or tests/support/.
 unity="-DCMAKE_UNITY_BUILD=ON"
+# Both link with LLVM's lld (package lld): a test program's link 0.5 s against 3.4 s with GNU ld (test_engine,
+# Release, measured once each way); about twenty programs are linked per run.
+lld="-DCMAKE_EXE_LINKER_FLAGS=-fuse-ld=lld -DCMAKE_SHARED_LINKER_FLAGS=-fuse-ld=lld"
 # tools/build.sh's build (build/, Release with debug info), every target, with -Werror.
-cmake -S "$root" -B "$root/build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLUMEN_WERROR=ON $unity \
+cmake -S "$root" -B "$root/build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLUMEN_WERROR=ON $unity $lld \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 $line_tables -DNDEBUG" >/dev/null
 cmake --build "$root/build" -j"$(nproc)"
 (cd "$root/build" && ctest --output-on-failure -j"$(nproc)")
@@ -28,7 +31,7 @@ if [ -f "$root/build-asan/CMakeCache.txt" ] && ! grep -q '^CMAKE_CXX_COMPILER:[A
 fi
 # The same tree carries libFuzzer's coverage (LUMEN_FUZZ) and builds the fuzz target, lumen_fuzz.
 cmake -S "$root" -B "$root/build-asan" -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ \
-  -DCMAKE_BUILD_TYPE=Debug -DLUMEN_SANITIZE=ON -DLUMEN_FUZZ=ON -DLUMEN_WERROR=ON $unity \
+  -DCMAKE_BUILD_TYPE=Debug -DLUMEN_SANITIZE=ON -DLUMEN_FUZZ=ON -DLUMEN_WERROR=ON $unity $lld \
   -DLUMEN_BUILD_BENCHMARKS=OFF -DCMAKE_CXX_FLAGS_DEBUG="$line_tables" >/dev/null
 cmake --build "$root/build-asan" -j"$(nproc)" --target lumen_unit_tests lumen_fuzz
 (cd "$root/build-asan" && ctest --output-on-failure -j"$(nproc)" -L unit)

@@ -395,5 +395,83 @@ TEST(DeferredInterior, RenderingSessionEndsWhereTheSerialOneDoes) {
   EXPECT_LE((kept - serial).cwiseAbs().maxCoeff(), 1e-14);
 }
 
+// A pipelined interior (State::pipeline_interior: solved on until the next frame's response is done) against the
+// same session whose frames each wait for their own (pipeline_interior off) and against the serial one: the
+// records, field by field, and the committed end state are the in-frame twin's to the last bit (the same solves in
+// the same order, only joined later) and the serial one's to round-off. A contact-row cap of 30 makes frames
+// fall back right after deferred ones, whose first trial motion is still the prediction (the path that must take
+// the last correction's interior, whole only after the settle).
+void expect_pipelined_equals_in_frame(int max_contact_rows, bool expect_fallback_after_deferral) {
+  Scene scene = squeeze_scene("constraint", 30);
+  scene.render.width = 160;
+  scene.render.height = 120;
+  scene.collision.max_contact_rows = max_contact_rows;
+  const auto model = deferring_model(scene);
+  struct End {
+    Points x;
+    Eigen::VectorXd u, last_correction;
+    bool pipelined = false;
+  };
+  auto run = [&](bool overlap, bool pipeline, End& end) {
+    SessionOptions opt;
+    opt.render = true;
+    opt.write_frames = false;
+    opt.overlap_interior = overlap;
+    opt.pipeline_interior = pipeline;
+    opt.on_end = [&](const Model&, const State& state, const FrameRecord&) {
+      end = End{state.x, state.sim.u, state.last_correction, state.pipeline_interior};
+    };
+    return run_session(*model, make_inputs(scene), opt);
+  };
+  End piped, in_frame, serial;
+  const SessionResult a = run(true, true, piped), b = run(true, false, in_frame), c = run(false, false, serial);
+  EXPECT_TRUE(piped.pipelined);
+  EXPECT_FALSE(in_frame.pipelined);
+  ASSERT_EQ(a.frames.size(), b.frames.size());
+  ASSERT_EQ(a.frames.size(), c.frames.size());
+  long deferred = 0, fallback_after_deferral = 0;
+  for (size_t i = 0; i < a.frames.size(); ++i) {
+    const FrameRecord &ra = a.frames[i], &rb = b.frames[i];
+    deferred += ra.interior_deferred;
+    fallback_after_deferral += i > 0 && a.frames[i - 1].interior_deferred && ra.fallback;
+    EXPECT_EQ(ra.frame, rb.frame);
+    EXPECT_EQ(ra.interior_deferred, rb.interior_deferred) << "frame " << ra.frame;
+    EXPECT_EQ(ra.contacts, rb.contacts) << "frame " << ra.frame;
+    EXPECT_EQ(ra.first_contacts, rb.first_contacts) << "frame " << ra.frame;
+    EXPECT_EQ(ra.bv_overlaps, rb.bv_overlaps) << "frame " << ra.frame;
+    EXPECT_EQ(ra.response_iterations, rb.response_iterations) << "frame " << ra.frame;
+    EXPECT_EQ(ra.fallback, rb.fallback) << "frame " << ra.frame;
+    EXPECT_EQ(ra.contact_rows_capped, rb.contact_rows_capped) << "frame " << ra.frame;
+    EXPECT_EQ(ra.fallback_kept, rb.fallback_kept) << "frame " << ra.frame;
+    EXPECT_EQ(ra.contact_force, rb.contact_force) << "frame " << ra.frame;
+    EXPECT_EQ(ra.inverted_elements, rb.inverted_elements) << "frame " << ra.frame;
+    EXPECT_EQ(ra.numerical_failure, rb.numerical_failure) << "frame " << ra.frame;
+    EXPECT_EQ(ra.max_displacement, rb.max_displacement) << "frame " << ra.frame;
+    EXPECT_GT(ra.max_displacement, 0.0) << "frame " << ra.frame << ": its commit fields were never filed";
+    ASSERT_EQ(ra.probe_displacement.size(), rb.probe_displacement.size());
+    for (size_t p = 0; p < ra.probe_displacement.size(); ++p)
+      EXPECT_EQ(ra.probe_displacement[p], rb.probe_displacement[p]) << "frame " << ra.frame << " probe " << p;
+    ASSERT_EQ(ra.reactions.size(), rb.reactions.size());
+    for (size_t p = 0; p < ra.reactions.size(); ++p) EXPECT_EQ(ra.reactions[p], rb.reactions[p]);
+    EXPECT_EQ(ra.fallback, c.frames[i].fallback) << "frame " << ra.frame;
+    EXPECT_EQ(ra.contacts, c.frames[i].contacts) << "frame " << ra.frame;
+  }
+  EXPECT_GT(deferred, 5);
+  if (expect_fallback_after_deferral) {
+    EXPECT_GT(fallback_after_deferral, 0);
+  }
+  EXPECT_EQ((piped.x - in_frame.x).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ((piped.u - in_frame.u).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ((piped.last_correction - in_frame.last_correction).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_LE((piped.x - serial.x).cwiseAbs().maxCoeff(), 1e-14);
+}
+
+TEST(PipelinedInterior, SessionEqualsTheOneThatWaitsEveryFrame) {
+  expect_pipelined_equals_in_frame(kDefaultMaxContactRows, false);
+}
+TEST(PipelinedInterior, FallbackRightAfterADeferredFrameEqualsTheOneThatWaits) {
+  expect_pipelined_equals_in_frame(30, true);
+}
+
 }  // namespace
 }  // namespace lumen::engine

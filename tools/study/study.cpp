@@ -195,8 +195,7 @@ Outcome run(const engine::Scene& scene, bool render) {
   engine::SessionOptions opt;
   opt.render = render;
   opt.write_frames = false;
-  opt.on_frame = [&](const engine::Model& m, const engine::State& st, const engine::FrameRecord& rec) {
-    if (rec.frame != m.frames) return;
+  opt.on_end = [&](const engine::Model& m, const engine::State& st, const engine::FrameRecord& rec) {
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (int v : patch) mean += st.sim.u.segment<3>(3 * v);
     o.probe_disp = patch.empty() ? 0.0 : (mean / static_cast<double>(patch.size())).norm();
