@@ -271,7 +271,8 @@ struct State {
   // With defer_interior, leave the interior solving past step_end() until the next frame's response is done
   // (settle()), so that it overlaps the next frame's physics and collision as well. Only for an integrator that
   // predicts from the loads alone: until it commits, state.x and state.sim are exact only on the colliding and
-  // drawn nodes (all that the next frame reads before settle()), and its record's commit fields are filed late.
+  // drawn nodes (all that the next frame reads before settle()), and its record's commit fields are filed late (by
+  // the caller: file_commits; run_session does).
   bool pipeline_interior = false;
   PendingFrame pending;  // (last: destroyed first, waiting for a solve in flight)
 };
