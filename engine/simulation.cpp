@@ -793,7 +793,6 @@ void step_begin(const Model& model, Inputs& inputs, State& state, FrameRecord& r
   PendingFrame& p = state.pending;
   p.open = true;
   p.solved = solved;
-  p.bad_input = input.bad_input;
   if (!rec.interior_deferred) {
     commit_frame(model, state, rec.frame, u, solved, state.load_points).apply_to(rec);
   } else {
@@ -819,9 +818,8 @@ void step_end(const Model& model, Inputs& inputs, State& state, FrameRecord& rec
   p.open = false;
   // A deferred interior: wait for its solve (which writes the interior only: what was drawn stays) and commit;
   // pipelined, the next frame does.
-  if (p.in_flight.interior.valid() && !state.pipeline_interior) {
-    rec.interior_wait_ms = settle(model, state);
-    rec.ms[kResponse] += rec.interior_wait_ms;
+  if (!state.pipeline_interior) {
+    wait_for_last_frame(model, state, rec);
     file_commits(state, &rec, 1);
   }
   // Carried contacts: the next solve starts where this frame ended (its loads include the contacts). A failed

@@ -203,7 +203,6 @@ struct InteriorInFlight {
 // The frame between step_begin() and step_end().
 struct PendingFrame {
   bool solved = false;     // the prediction was usable (the frame commits its motion)
-  bool bad_input = false;  // a source gave a non-finite sample
   bool open = false;       // between step_begin() and step_end()
   // A deferred interior: the free motion and the whole-mesh correction, exact on the colliding and view nodes only
   // (3n each, metres), as the response leaves them for step_begin() to launch.
