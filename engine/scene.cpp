@@ -619,9 +619,17 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
 
 void read_solver(const Reader& r, const json& m, SolverSpec& spec) {
   r.only_keys(m, "solver", {"type", "tolerance", "max_iterations", "rayleigh_mass", "rayleigh_stiffness",
-                            "background_factorisation", "anderson_depth", "tangent", "method"});
+                            "background_factorisation", "anderson_depth", "tangent", "method",
+                            "max_back_substitutions"});
   if (m.contains("tangent")) spec.tangent = r.choice<Tangent>(m.at("tangent"), "solver.tangent", kTangentNames);
   if (m.contains("method")) spec.method = r.choice<SolveMethod>(m.at("method"), "solver.method", kMethodNames);
+  if (m.contains("max_back_substitutions")) {
+    spec.max_back_substitutions =
+        r.integer_in(m.at("max_back_substitutions"), "solver.max_back_substitutions", 0, 1000000);
+    if (spec.max_back_substitutions == 1)
+      r.fail("solver.max_back_substitutions", "must be 0 (no bound) or >= 2 (a PCG step takes two)",
+             &m.at("max_back_substitutions"));
+  }
   if (m.contains("anderson_depth"))
     spec.anderson_depth = r.integer_in(m.at("anderson_depth"), "solver.anderson_depth", 0, 20);
   if (m.contains("background_factorisation"))
@@ -921,6 +929,13 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   // The tangent is the corotational quasi-static solve's (the other integrators have no choice of operator).
   if (s.solver.tangent != Tangent::kWarped && !corotational_quasi_static)
     r.fail("solver.tangent", needs_corotational, &root.at("solver").at("tangent"));
+  // The work bound is the corotational quasi-static solve's (the dynamic one's steps are not carried over).
+  if (s.solver.max_back_substitutions != 0) {
+    const json* at = &root.at("solver").at("max_back_substitutions");
+    if (!corotational_quasi_static) r.fail("solver.max_back_substitutions", needs_corotational, at);
+    if (s.solver.method != SolveMethod::kPcg)
+      r.fail("solver.max_back_substitutions", "needs solver.method \"pcg\" (got \"chord\")", at);
+  }
   // The chord steps' operator is the lagged factorisation of K_w (the corotational quasi-static solve's).
   if (s.solver.method != SolveMethod::kPcg) {
     const json* at = &root.at("solver").at("method");

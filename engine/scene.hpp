@@ -167,6 +167,9 @@ struct SolverSpec {
   // Corotational quasi-static: the linear steps (physics::CorotationalMethod): PCG on the operator, or one
   // back-substitution on the lagged factorisation (chord).
   SolveMethod method = SolveMethod::kPcg;
+  // Corotational quasi-static: the most back-substitutions one frame's solve may take (its work bound; the frame
+  // is then reported unconverged and the next one goes on from its iterate); 0 = no bound.
+  int max_back_substitutions = 0;
   double rayleigh_mass = 0.0;         // dynamic: Rayleigh alpha (C = alpha M + beta K), 1/s, >= 0
   double rayleigh_stiffness = 0.0;    // dynamic: Rayleigh beta, s, >= 0
 };

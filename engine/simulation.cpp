@@ -399,6 +399,7 @@ physics::CorotationalOptions corotational_options(const Scene& scene) {
   o.rotate_preconditioner = scene.twist.enabled();
   o.refactor_cg_iterations = kRefactorCgIterations;
   o.anderson_depth = scene.solver.anderson_depth;
+  o.max_back_substitutions = scene.solver.max_back_substitutions;
   constexpr physics::CorotationalTangent kTangents[] = {physics::CorotationalTangent::warped,
                                                         physics::CorotationalTangent::projected,
                                                         physics::CorotationalTangent::exact};

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -22,6 +23,8 @@ namespace {
 // Below this det F the polar rotation comes from the SVD instead of the Newton iteration.
 constexpr double kNewtonMinDet = 1e-2;
 constexpr int kNewtonMaxIterations = 20;
+// |det - 1| below which the Newton scaling is its series (newton_scaling).
+constexpr double kNewtonSeriesRange = 0.25;
 // The twist modes' index pairs (i, j) of the signed singular values, and the least s_i + s_j at which a twist
 // eigenvalue (psi_i + psi_j) / (s_i + s_j) is evaluated (below it the tet has collapsed across the pair).
 constexpr int kTwistPairs[3][2] = {{1, 2}, {0, 2}, {0, 1}};
@@ -39,12 +42,21 @@ constexpr double kArmijo = 1e-4;
 constexpr double kDivergenceGrowth = 1e4;
 
 // Cofactor matrix of X (X^-T det X): its columns are cross products of the columns of X.
-Eigen::Matrix3d cofactor(const Eigen::Matrix3d& X) {
+[[gnu::always_inline]] inline Eigen::Matrix3d cofactor(const Eigen::Matrix3d& X) {
   Eigen::Matrix3d C;
   C.col(0) = X.col(1).cross(X.col(2));
   C.col(1) = X.col(2).cross(X.col(0));
   C.col(2) = X.col(0).cross(X.col(1));
   return C;
+}
+
+// Higham's scaling det^(-1/3) of the Newton polar iteration. It only sets the speed of convergence, not the limit,
+// so near det = 1 its Taylor series to second order (relative error below 3e-3 for |det - 1| < 0.25) replaces
+// std::cbrt, which cost more than the rest of an iteration.
+double newton_scaling(double det) {
+  const double e = det - 1.0;
+  if (std::abs(e) < kNewtonSeriesRange) return 1.0 - e / 3.0 + e * e * (2.0 / 9.0);
+  return std::cbrt(1.0 / det);
 }
 
 // Isotropic linear stress (pascals) of a small strain eps: lambda tr(eps) I + 2 mu eps.
@@ -65,22 +77,24 @@ Eigen::Matrix3d proper_rotation(const Eigen::Matrix3d& F, bool* inverted) {
     msg << "proper_rotation: F must be finite, got\n" << F;
     throw std::invalid_argument(msg.str());
   }
-  const double det = F.determinant();
+  Eigen::Matrix3d C = cofactor(F);
+  double det = F.col(0).dot(C.col(0));
   if (inverted) *inverted = !(det > 0.0);
   // Well-conditioned, not inverted: Newton's polar iteration X <- (g X + X^-T / g) / 2 with determinant scaling
   // g = |det X|^(-1/3) while far from orthogonal (Higham 1986); converges quadratically to the polar rotation.
+  // (X^-T det X is the cofactor matrix, whose first column also gives det X.)
   if (det > kNewtonMinDet) {
     Eigen::Matrix3d X = F;
-    double detX = det;
     bool scale = true;
     for (int k = 0; k < kNewtonMaxIterations; ++k) {
-      const double g = scale ? std::cbrt(1.0 / detX) : 1.0;
-      const Eigen::Matrix3d next = 0.5 * (g * X + cofactor(X) / (g * detX));
+      const double g = scale ? newton_scaling(det) : 1.0;
+      const Eigen::Matrix3d next = (0.5 * g) * X + (0.5 / (g * det)) * C;
       const double step = (next - X).lpNorm<Eigen::Infinity>();
       X = next;
       if (step <= 1e-8) return X;  // quadratic convergence: the error of X is now about step^2 / 2
       scale = step > 1e-2;
-      detX = X.determinant();
+      C = cofactor(X);
+      det = X.col(0).dot(C.col(0));
     }
   }
   // Inverted, nearly degenerate or not converged: SVD, the smallest singular value's sign flipped when
@@ -765,6 +779,11 @@ void validate_options(const CorotationalOptions& o) {
   if (o.max_iterations < 1) detail::fail_must(where, "max_iterations", "be >= 1", o.max_iterations);
   if (!(o.cg_tolerance > 0.0 && o.cg_tolerance < 1.0)) detail::fail_must(where, "cg_tolerance", "be in (0, 1)", o.cg_tolerance);
   if (o.max_cg_iterations < 1) detail::fail_must(where, "max_cg_iterations", "be >= 1", o.max_cg_iterations);
+  if (o.max_back_substitutions < 0 || o.max_back_substitutions == 1)
+    detail::fail_must(where, "max_back_substitutions", "be 0 (no bound) or >= 2", o.max_back_substitutions);
+  // (Measured: chord steps cut off by a bound, their Anderson history lost with each solve, stall or diverge.)
+  if (o.max_back_substitutions != 0 && o.method == CorotationalMethod::chord)
+    detail::fail_must(where, "max_back_substitutions", "be 0 with method chord", o.max_back_substitutions);
   if (o.anderson_depth < 0) detail::fail_must(where, "anderson_depth", "be >= 0", o.anderson_depth);
   if (o.refactor_cg_iterations < 0) detail::fail_must(where, "refactor_cg_iterations", "be >= 0", o.refactor_cg_iterations);
   if (o.method == CorotationalMethod::chord && o.tangent != CorotationalTangent::warped)
@@ -1057,6 +1076,13 @@ bool newton_step(CorotationalState& state, CorotationalResidual& residual_at, co
   return false;
 }
 
+// Back-substitutions left of the solve's work bound (options.max_back_substitutions; INT_MAX without one). A PCG
+// step of k iterations takes k + 1, so it needs two left and gets at most left - 1 iterations.
+int back_substitutions_left(const CorotationalOptions& options, const CorotationalResult& result) {
+  if (options.max_back_substitutions == 0) return std::numeric_limits<int>::max();
+  return options.max_back_substitutions - result.cg_iterations;
+}
+
 // Chord iterations (CorotationalMethod::chord): du = A^-1 r with A the lagged factorisation (the rest one until
 // the first refresh), one back-substitution a step, Anderson-mixed; a refresh of the factorisation at the current
 // rotations is asked for every options.refactor_cg_iterations steps, counted over solves (on the background
@@ -1132,6 +1158,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     result.n_inverted = state.n_inverted;
     result.converged = result.residual <= options.tolerance;
     if (result.converged || result.iterations >= options.max_iterations) break;
+    if (back_substitutions_left(options, result) < 2) break;  // the work bound is spent
     adopt_finished_factorisation(state, result);
     // The operator: K_w, or the tangent with the twist modes at u (trivial at rest, where K_t = K_w).
     bool tangent_step = false;
@@ -1151,17 +1178,18 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
           std::max(options.cg_tolerance, std::min(0.5, 0.5 * options.tolerance * residual.scale() / residual.norm()));
       du.resize(0);
       // (Newton's steps on the exact tangent by truncated CG: a descent direction even where it is indefinite.)
+      const int max_cg = std::min(options.max_cg_iterations, back_substitutions_left(options, result) - 1);
       const PcgResult pcg =
           with_tangent && options.tangent == CorotationalTangent::exact
-              ? solve_truncated_pcg(system, preconditioner, residual.r(), du, cg_tol, options.max_cg_iterations,
-                                    rotate ? &node_R : nullptr)
-              : solve_pcg(system, preconditioner, residual.r(), du, cg_tol, options.max_cg_iterations,
-                          rotate ? &node_R : nullptr);
+              ? solve_truncated_pcg(system, preconditioner, residual.r(), du, cg_tol, max_cg, rotate ? &node_R : nullptr)
+              : solve_pcg(system, preconditioner, residual.r(), du, cg_tol, max_cg, rotate ? &node_R : nullptr);
       result.cg_iterations += pcg.iterations;
       result.truncated_steps += pcg.negative_curvature ? 1 : 0;
-      // A slow solve: factorise at these rotations for the solves to come (unless one is under way).
-      if (may_refactor && options.refactor_cg_iterations > 0 && pcg.iterations > options.refactor_cg_iterations &&
-          !state.pending.valid())
+      // A slow solve, or one the work bound cut short: factorise at these rotations for the solves to come
+      // (unless one is under way).
+      const bool slow = pcg.iterations > options.refactor_cg_iterations ||
+                        (!pcg.converged && max_cg < options.max_cg_iterations);
+      if (may_refactor && options.refactor_cg_iterations > 0 && slow && !state.pending.valid())
         start_factorisation(model, options, state, result);
     };
     ++result.iterations;
@@ -1182,6 +1210,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
       result.residual = residual.evaluate();  // (cached: the start's residual and contact forces again)
       ++result.tangent_fallbacks;
       tangent_step = false;
+      if (back_substitutions_left(options, result) < 2) break;  // the work bound is spent
     }
     // The step: du, or its Anderson-mixed version when that lowers the residual.
     linear_step(tangent_step, true);

@@ -252,6 +252,10 @@ struct CorotationalOptions {
   // Each linear solve stops at |r_cg| <= max(cg_tolerance |r|, tolerance * force scale / 2); in (0, 1).
   double cg_tolerance = 0.1;
   int max_cg_iterations = 100;  // per linear solve, >= 1
+  // Work bound of one solve (one frame): the most back-substitutions on the factorisation (cg_iterations) over
+  // all its linear steps; the solve stops before a step that could pass it, not converged, and the next solve
+  // goes on from its iterate. 0 = no bound, else >= 2 (a PCG step takes at least two); PCG steps only.
+  int max_back_substitutions = 0;
   // Precondition with Rn K^-1 Rn^T (per-node average rotations) instead of K^-1.
   bool rotate_preconditioner = false;
   // Start from the secant prediction u + (u - u_previous) (the last two solutions of a frame sequence) instead

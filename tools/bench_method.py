@@ -4,13 +4,15 @@ by the lagged factorisation; "chord", one back-substitution on the lagged factor
 with the corotational model and each method `--runs` times, the methods alternating run by run, the lagged
 factorisation on the second core as shipped scenes run it, headless with the exact intersection check.
 
-usage: tools/bench_method.py [--runs 3] [--methods pcg,chord] [--tolerances 1e-3] [--reference-tolerance 1e-7]
-       [--out docs/bench_method.csv] [--lumen build/lumen] SCENE.json ...
+usage: tools/bench_method.py [--runs 3] [--methods pcg,chord] [--tolerances 1e-3] [--bounds 0,4]
+       [--reference-tolerance 1e-7] [--out docs/bench_method.csv] [--lumen build/lumen] SCENE.json ...
 
 With --tolerances, each method runs at each solver.tolerance, and the error against a tightly converged run (PCG
 at --reference-tolerance, once per scene, untimed) is reported: the largest difference over frames and probe
 points of the probe points' displacements, relative to the largest reference displacement (probe_error_max), and
-its median over frames (probe_error_median; max over runs).
+its median over frames (probe_error_median; max over runs). With --bounds, PCG also runs at each value of
+solver.max_back_substitutions (the work bound of a frame's solve; 0 = none), with the same error against the
+reference (which needs --tolerances).
 
 Per scene and method (ms: median over runs of each run's statistic; counts: max over runs): physics median / p99 /
 max, physics + collision + response per frame median / p99, frames whose nonlinear solve converged, nonlinear
@@ -31,16 +33,18 @@ from session_run import percentile, run_report
 METHODS = ("pcg", "chord")  # solver.method's values
 
 
-def variant(path, method, tolerance=None):
-    """The scene at `path` with the corotational model, the given method and, when given, solver.tolerance (other
-    solver keys kept)."""
+def variant(path, method, tolerance=None, bound=0):
+    """The scene at `path` with the corotational model, the given method and, when given, solver.tolerance and
+    solver.max_back_substitutions (other solver keys kept)."""
     with open(path) as f:
         s = json.load(f)
-    s["name"] = f"{s['name']}-{method}" + (f"-tol{tolerance:g}" if tolerance else "")
+    s["name"] = f"{s['name']}-{method}" + (f"-tol{tolerance:g}" if tolerance else "") + (f"-b{bound}" if bound else "")
     s["material"]["model"] = "corotational"
     s.setdefault("solver", {})["method"] = method
     if tolerance:
         s["solver"]["tolerance"] = tolerance
+    if bound:
+        s["solver"]["max_back_substitutions"] = bound
     return s
 
 
@@ -53,12 +57,13 @@ def probe_errors(run, reference):
     return [e / scale for e in errors] if scale > 0.0 else [0.0 for _ in errors]
 
 
-def summarise(path, method, runs, tolerance=None, reference=None):
+def summarise(path, method, runs, tolerance=None, reference=None, bound=0):
     per = [r["per_frame"] for r in runs]
     pcr = [[f["physics_ms"] + f["collision_ms"] + f["response_ms"] for f in p] for p in per]
     med = lambda values: round(statistics.median(values), 3)
     tip = per[0][-1]["probe_displacement_m"]
     return {"scene": os.path.basename(path), "method": method, "tolerance": tolerance or "scene",
+            "max_back_substitutions": bound,
             "probe_error_median": (round(max(statistics.median(probe_errors(r, reference)) for r in runs), 6)
                                    if reference else ""),
             "probe_error_max": round(max(max(probe_errors(r, reference)) for r in runs), 6) if reference else "",
@@ -85,6 +90,8 @@ def main():
     ap.add_argument("--lumen", default="build/lumen")
     ap.add_argument("--tolerances", default="", help="comma-separated solver.tolerance values (default: the scene's)")
     ap.add_argument("--reference-tolerance", type=float, default=1e-7)
+    ap.add_argument("--bounds", default="", help="comma-separated solver.max_back_substitutions values for PCG "
+                    "(0 = none; default: the scene's)")
     a = ap.parse_args()
     methods = a.methods.split(",")
     bad = [m for m in methods if m not in METHODS]
@@ -92,10 +99,15 @@ def main():
         tolerances = [float(t) for t in a.tolerances.split(",")] if a.tolerances else [None]
     except ValueError:
         ap.error(f"--tolerances must be comma-separated numbers (got {a.tolerances!r})")
-    if bad or a.runs < 1 or any(t is not None and not t > 0 for t in tolerances):
-        ap.error(f"--methods must name {', '.join(METHODS)}, --runs be >= 1 and --tolerances > 0 "
-                 f"(got {a.methods!r}, {a.runs}, {a.tolerances!r})")
-    cases = [(m, t) for t in tolerances for m in methods]
+    try:
+        bounds = [int(b) for b in a.bounds.split(",")] if a.bounds else [0]
+    except ValueError:
+        ap.error(f"--bounds must be comma-separated integers (got {a.bounds!r})")
+    if bad or a.runs < 1 or any(t is not None and not t > 0 for t in tolerances) or any(b < 0 or b == 1 for b in bounds):
+        ap.error(f"--methods must name {', '.join(METHODS)}, --runs be >= 1, --tolerances > 0 and --bounds 0 or >= 2 "
+                 f"(got {a.methods!r}, {a.runs}, {a.tolerances!r}, {a.bounds!r})")
+    # (The work bound is PCG's: chord runs unbounded.)
+    cases = [(m, t, b) for t in tolerances for m in methods for b in (bounds if m == "pcg" else [0])]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for path in a.scenes:
@@ -107,12 +119,13 @@ def main():
                 reference = run_report(a.lumen, tight, tmp)
             runs = {c: [] for c in cases}
             for _ in range(a.runs):
-                for m, t in cases:
-                    runs[(m, t)].append(run_report(a.lumen, variant(path, m, t), tmp))
-            for m, t in cases:
-                rows.append(summarise(path, m, runs[(m, t)], t, reference))
+                for m, t, b in cases:
+                    runs[(m, t, b)].append(run_report(a.lumen, variant(path, m, t, b), tmp))
+            for m, t, b in cases:
+                rows.append(summarise(path, m, runs[(m, t, b)], t, reference, b))
                 print(rows[-1], flush=True)
     tol_args = f" --tolerances {a.tolerances} --reference-tolerance {a.reference_tolerance:g}" if a.tolerances else ""
+    tol_args += f" --bounds {a.bounds}" if a.bounds else ""
     header = [f"made by: tools/bench_method.py --runs {a.runs} --methods {a.methods}{tol_args} --out {a.out} "
               + " ".join(a.scenes),
               f"machine: {platform.machine()}, {os.cpu_count()} cores; ms = median over runs (methods alternating); "

@@ -269,6 +269,12 @@ TEST(Scene, SolverKeysWithDefaultsAndValues) {
   c["material"]["model"] = "corotational";
   c["solver"] = {{"tangent", "exact"}};
   EXPECT_EQ(parse_scene(c.dump(), "dir/s.json").solver.tangent, Tangent::kExact);
+  EXPECT_EQ(d.solver.max_back_substitutions, 0);
+  c["solver"] = {{"max_back_substitutions", 6}};
+  EXPECT_EQ(parse_scene(c.dump(), "dir/s.json").solver.max_back_substitutions, 6);
+  c["solver"]["method"] = "chord";
+  EXPECT_EQ(scene_parse_error(c), "dir/s.json: solver.max_back_substitutions: needs solver.method \"pcg\" (got "
+                                  "\"chord\") (value 6)");
 }
 
 TEST(Scene, SolverKeysAreValidated) {
@@ -289,6 +295,14 @@ TEST(Scene, SolverKeysAreValidated) {
   EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.max_iterations: out of range [1, 10000] (value 0)");
   s["solver"] = {{"anderson_depth", 21}};
   EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.anderson_depth: out of range [0, 20] (value 21)");
+  s["solver"] = {{"max_back_substitutions", 1}};
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.max_back_substitutions: must be 0 (no bound) or >= 2 (a PCG "
+                                  "step takes two) (value 1)");
+  s["solver"] = {{"max_back_substitutions", -3}};
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.max_back_substitutions: out of range [0, 1000000] (value -3)");
+  s["solver"] = {{"max_back_substitutions", 8}};  // (good_scene is linear)
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.max_back_substitutions: needs material.model \"corotational\" "
+                                  "and solver.type \"quasi_static\" (got \"linear\", \"quasi_static\") (value 8)");
   s["solver"] = {{"tangent", "newton"}};
   EXPECT_EQ(scene_parse_error(s), "dir/s.json: solver.tangent: must be one of warped, projected, exact (value \"newton\")");
   s["solver"] = {{"tangent", "exact"}};  // (good_scene is linear)

@@ -104,6 +104,16 @@ TEST(ProperRotation, MatchesSvdPolarAndStaysProperWhenInverted) {
     const Eigen::Matrix3d S = R.transpose() * F;
     EXPECT_LE((S - S.transpose()).norm(), 1e-9 * S.norm());
   }
+  // Small strains (|det F - 1| < 0.25, where the Newton scaling is its series) against the same twin.
+  std::normal_distribution<double> small(0.0, 0.02);
+  for (int trial = 0; trial < 200; ++trial) {
+    Eigen::Matrix3d F = random_rotation(rng);
+    for (int i = 0; i < 9; ++i) F.data()[i] += small(rng);
+    ASSERT_LT(std::abs(F.determinant() - 1.0), 0.25);
+    const Eigen::Matrix3d R = proper_rotation(F);
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    EXPECT_LE((R - svd.matrixU() * svd.matrixV().transpose()).norm(), 1e-12) << "trial " << trial;
+  }
   // Degenerate (flattened) gradient: a proper rotation, flagged inverted.
   Eigen::Matrix3d flat = Eigen::Matrix3d::Identity();
   flat(2, 2) = 0.0;
@@ -576,6 +586,41 @@ TEST(CorotationalSolve, WarmStartAtEquilibriumCostsNoIteration) {
   EXPECT_EQ(state.u.norm(), 0.0);
 }
 
+// The work bound (max_back_substitutions): each solve of a 90-degree twist stops within its bound, unconverged at
+// first, and the solves that follow, each going on from the last one's iterate, reach the unbounded solve's
+// equilibrium.
+TEST(CorotationalSolve, WorkBoundStopsEachSolveAndTheNextOnesReachTheSameEquilibrium) {
+  const TetMesh m = small_tube(8, 6, 1, 0.09);
+  const CorotationalModel model(m, kTissue, both_ends(m));
+  const Eigen::VectorXd no_load = Eigen::VectorXd::Zero(model.n_dofs());
+  const Eigen::VectorXd twist = end_twist(m, EIGEN_PI / 2);
+  CorotationalOptions opt;
+  opt.tolerance = 1e-7;
+  opt.max_iterations = 500;
+  opt.refactor_cg_iterations = 5;
+  CorotationalState unbounded;
+  ASSERT_TRUE(solve_corotational(model, no_load, unbounded, opt, twist).converged);
+  const double scale = unbounded.u.cwiseAbs().maxCoeff();
+  opt.max_back_substitutions = 4;
+  CorotationalState state;
+  int solves = 0;
+  bool converged = false;
+  for (; solves < 100 && !converged; ++solves) {
+    const CorotationalResult r = solve_corotational(model, no_load, state, opt, twist);
+    EXPECT_LE(r.cg_iterations, 4) << "solve " << solves;
+    EXPECT_GE(r.cg_iterations, r.converged ? 0 : 3) << "solve " << solves;  // (stops only once it cannot step)
+    if (solves == 0) {
+      EXPECT_FALSE(r.converged);
+    }
+    converged = r.converged;
+  }
+  ASSERT_TRUE(converged);
+  EXPECT_LT((state.u - unbounded.u).cwiseAbs().maxCoeff(), 1e-4 * scale);
+  // Without the refresh of a step the bound cut short, the rest factorisation stays: about 400 solves.
+  EXPECT_LT(solves, 40);
+  std::printf("90-degree twist, at most 4 back-substitutions a solve: converged after %d solves\n", solves);
+}
+
 TEST(CorotationalSolve, RejectsInvalidInput) {
   const TetMesh m = small_tube(6, 2, 1);
   const CorotationalModel model(m, kTissue, both_ends(m));
@@ -601,6 +646,13 @@ TEST(CorotationalSolve, RejectsInvalidInput) {
   o = {};
   o.max_cg_iterations = 0;
   EXPECT_NE(message(o, f, {}).find("max_cg_iterations"), std::string::npos);
+  o = {};
+  o.max_back_substitutions = 1;
+  EXPECT_NE(message(o, f, {}).find("max_back_substitutions"), std::string::npos);
+  o = {};
+  o.max_back_substitutions = 8;
+  o.method = CorotationalMethod::chord;
+  EXPECT_NE(message(o, f, {}).find("max_back_substitutions"), std::string::npos);
   EXPECT_NE(message({}, Eigen::VectorXd::Zero(5), {}).find("f_ext.size()"), std::string::npos);
   Eigen::VectorXd bad = f;
   bad[7] = NAN;
