@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "collision/detail/checks.hpp"
 #include "collision/distance.hpp"
 
 namespace lumen::collision {
@@ -1005,14 +1006,6 @@ void check_point(const Vec3& x, const char* name) {
   }
 }
 
-void check_gap(double gap) {
-  if (!(gap >= 0.0) || !std::isfinite(gap)) {
-    std::ostringstream msg;
-    msg << "ccd: gap must be finite and >= 0, got " << gap;
-    throw std::invalid_argument(msg.str());
-  }
-}
-
 // Overflowed differences: report a conservative contact at t = 0.
 bool overflow_contact(CcdHit* hit) {
   if (hit != nullptr) *hit = CcdHit{0.0, 0.0, 0.0, 0, true};
@@ -1073,7 +1066,7 @@ bool vertex_face_ccd(const Vec3& p0, const Vec3& a0, const Vec3& b0, const Vec3&
     check_point(p0, "p0"); check_point(a0, "a0"); check_point(b0, "b0"); check_point(c0, "c0");
     check_point(p1, "p1"); check_point(a1, "a1"); check_point(b1, "b1"); check_point(c1, "c1");
   }
-  check_gap(gap);
+  detail::check_gap(gap, "ccd: ");
   validate_ccd_options(options);
   // Cheap exit: the vertex stays farther than gap from the face's plane-side along the closest direction.
   {
@@ -1101,7 +1094,7 @@ bool edge_edge_ccd(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Vec3& d
     check_point(a0, "a0"); check_point(b0, "b0"); check_point(c0, "c0"); check_point(d0, "d0");
     check_point(a1, "a1"); check_point(b1, "b1"); check_point(c1, "c1"); check_point(d1, "d1");
   }
-  check_gap(gap);
+  detail::check_gap(gap, "ccd: ");
   validate_ccd_options(options);
   // Cheap exit: the two edges stay farther than gap apart along the direction between their closest points.
   {

@@ -13,11 +13,14 @@
 #include <utility>
 #include <vector>
 
+#include "collision/detail/checks.hpp"
 #include "collision/distance.hpp"
 
 namespace lumen::collision {
 
 namespace {
+
+using detail::check_points;
 
 using Vec3 = Eigen::Vector3d;
 
@@ -26,20 +29,6 @@ constexpr std::int64_t kDenseCellsPerEntry = 16;  // a dense cell directory when
 constexpr std::int64_t kDenseCellsMin = 4096;     // else binary search in the sorted entries
 
 Vec3 point(const PointsRef& x, int i) { return Vec3(x(i, 0), x(i, 1), x(i, 2)); }
-
-// Throws std::invalid_argument unless x is n x 3 and finite (`name` names the parameter).
-void check_points(const PointsRef& x, int n, const char* name) {
-  if (x.rows() != n)
-    throw std::invalid_argument(std::string(name) + " has " + std::to_string(x.rows()) +
-                                " rows, expected n_points = " + std::to_string(n));
-  for (int i = 0; i < n; ++i)
-    for (int d = 0; d < 3; ++d)
-      if (!std::isfinite(x(i, d))) {
-        std::ostringstream msg;
-        msg << name << "(" << i << ", " << d << ") must be finite, got " << x(i, d);
-        throw std::invalid_argument(msg.str());
-      }
-}
 
 void check_inputs(const CollisionSurface& surface, const PointsRef& x0, const StepBoundOptions& options) {
   check_points(x0, surface.num_points(), "x0");

@@ -14,10 +14,14 @@
 #include <variant>
 
 #include "collision/ccd.hpp"
+#include "collision/detail/checks.hpp"
 
 namespace lumen::collision {
 
 namespace {
+
+using detail::check_gap;
+using detail::check_points;
 
 // Feature pair key: high 32 bits the first id, low 32 bits the second (both >= 0).
 std::uint64_t pack(int hi, int lo) {
@@ -65,31 +69,6 @@ bool has_vertex(const int* t, int v) { return t[0] == v || t[1] == v || t[2] == 
 
 // Row i of a points array as a vector.
 Vec3 row(const PointsRef& x, int i) { return Vec3(x(i, 0), x(i, 1), x(i, 2)); }
-
-// Throw unless x is n x 3 with finite entries; `name` names the parameter.
-void check_points(const PointsRef& x, int n, const char* name) {
-  if (x.rows() != n) {
-    throw std::invalid_argument(std::string(name) + " has " + std::to_string(x.rows()) +
-                                " rows, expected n_points = " + std::to_string(n));
-  }
-  for (int i = 0; i < n; ++i) {
-    for (int d = 0; d < 3; ++d) {
-      if (!std::isfinite(x(i, d))) {
-        std::ostringstream msg;
-        msg << name << "(" << i << ", " << d << ") must be finite, got " << x(i, d);
-        throw std::invalid_argument(msg.str());
-      }
-    }
-  }
-}
-
-void check_gap(double gap) {
-  if (!(gap >= 0.0) || !std::isfinite(gap)) {
-    std::ostringstream msg;
-    msg << "gap must be finite and >= 0 metres, got " << gap;
-    throw std::invalid_argument(msg.str());
-  }
-}
 
 void require_bvh(const CollisionSurface& s) {
   if (!s.has_bvh()) throw std::logic_error("collision surface has no BVH: call build_bvh (or build over rest)");

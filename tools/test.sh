@@ -12,7 +12,7 @@ line_tables=-g1
 # from scratch on 2 cores (CPU = user + sys): this Release build 666 s of CPU and 347 s wall against 1068 s and
 # 545 s per file; the sanitizer build 696 s of CPU and 373 s wall against 1092 s. So a name local to one source
 # file (an anonymous namespace) must not be another file's of the same target: shared helpers live in
-# physics/detail/ or tests/support/.
+# physics/detail/, collision/detail/ or tests/support/.
 unity="-DCMAKE_UNITY_BUILD=ON"
 # Both link with LLVM's lld (package lld): a test program's link 0.5 s against 3.4 s with GNU ld (test_engine,
 # Release, measured once each way); about twenty programs are linked per run.
