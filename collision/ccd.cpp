@@ -1066,7 +1066,7 @@ bool vertex_face_ccd(const Vec3& p0, const Vec3& a0, const Vec3& b0, const Vec3&
     check_point(p0, "p0"); check_point(a0, "a0"); check_point(b0, "b0"); check_point(c0, "c0");
     check_point(p1, "p1"); check_point(a1, "a1"); check_point(b1, "b1"); check_point(c1, "c1");
   }
-  detail::check_gap(gap, "ccd: ");
+  detail::check_gap(gap, "ccd: gap must be finite and >= 0");
   validate_ccd_options(options);
   // Cheap exit: the vertex stays farther than gap from the face's plane-side along the closest direction.
   {
@@ -1094,7 +1094,7 @@ bool edge_edge_ccd(const Vec3& a0, const Vec3& b0, const Vec3& c0, const Vec3& d
     check_point(a0, "a0"); check_point(b0, "b0"); check_point(c0, "c0"); check_point(d0, "d0");
     check_point(a1, "a1"); check_point(b1, "b1"); check_point(c1, "c1"); check_point(d1, "d1");
   }
-  detail::check_gap(gap, "ccd: ");
+  detail::check_gap(gap, "ccd: gap must be finite and >= 0");
   validate_ccd_options(options);
   // Cheap exit: the two edges stay farther than gap apart along the direction between their closest points.
   {

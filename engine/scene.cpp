@@ -934,7 +934,8 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
     const json* at = &root.at("solver").at("max_back_substitutions");
     if (!corotational_quasi_static) r.fail("solver.max_back_substitutions", needs_corotational, at);
     if (s.solver.method != SolveMethod::kPcg)
-      r.fail("solver.max_back_substitutions", "needs solver.method \"pcg\" (got \"chord\")", at);
+      r.fail("solver.max_back_substitutions",
+             std::string("needs solver.method \"pcg\" (got \"") + name_of(s.solver.method) + "\")", at);
   }
   // The chord steps' operator is the lagged factorisation of K_w (the corotational quasi-static solve's).
   if (s.solver.method != SolveMethod::kPcg) {

@@ -51,7 +51,7 @@ constexpr double kDivergenceGrowth = 1e4;
 }
 
 // Higham's scaling det^(-1/3) of the Newton polar iteration. It only sets the speed of convergence, not the limit,
-// so near det = 1 its Taylor series to second order (relative error below 3e-3 for |det - 1| < 0.25) replaces
+// so near det = 1 its Taylor series to second order (relative error at most about 3e-3 for |det - 1| < 0.25) replaces
 // std::cbrt, which cost more than the rest of an iteration.
 double newton_scaling(double det) {
   const double e = det - 1.0;
@@ -1187,8 +1187,9 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
       result.truncated_steps += pcg.negative_curvature ? 1 : 0;
       // A slow solve, or one the work bound cut short: factorise at these rotations for the solves to come
       // (unless one is under way).
-      const bool slow = pcg.iterations > options.refactor_cg_iterations ||
-                        (!pcg.converged && max_cg < options.max_cg_iterations);
+      // (A truncated step that met negative curvature was not cut short: it says little about the preconditioner.)
+      const bool cut_short = !pcg.converged && !pcg.negative_curvature && max_cg < options.max_cg_iterations;
+      const bool slow = pcg.iterations > options.refactor_cg_iterations || cut_short;
       if (may_refactor && options.refactor_cg_iterations > 0 && slow && !state.pending.valid())
         start_factorisation(model, options, state, result);
     };

@@ -298,7 +298,7 @@ struct CorotationalState {
 // Result of a quasi-static solve.
 struct CorotationalResult {
   int iterations = 0;      // outer iterations (linear solves)
-  int cg_iterations = 0;   // PCG iterations over all linear solves
+  int cg_iterations = 0;   // back-substitutions (preconditioner applications) over all linear solves
   double residual = 0.0;   // final |f_ext - f_int(u)| on the free DOFs / force scale (see CorotationalOptions)
   bool converged = false;  // residual <= tolerance
   bool diverged = false;   // |r| grew past 1e4 x its start or became non-finite: state went back to the solve's

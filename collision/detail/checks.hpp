@@ -23,11 +23,11 @@ inline void check_points(const PointsRef& x, int n, const char* name) {
       }
 }
 
-// Throws std::invalid_argument unless the gap (metres) is finite and >= 0; the message starts with `prefix`.
-inline void check_gap(double gap, const char* prefix = "") {
+// Throws std::invalid_argument "<rule>, got <gap>" unless the gap (metres) is finite and >= 0.
+inline void check_gap(double gap, const char* rule = "gap must be finite and >= 0 metres") {
   if (!(gap >= 0.0) || !std::isfinite(gap)) {
     std::ostringstream msg;
-    msg << prefix << "gap must be finite and >= 0" << (*prefix ? "" : " metres") << ", got " << gap;
+    msg << rule << ", got " << gap;
     throw std::invalid_argument(msg.str());
   }
 }

@@ -869,6 +869,12 @@ TEST(SelfCollision, MovedDetectionRefusesABadFilterNamingIt) {
   EXPECT_EQ(message(MoveFilter{&ref, 0.0, nullptr}),
             "x1_ref has 2 rows, expected n_points = " + std::to_string(rest.rows()));
   EXPECT_EQ(message(MoveFilter{nullptr, -1.0, nullptr}), "margin must be finite and >= 0 metres, got -1");
+  try {
+    detect_self_moved(surface, ws, rest, rest, -1e-4, MoveFilter{}, out);
+    ADD_FAILURE() << "a negative gap was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "gap must be finite and >= 0 metres, got -0.0001");
+  }
   const PointsRef full_ref(rest);
   EXPECT_EQ(message(MoveFilter{nullptr, 0.0, nullptr, &full_ref}), "x0_ref given without x1_ref");
   // Keys outside the surface: beyond the bit widths, an edge id past the count within them, a vertex of its own

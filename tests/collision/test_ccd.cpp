@@ -589,7 +589,7 @@ TEST(CcdValidation, RejectsBadInput) {
     vertex_face_ccd(z, x, y, z, z, x, y, z, -1e-3, nullptr);
     FAIL() << "expected std::invalid_argument";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("gap"), std::string::npos) << e.what();
+    EXPECT_STREQ(e.what(), "ccd: gap must be finite and >= 0, got -0.001");
   }
   // Differences that overflow: a conservative contact at t = 0.
   CcdHit hit;
