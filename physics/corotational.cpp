@@ -25,6 +25,9 @@ constexpr double kNewtonMinDet = 1e-2;
 constexpr int kNewtonMaxIterations = 20;
 // |det - 1| below which the Newton scaling is its series (newton_scaling).
 constexpr double kNewtonSeriesRange = 0.25;
+// The fewest back-substitutions a PCG step takes (the start's preconditioning and one iteration's): a work bound
+// with fewer left ends the solve.
+constexpr int kPcgStepBackSubstitutions = 2;
 // The twist modes' index pairs (i, j) of the signed singular values, and the least s_i + s_j at which a twist
 // eigenvalue (psi_i + psi_j) / (s_i + s_j) is evaluated (below it the tet has collapsed across the pair).
 constexpr int kTwistPairs[3][2] = {{1, 2}, {0, 2}, {0, 1}};
@@ -779,8 +782,10 @@ void validate_options(const CorotationalOptions& o) {
   if (o.max_iterations < 1) detail::fail_must(where, "max_iterations", "be >= 1", o.max_iterations);
   if (!(o.cg_tolerance > 0.0 && o.cg_tolerance < 1.0)) detail::fail_must(where, "cg_tolerance", "be in (0, 1)", o.cg_tolerance);
   if (o.max_cg_iterations < 1) detail::fail_must(where, "max_cg_iterations", "be >= 1", o.max_cg_iterations);
-  if (o.max_back_substitutions < 0 || o.max_back_substitutions == 1)
-    detail::fail_must(where, "max_back_substitutions", "be 0 (no bound) or >= 2", o.max_back_substitutions);
+  const int bound = o.max_back_substitutions;
+  if (bound < 0 || (bound > 0 && bound < kPcgStepBackSubstitutions))
+    detail::fail_must(where, "max_back_substitutions",
+                      "be 0 (no bound) or >= " + std::to_string(kPcgStepBackSubstitutions), bound);
   // (Measured: chord steps cut off by a bound, their Anderson history lost with each solve, stall or diverge.)
   if (o.max_back_substitutions != 0 && o.method == CorotationalMethod::chord)
     detail::fail_must(where, "max_back_substitutions", "be 0 with method chord", o.max_back_substitutions);
@@ -1077,7 +1082,7 @@ bool newton_step(CorotationalState& state, CorotationalResidual& residual_at, co
 }
 
 // Back-substitutions left of the solve's work bound (options.max_back_substitutions; INT_MAX without one). A PCG
-// step of k iterations takes k + 1, so it needs two left and gets at most left - 1 iterations.
+// step of k iterations takes k + 1, so it needs kPcgStepBackSubstitutions left and gets at most left - 1 iterations.
 int back_substitutions_left(const CorotationalOptions& options, const CorotationalResult& result) {
   if (options.max_back_substitutions == 0) return std::numeric_limits<int>::max();
   return options.max_back_substitutions - result.cg_iterations;
@@ -1158,7 +1163,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     result.n_inverted = state.n_inverted;
     result.converged = result.residual <= options.tolerance;
     if (result.converged || result.iterations >= options.max_iterations) break;
-    if (back_substitutions_left(options, result) < 2) break;  // the work bound is spent
+    if (back_substitutions_left(options, result) < kPcgStepBackSubstitutions) break;  // the bound is spent
     adopt_finished_factorisation(state, result);
     // The operator: K_w, or the tangent with the twist modes at u (trivial at rest, where K_t = K_w).
     bool tangent_step = false;
@@ -1211,7 +1216,7 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
       result.residual = residual.evaluate();  // (cached: the start's residual and contact forces again)
       ++result.tangent_fallbacks;
       tangent_step = false;
-      if (back_substitutions_left(options, result) < 2) break;  // the work bound is spent
+      if (back_substitutions_left(options, result) < kPcgStepBackSubstitutions) break;  // the bound is spent
     }
     // The step: du, or its Anderson-mixed version when that lowers the residual.
     linear_step(tangent_step, true);
