@@ -1,6 +1,7 @@
-# Included by CTest after the discovered tests (tests/CMakeLists.txt): the COST of the longest tests, so that
-# `ctest -j` starts them first when the build tree has no cost data of an earlier run (CI builds from scratch).
-# Without it they start in definition order (test_scenes' last); on the measured times that costs a few seconds at
+# The longest test cases and their cost (tests/apply_test_costs.cmake sets it as COST, so that `ctest -j` starts
+# them first when the build tree has no cost data of an earlier run: CI builds from scratch); each of them runs in a
+# process of its own (tests/discover_groups.cmake), the other cases in groups.
+# Without a cost they start in definition order (test_scenes' last); on the measured times that costs a few seconds at
 # -j2, more when a long test is added late.
 # Each entry: test name, then its seconds in a Release run on 2 cores (measured; only the order matters).
 set(lumen_test_costs
@@ -32,15 +33,3 @@ set(lumen_test_costs
   "HardCases.ModulusSweepScalesExactly 7"
   "Scenes.AneurysmPairTetrahedralisedAtLoadKeepsItsSurfacesAndNeverIntersects 5"
   "Coupling.CarriedContactsStayInTheNonlinearEquilibrium 4")
-# A test is named only if this tree discovered it (test_scenes is not built in the sanitizer tree).
-set(lumen_discovered ${test_physics_TESTS} ${test_collision_TESTS} ${test_render_TESTS} ${test_engine_TESTS}
-    ${lumen_engine_session_tests} ${lumen_engine_release_tests} ${lumen_scene_tests})
-foreach(entry IN LISTS lumen_test_costs)
-  string(REPLACE " " ";" entry "${entry}")
-  list(GET entry 0 name)
-  list(GET entry 1 seconds)
-  list(FIND lumen_discovered "${name}" index)
-  if(NOT index EQUAL -1)
-    set_tests_properties("${name}" PROPERTIES COST ${seconds})
-  endif()
-endforeach()
