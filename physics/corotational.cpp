@@ -992,9 +992,14 @@ void start_factorisation(const CorotationalModel& model, const CorotationalOptio
     twist = state.twist;
   else if (tangent)
     el.twist_modes(state.u, state.rotations, /*project=*/true, twist);
-  auto factorise = [&el, &fixed_nodes, tangent](std::vector<Eigen::Matrix3d> R, std::vector<TwistModes> modes) {
+  // (On the rest factorisation's symbolic analysis when the pattern is K's, as it is for the kernels' matrices:
+  // the ordering and supernodes are the same, only the numbers change.)
+  const StaticSolver& rest = model.solver();
+  auto factorise = [&el, &fixed_nodes, &rest, tangent](std::vector<Eigen::Matrix3d> R, std::vector<TwistModes> modes) {
     Eigen::SparseMatrix<double> K = tangent ? el.tangent_stiffness(R, modes) : el.warped_stiffness(R);
-    return std::shared_ptr<const StaticSolver>(std::make_shared<StaticSolver>(K, fixed_nodes));
+    using Solver = std::shared_ptr<const StaticSolver>;
+    if (rest.has_pattern(K)) return Solver(std::make_shared<StaticSolver>(rest.refactorised(K)));
+    return Solver(std::make_shared<StaticSolver>(K, fixed_nodes));
   };
   if (options.refactor_in_background) {
     state.pending = std::async(std::launch::async, factorise, state.rotations, std::move(twist));

@@ -26,11 +26,19 @@ using Mat43 = Eigen::Matrix<double, 4, 3>;
 // serial flavour lacks, and with it the lagged factorisations went bad). Its
 // own threads would compete with the engine's second thread on a 2-core machine, so it runs one thread per call:
 // openblas_set_num_threads(1) when the BLAS loaded is OpenBLAS (looked up at run time: no link to it), once.
+// CHOLMOD itself (Debian's SuiteSparse 5.12) runs loops of its supernodal factorisation on 4 OpenMP threads, a
+// number compiled in (CHOLMOD_OMP_NUM_THREADS) that OMP_NUM_THREADS does not change: on 2 cores those threads
+// wait on each other and on the engine's. omp_set_max_active_levels(0) makes every OpenMP region of the process
+// run on its calling thread (nothing else in Lumen uses OpenMP). Measured on the paper mesh (lumen_benchmarks
+// BM_PhysicsFactorise, 3 repetitions, twice each way alternating): 60-65 ms wall for 40 ms of the calling thread's
+// CPU, against 28-34 ms on one thread.
 void use_one_blas_thread() {
   static std::once_flag once;
   std::call_once(once, [] {
     using SetThreads = void (*)(int);
     if (void* f = dlsym(RTLD_DEFAULT, "openblas_set_num_threads")) reinterpret_cast<SetThreads>(f)(1);
+    using SetLevels = void (*)(int);
+    if (void* f = dlsym(RTLD_DEFAULT, "omp_set_max_active_levels")) reinterpret_cast<SetLevels>(f)(0);
   });
 }
 
@@ -168,7 +176,10 @@ struct StaticSolver::Impl {
   std::vector<int> free_of;  // DOF -> free index, or -1 when fixed, length n
   std::vector<int> dof_of;   // free index -> DOF, length n_free
   long lnz = 0;              // nonzeros of L (the symbolic analysis' count)
-  Eigen::SparseMatrix<double> K;  // the matrix as given (3n x 3n)
+  Eigen::SparseMatrix<double> K;  // the matrix as given (3n x 3n), compressed
+  // The lower triangle on the free DOFs as CHOLMOD takes it (n_free + 1 column pointers, rows), and each stored
+  // entry of K's place in its values (nnz(K); -1: not in it).
+  std::vector<int> lower_p, lower_i, place_of;
   // Reused solve workspace (single right-hand side).
   mutable std::vector<double> rhs;
   mutable cholmod_dense* X = nullptr;
@@ -204,54 +215,65 @@ struct StaticSolver::Impl {
     return d;
   }
 
-  // Copies the lower triangle of K on the free DOFs into CHOLMOD, analyses and factorises it (supernodal LL^T).
-  void factorise(const Eigen::SparseMatrix<double>& K_in, const std::vector<char>& fixed) {
-    K = K_in;
-    n = static_cast<int>(K.rows());
+  // The free DOFs of the fixed mask (per DOF, 1 = fixed).
+  void set_free(const std::vector<char>& fixed) {
     free_of.assign(n, -1);
+    dof_of.clear();
     for (int d = 0; d < n; ++d)
       if (!fixed[d]) {
         free_of[d] = static_cast<int>(dof_of.size());
         dof_of.push_back(d);
       }
-    const int nf = n_free();
-    if (nf == 0) throw std::invalid_argument("StaticSolver: every DOF is fixed, nothing to solve");
+    if (n_free() == 0) throw std::invalid_argument("StaticSolver: every DOF is fixed, nothing to solve");
+  }
 
-    // Lower triangle of K_ff, column by column, rows sorted.
-    std::vector<std::vector<std::pair<int, double>>> cols(nf);
-    size_t nnz = 0;
+  // The pattern of K's lower triangle on the free DOFs (CHOLMOD's A: column pointers lower_p, rows lower_i) and,
+  // per stored entry of K in column order, its place in A's values (or -1: upper triangle or a fixed DOF).
+  // (The free numbering keeps the DOFs' order, so each column's rows stay sorted.)
+  void set_lower_pattern() {
+    const int nf = n_free();
+    lower_p.assign(nf + 1, 0);
+    lower_i.clear();
+    place_of.clear();
+    place_of.reserve(K.nonZeros());
     for (int j = 0; j < K.outerSize(); ++j) {
       const int jf = free_of[j];
-      if (jf < 0) continue;
       for (Eigen::SparseMatrix<double>::InnerIterator it(K, j); it; ++it) {
-        const int i = static_cast<int>(it.row());
-        const int fi = free_of[i];
+        const int fi = free_of[it.row()];
+        const bool lower = jf >= 0 && fi >= jf;
+        place_of.push_back(lower ? static_cast<int>(lower_i.size()) : -1);
+        if (lower) lower_i.push_back(fi);
+      }
+      if (jf >= 0) lower_p[jf + 1] = static_cast<int>(lower_i.size());
+    }
+  }
+
+  // CHOLMOD's A (the caller frees it) with the values of K (whose pattern set_lower_pattern read).
+  cholmod_sparse* lower_matrix() {
+    const int nf = n_free();
+    cholmod_sparse* A = cholmod_allocate_sparse(nf, nf, lower_i.size(), 1, 1, -1, CHOLMOD_REAL, &common);
+    if (!A) throw std::runtime_error("StaticSolver: CHOLMOD could not allocate the matrix");
+    std::copy(lower_p.begin(), lower_p.end(), static_cast<int*>(A->p));
+    std::copy(lower_i.begin(), lower_i.end(), static_cast<int*>(A->i));
+    double* Ax = static_cast<double*>(A->x);
+    size_t k = 0;
+    for (int j = 0; j < K.outerSize(); ++j)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(K, j); it; ++it, ++k) {
         if (!std::isfinite(it.value())) {
+          cholmod_free_sparse(&A, &common);
           std::ostringstream msg;
-          msg << "StaticSolver: K(" << i << ", " << j << ") must be finite, got " << it.value();
+          msg << "StaticSolver: K(" << it.row() << ", " << j << ") must be finite, got " << it.value();
           throw std::invalid_argument(msg.str());
         }
-        if (fi >= jf) cols[jf].emplace_back(fi, it.value()), ++nnz;
+        if (place_of[k] >= 0) Ax[place_of[k]] = it.value();
       }
-    }
-    cholmod_sparse* A = cholmod_allocate_sparse(nf, nf, nnz, 1, 1, -1, CHOLMOD_REAL, &common);
-    if (!A) throw std::runtime_error("StaticSolver: CHOLMOD could not allocate the matrix");
-    int* Ap = static_cast<int*>(A->p);
-    int* Ai = static_cast<int*>(A->i);
-    double* Ax = static_cast<double*>(A->x);
-    int pos = 0;
-    for (int j = 0; j < nf; ++j) {
-      std::sort(cols[j].begin(), cols[j].end());
-      Ap[j] = pos;
-      for (const auto& [i, v] : cols[j]) Ai[pos] = i, Ax[pos] = v, ++pos;
-    }
-    Ap[nf] = pos;
+    return A;
+  }
 
-    // Symbolic analysis (fill-reducing ordering) and numeric factorisation, once.
+  // Numeric factorisation of A into L (symbolic or numeric already: then refactorised on its analysis), and the
+  // checks: CHOLMOD's status, positive definiteness, singularity up to round-off.
+  void factorise_numeric(cholmod_sparse* A) {
     use_one_blas_thread();
-    common.supernodal = CHOLMOD_SUPERNODAL;
-    common.print = 0;
-    L = cholmod_analyze(A, &common);
     const bool ok = L && cholmod_factorize(A, L, &common);
     cholmod_free_sparse(&A, &common);
     if (!ok || common.status == CHOLMOD_OUT_OF_MEMORY) {
@@ -260,21 +282,62 @@ struct StaticSolver::Impl {
     }
     // Not positive definite, or singular up to round-off (rigid motion left free).
     const double rcond = cholmod_rcond(L, &common);
-    if (common.status == CHOLMOD_NOT_POSDEF || static_cast<int>(L->minor) < nf || !(rcond > 1e-12)) {
+    if (common.status == CHOLMOD_NOT_POSDEF || static_cast<int>(L->minor) < n_free() || !(rcond > 1e-12)) {
       std::ostringstream msg;
       msg << "StaticSolver: K on the free DOFs is not positive definite (reciprocal condition estimate " << rcond
           << "); the fixed DOFs must remove all rigid motion";
       throw std::invalid_argument(msg.str());
     }
+  }
+
+  // Copies the lower triangle of K on the free DOFs into CHOLMOD, analyses and factorises it (supernodal LL^T).
+  void factorise(const Eigen::SparseMatrix<double>& K_in, const std::vector<char>& fixed) {
+    K = K_in;
+    K.makeCompressed();
+    n = static_cast<int>(K.rows());
+    set_free(fixed);
+    set_lower_pattern();
+    cholmod_sparse* A = lower_matrix();
+    // Symbolic analysis (fill-reducing ordering and supernodes), then the numeric factorisation.
+    common.supernodal = CHOLMOD_SUPERNODAL;
+    common.print = 0;
+    L = cholmod_analyze(A, &common);
+    factorise_numeric(A);
     lnz = static_cast<long>(common.lnz);
     // Solves run on the supernodal factor itself (BLAS-2 / BLAS-3 per supernode, OpenBLAS: use_one_blas_thread).
     // Measured on the paper mesh (lumen_benchmarks, 3 alternating runs, 2026-12-05): one solve 0.58-0.64 ms
     // against 1.6-2.2 ms on the simplicial form, 64 right-hand sides 17-21 ms against 63-77 ms. (With Debian's
     // reference BLAS it was the other way round, which is why the factor used to be converted to simplicial.)
   }
+
+  // The same for K_in with the pattern of from.K, on from's fixed DOFs and symbolic analysis (its factor copied,
+  // then refactorised with K_in's values): no ordering, no supernode analysis.
+  void refactorise(const Impl& from, Eigen::SparseMatrix<double> K_in) {
+    K = std::move(K_in);
+    K.makeCompressed();
+    n = from.n;
+    free_of = from.free_of;
+    dof_of = from.dof_of;
+    lower_p = from.lower_p;
+    lower_i = from.lower_i;
+    place_of = from.place_of;
+    cholmod_sparse* A = lower_matrix();
+    common.supernodal = CHOLMOD_SUPERNODAL;
+    common.print = 0;
+    L = cholmod_copy_factor(from.L, &common);
+    factorise_numeric(A);
+    lnz = from.lnz;
+  }
 };
 
 namespace {
+
+// Whether a and b (both compressed) store the same entries.
+bool same_pattern(const Eigen::SparseMatrix<double>& a, const Eigen::SparseMatrix<double>& b) {
+  if (a.rows() != b.rows() || a.cols() != b.cols() || a.nonZeros() != b.nonZeros()) return false;
+  return std::equal(a.outerIndexPtr(), a.outerIndexPtr() + a.outerSize() + 1, b.outerIndexPtr()) &&
+         std::equal(a.innerIndexPtr(), a.innerIndexPtr() + a.nonZeros(), b.innerIndexPtr());
+}
 
 // Marks DOFs to fix, validating node ids and components; n_dofs must be a multiple of 3.
 std::vector<char> fixed_mask(const Eigen::SparseMatrix<double>& K, const std::vector<FixedDof>& dofs) {
@@ -318,6 +381,27 @@ StaticSolver::StaticSolver(const Eigen::SparseMatrix<double>& K, const std::vect
 
 StaticSolver::StaticSolver(std::shared_ptr<Impl> impl, double inverse_scale)
     : impl_(std::move(impl)), inverse_scale_(inverse_scale) {}
+
+StaticSolver StaticSolver::refactorised(const Eigen::SparseMatrix<double>& K) const {
+  Eigen::SparseMatrix<double> compressed = K;
+  compressed.makeCompressed();
+  if (!has_pattern(compressed)) {
+    throw std::invalid_argument("StaticSolver::refactorised: K must store the entries of the factorised matrix (" +
+                                std::to_string(impl_->K.nonZeros()) + " in a " + std::to_string(impl_->n) + " x " +
+                                std::to_string(impl_->n) + " pattern), got " + std::to_string(K.nonZeros()) +
+                                " in a " + std::to_string(K.rows()) + " x " + std::to_string(K.cols()));
+  }
+  auto impl = std::make_shared<Impl>();
+  impl->refactorise(*impl_, std::move(compressed));
+  return StaticSolver(std::move(impl), 1.0);
+}
+
+bool StaticSolver::has_pattern(const Eigen::SparseMatrix<double>& K) const {
+  if (K.isCompressed()) return same_pattern(K, impl_->K);
+  Eigen::SparseMatrix<double> compressed = K;
+  compressed.makeCompressed();
+  return same_pattern(compressed, impl_->K);
+}
 
 StaticSolver StaticSolver::scaled(double c) const {
   if (!(c > 0.0) || !std::isfinite(c))

@@ -97,6 +97,14 @@ class StaticSolver {
   // The solver of c K (c > 0, finite) on the same factorisation (shared, not copied): its solves return
   // K^-1 f / c. The two share workspace, so they must not be used from two threads at once either.
   StaticSolver scaled(double c) const;
+  // The solver of another matrix with the same stored entries (has_pattern) on the same fixed DOFs, reusing this
+  // one's symbolic analysis (fill-reducing ordering, supernodes): only the numeric factorisation is done, which is
+  // what a matrix refreshed at new values (the corotational model's warped stiffness) needs. Throws
+  // std::invalid_argument for another pattern, and as the constructor for a matrix that is not positive definite
+  // or not finite. Reads this solver only, so it may run on another thread while this one solves.
+  StaticSolver refactorised(const Eigen::SparseMatrix<double>& K) const;
+  // Whether K (3n x 3n) stores exactly the entries of the factorised matrix (values aside).
+  bool has_pattern(const Eigen::SparseMatrix<double>& K) const;
 
  private:
   struct Impl;

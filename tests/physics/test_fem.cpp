@@ -12,6 +12,7 @@
 
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
+#include "support/files.hpp"
 
 namespace lumen::physics {
 namespace {
@@ -270,6 +271,78 @@ TEST(StaticSolver, ScaledViewSolvesTheScaledMatrixOnTheSameFactor) {
   EXPECT_LE((u2 - 2.0 * u).norm(), 1e-12 * u.norm());
   EXPECT_THROW(solver.scaled(0.0), std::invalid_argument);
   EXPECT_THROW(solver.scaled(-1.0), std::invalid_argument);
+}
+
+// A matrix of the same pattern refactorised on the first one's symbolic analysis solves as its own dense Cholesky
+// (independent twin) and as a fresh factorisation of it; another pattern, an indefinite or a non-finite matrix is
+// refused with its reason.
+TEST(StaticSolver, RefactorisedOnTheSameAnalysisEqualsAFreshFactorisation) {
+  const TetMesh mesh = small_mesh();
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
+  const std::vector<int>& fixed_nodes = mesh.node_set(kStartEnd);
+  const StaticSolver solver(K, fixed_nodes);
+  const int n = mesh.n_nodes();
+  // K2 = D K D, D a positive diagonal: the same stored entries, other values, still positive definite.
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> scale(0.5, 2.0);
+  Eigen::VectorXd D(3 * n);
+  for (int i = 0; i < 3 * n; ++i) D[i] = scale(rng);
+  const Eigen::SparseMatrix<double> K2 = D.asDiagonal() * K * D.asDiagonal();
+  ASSERT_TRUE(solver.has_pattern(K2));
+  const StaticSolver refactorised = solver.refactorised(K2);
+  const StaticSolver fresh(K2, fixed_nodes);
+  EXPECT_EQ(refactorised.n_free_dofs(), solver.n_free_dofs());
+  EXPECT_EQ(refactorised.factor_nonzeros(), solver.factor_nonzeros());
+  EXPECT_LE((Eigen::MatrixXd(refactorised.matrix()) - Eigen::MatrixXd(K2)).norm(), 0.0);
+  std::vector<char> fixed(3 * n, 0);
+  for (int v : fixed_nodes)
+    for (int c = 0; c < 3; ++c) fixed[3 * v + c] = 1;
+  std::vector<int> free;
+  const Eigen::LLT<Eigen::MatrixXd> llt(restrict(Eigen::MatrixXd(K2), fixed, free));
+  ASSERT_EQ(llt.info(), Eigen::Success);
+  std::normal_distribution<double> d;
+  Eigen::VectorXd f(3 * n);
+  for (int i = 0; i < 3 * n; ++i) f[i] = d(rng);
+  Eigen::VectorXd ff(free.size());
+  for (size_t i = 0; i < free.size(); ++i) ff[i] = f[free[i]];
+  const Eigen::VectorXd uf = llt.solve(ff);
+  Eigen::VectorXd u, u_fresh, u_first;
+  refactorised.solve(f, u);
+  fresh.solve(f, u_fresh);
+  for (size_t i = 0; i < free.size(); ++i) EXPECT_NEAR(u[free[i]], uf[i], 1e-10 * uf.cwiseAbs().maxCoeff());
+  EXPECT_LE((u - u_fresh).norm(), 1e-10 * u_fresh.norm());
+  for (int dd = 0; dd < 3 * n; ++dd) {
+    if (fixed[dd]) {
+      EXPECT_EQ(u[dd], 0.0);
+    }
+  }
+  // The first solver is untouched: it still solves K.
+  solver.solve(f, u_first);
+  Eigen::VectorXd residual = K * u_first - f;
+  for (int dd = 0; dd < 3 * n; ++dd)
+    if (fixed[dd]) residual[dd] = 0.0;
+  EXPECT_LE(residual.norm(), 1e-9 * f.norm());
+
+  // Another pattern: one entry more (nodes 0 and n - 1 coupled).
+  Eigen::SparseMatrix<double> other = K2;
+  other.coeffRef(0, 3 * n - 1) += 1.0;
+  other.coeffRef(3 * n - 1, 0) += 1.0;
+  EXPECT_FALSE(solver.has_pattern(other));
+  const auto message = [&](const Eigen::SparseMatrix<double>& M) {
+    return test::message_of<std::invalid_argument>([&] { solver.refactorised(M); });
+  };
+  const int nnz = static_cast<int>(K.nonZeros());
+  EXPECT_EQ(message(other), "StaticSolver::refactorised: K must store the entries of the factorised matrix (" +
+                                std::to_string(nnz) + " in a " + std::to_string(3 * n) + " x " +
+                                std::to_string(3 * n) + " pattern), got " + std::to_string(nnz + 2) + " in a " +
+                                std::to_string(3 * n) + " x " + std::to_string(3 * n));
+  // Indefinite, and not finite.
+  const Eigen::SparseMatrix<double> negative = -K2;
+  EXPECT_NE(message(negative).find("StaticSolver: K on the free DOFs is not positive definite"), std::string::npos)
+      << message(negative);
+  Eigen::SparseMatrix<double> nan = K2;
+  nan.coeffRef(3, 3) = std::nan("");
+  EXPECT_EQ(message(nan), "StaticSolver: K(3, 3) must be finite, got nan");
 }
 
 TEST(StaticSolver, SingleFixedDofsMatchDenseSolve) {

@@ -207,4 +207,33 @@ void BM_CorotationalWarpedProduct(benchmark::State& state) {
 }
 BENCHMARK(BM_CorotationalWarpedProduct)->Unit(benchmark::kMicrosecond);
 
+// The lagged preconditioner's refresh at the deformed state: assembling K_w (triplets), then factorising it
+// afresh (ordering and supernodes: arg 0) or on the rest factorisation's symbolic analysis (arg 1,
+// StaticSolver::refactorised, what the solve does).
+void BM_CorotationalWarpedStiffness(benchmark::State& state) {
+  const CorotationalElements& el = corot_model().model->elements();
+  std::vector<Eigen::Matrix3d> R;
+  el.rotations(deformed_state(), R);
+  for (auto _ : state) benchmark::DoNotOptimize(el.warped_stiffness(R).nonZeros());
+}
+BENCHMARK(BM_CorotationalWarpedStiffness)->Unit(benchmark::kMillisecond);
+
+void BM_CorotationalRefactorise(benchmark::State& state) {
+  const CorotPaperModel& m = corot_model();
+  const CorotationalElements& el = m.model->elements();
+  std::vector<Eigen::Matrix3d> R;
+  el.rotations(deformed_state(), R);
+  const Eigen::SparseMatrix<double> K = el.warped_stiffness(R);
+  for (auto _ : state) {
+    if (state.range(0) == 0) {
+      StaticSolver s(K, m.fixed);
+      benchmark::DoNotOptimize(s.n_free_dofs());
+    } else {
+      StaticSolver s = m.model->solver().refactorised(K);
+      benchmark::DoNotOptimize(s.n_free_dofs());
+    }
+  }
+}
+BENCHMARK(BM_CorotationalRefactorise)->ArgName("on_rest_analysis")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
 }  // namespace
