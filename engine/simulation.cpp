@@ -388,9 +388,10 @@ void build_collision_topology(const Scene& scene, Model& m) {
     m.collision_surface = std::make_shared<const collision::CollisionSurface>(m.collision_tris, m.mesh.rest);
 }
 
-// The corotational solve's options from the scene: warm start extrapolated from the last two frames; a twist
-// rotates the tube far from rest, so there the rest factorisation is rotated per node (several times fewer CG
-// iterations; slower for the small rotations of a press); the lagged warped factorisation on the second core.
+// The corotational solve's options from the scene: warm start extrapolated from the last two frames, the Anderson
+// history carried from frame to frame (but for a twist); a twist rotates the tube far from rest, so there the rest factorisation is
+// rotated per node (several times fewer CG iterations; slower for the small rotations of a press); the lagged
+// warped factorisation on the second core.
 physics::CorotationalOptions corotational_options(const Scene& scene) {
   physics::CorotationalOptions o;
   o.tolerance = scene.solver.tolerance;
@@ -399,6 +400,9 @@ physics::CorotationalOptions corotational_options(const Scene& scene) {
   o.rotate_preconditioner = scene.twist.enabled();
   o.refactor_cg_iterations = kRefactorCgIterations;
   o.anderson_depth = scene.solver.anderson_depth;
+  // (Not with the per-node rotated preconditioner: its map changes with the rotations from solve to solve, and a
+  // carried history made the twist's median frame 34 % slower, docs/bench_anderson_carry.csv.)
+  o.carry_anderson_history = !o.rotate_preconditioner;
   o.max_back_substitutions = scene.solver.max_back_substitutions;
   constexpr physics::CorotationalTangent kTangents[] = {physics::CorotationalTangent::warped,
                                                         physics::CorotationalTangent::projected,

@@ -936,6 +936,21 @@ class AndersonMixing {
     u += du - (X + F) * gamma;
     return true;
   }
+  // The history of an earlier solve (pairs of another length are dropped; at most `depth` of the newest kept):
+  // its pairs mix the first step, the new pairs start from this solve's first iterate.
+  void resume(std::vector<Eigen::VectorXd> dX, std::vector<Eigen::VectorXd> dF, int n) {
+    clear();
+    if (depth_ == 0 || dX.size() != dF.size() || (!dX.empty() && (dX[0].size() != n || dF[0].size() != n))) return;
+    const size_t first = dX.size() > static_cast<size_t>(depth_) ? dX.size() - depth_ : 0;
+    dX_.assign(std::make_move_iterator(dX.begin() + first), std::make_move_iterator(dX.end()));
+    dF_.assign(std::make_move_iterator(dF.begin() + first), std::make_move_iterator(dF.end()));
+  }
+  // Hands the history over (for the next solve) and forgets it.
+  void hand_over(std::vector<Eigen::VectorXd>& dX, std::vector<Eigen::VectorXd>& dF) {
+    dX = std::move(dX_);
+    dF = std::move(dF_);
+    clear();
+  }
   // Forget the history (a mixed step that did not help).
   void clear() {
     dX_.clear();
@@ -1159,8 +1174,12 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     return result;
   }
 
-  // Fixed-point iterations on the warped system, or Newton's on the tangent.
+  // Fixed-point iterations on the warped system, or Newton's on the tangent (the Anderson history of the last
+  // solve resumed when carried; as within a solve, a mixed step that does not lower the residual restarts it).
   AndersonMixing anderson(options.anderson_depth);
+  if (options.carry_anderson_history)
+    anderson.resume(std::move(state.anderson_dX), std::move(state.anderson_dF), n);
+  state.anderson_dX.clear(), state.anderson_dF.clear();
   DivergenceGuard guard(state, residual);
   Eigen::VectorXd du;
   std::vector<Eigen::Matrix3d> node_R;
@@ -1227,8 +1246,12 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     linear_step(tangent_step, true);
     if (!du.allFinite()) break;  // keep the last finite iterate (not converged)
     take_step(state, residual, anderson, du, before, result.residual);
-    if (guard.diverged(model, options, state, residual, result)) break;
+    if (guard.diverged(model, options, state, residual, result)) {
+      anderson.clear();
+      break;
+    }
   }
+  if (options.carry_anderson_history) anderson.hand_over(state.anderson_dX, state.anderson_dF);
   if (contacts) result.contact_lambda = residual.contact_lambda();
   return result;
 }

@@ -268,6 +268,11 @@ struct CorotationalOptions {
   // Anderson acceleration of the fixed-point iterations: the number of past steps mixed (0 = off), >= 0. A mixed
   // step is kept only when it lowers the residual (otherwise the plain step, and the history restarts).
   int anderson_depth = 0;
+  // The PCG solves' Anderson history (differences of iterates and of steps, which describe the fixed-point map's
+  // Jacobian, not the loads) goes on from one solve to the next (CorotationalState), so that a frame's first step
+  // is already mixed. As within a solve, a mixed step that does not lower the residual restarts it, and so does a
+  // diverged solve. Off: each solve starts its history afresh (chord steps always do).
+  bool carry_anderson_history = false;
   CorotationalTangent tangent = CorotationalTangent::warped;  // the linear steps' operator (and lagged factor)
   // Factorise on a background thread (the solves go on with the previous preconditioner until it is ready)
   // rather than at once inside the solve.
@@ -289,6 +294,9 @@ struct CorotationalState {
   int n_inverted = 0;                         // inverted tets at u_eval
   Eigen::VectorXd u_previous;                 // u before the last solve (for extrapolate), 3n, metres
   int chord_steps_since_refresh = 0;          // chord steps (over solves) since a factorisation was last asked for
+  // The PCG solves' Anderson history left by the last solve (options.carry_anderson_history): per kept pair, the
+  // differences of iterates and of steps, 3n each, oldest first.
+  std::vector<Eigen::VectorXd> anderson_dX, anderson_dF;
   // Lagged warped preconditioner: K_w factorised at earlier rotations (null: the model's rest factorisation),
   // and a factorisation in progress on a background thread (valid() while one runs).
   std::shared_ptr<const StaticSolver> preconditioner;

@@ -198,6 +198,53 @@ TEST(AndersonMixing, ReachesTheSameEquilibriumAsThePlainIteration) {
   EXPECT_LT((a.u - b.u).norm(), 1e-6 * a.u.norm());
 }
 
+// The Anderson history carried from solve to solve (a frame sequence: the press ramped over 12 frames, secant
+// starts, the lagged factorisation at once so that the runs are deterministic) changes the path, not the
+// equilibria: every frame against the same ramp solved with each solve's history afresh, at a tight tolerance.
+// (Whether it saves iterations depends on the scene: none on this small tube, 60 against 61; the sessions'
+// numbers are in docs/bench_anderson_carry.csv.) A history of another length (a state from another model) is
+// dropped, not mixed.
+TEST(AndersonMixing, HistoryCarriedAcrossSolvesReachesTheSameEquilibria) {
+  const Pressed p = pressed_tube(3e-2);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
+  CorotationalOptions fresh;
+  fresh.tolerance = 1e-8;
+  fresh.max_iterations = 400;
+  fresh.anderson_depth = 5;
+  fresh.extrapolate = true;
+  fresh.refactor_cg_iterations = 5;
+  CorotationalOptions carried = fresh;
+  carried.carry_anderson_history = true;
+  CorotationalState a, b;
+  int iterations_fresh = 0, iterations_carried = 0;
+  constexpr int kFrames = 12;
+  for (int k = 1; k <= kFrames; ++k) {
+    const Eigen::VectorXd f = p.f * (static_cast<double>(k) / kFrames);
+    const CorotationalResult ra = solve_corotational(model, f, a, fresh);
+    const CorotationalResult rb = solve_corotational(model, f, b, carried);
+    ASSERT_TRUE(ra.converged) << "frame " << k;
+    ASSERT_TRUE(rb.converged) << "frame " << k;
+    EXPECT_LT((a.u - b.u).norm(), 1e-6 * a.u.norm()) << "frame " << k;
+    EXPECT_TRUE(a.anderson_dX.empty());
+    iterations_fresh += ra.iterations;
+    iterations_carried += rb.iterations;
+  }
+  std::printf("over %d frames: %d nonlinear iterations with each solve's history afresh, %d carried\n", kFrames,
+              iterations_fresh, iterations_carried);
+  EXPECT_GT(-a.u[3 * p.node + 1], 1e-3);  // a large deflection: the rotations matter
+  EXPECT_FALSE(b.anderson_dX.empty());
+  // A history of another length is dropped: the solve is the fresh one's.
+  CorotationalState c, d;
+  for (CorotationalState* s : {&c, &d}) s->u = a.u, s->u_previous = a.u_previous, s->preconditioner = a.preconditioner;
+  d.anderson_dX.assign(2, Eigen::VectorXd::Ones(5));
+  d.anderson_dF.assign(2, Eigen::VectorXd::Ones(5));
+  const Eigen::VectorXd f = 1.1 * p.f;
+  const CorotationalResult rc = solve_corotational(model, f, c, carried);
+  const CorotationalResult rd = solve_corotational(model, f, d, carried);
+  EXPECT_EQ(rc.iterations, rd.iterations);
+  EXPECT_EQ((c.u - d.u).norm(), 0.0);
+}
+
 // Newton's method on the exact tangent: the same equilibrium as the warped (quasi-Newton) iteration, in
 // fewer linear steps (its convergence is superlinear where K_w's is linear).
 TEST(ExactTangent, ReachesTheSameEquilibriumInFewerIterations) {
