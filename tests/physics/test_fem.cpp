@@ -144,6 +144,19 @@ Eigen::MatrixXd restrict(const Eigen::MatrixXd& K, const std::vector<char>& fixe
   return Kf;
 }
 
+// A load of standard normal entries (n_dofs), and a vector's entries on the free DOFs (in their order).
+Eigen::VectorXd random_load(int n_dofs, std::mt19937& rng) {
+  std::normal_distribution<double> d;
+  Eigen::VectorXd f(n_dofs);
+  for (int i = 0; i < n_dofs; ++i) f[i] = d(rng);
+  return f;
+}
+Eigen::VectorXd gather(const Eigen::VectorXd& f, const std::vector<int>& free) {
+  Eigen::VectorXd ff(free.size());
+  for (size_t i = 0; i < free.size(); ++i) ff[i] = f[free[i]];
+  return ff;
+}
+
 TEST(Assembly, SymmetricRigidModesAndEnergyIsSumOfElements) {
   const TetMesh mesh = small_mesh();
   const LinearMaterial mat{5000.0, 0.45};
@@ -248,11 +261,8 @@ TEST(StaticSolver, ScaledViewSolvesTheScaledMatrixOnTheSameFactor) {
   const Eigen::LLT<Eigen::MatrixXd> llt(restrict(Eigen::MatrixXd(c * K), fixed, free));
   ASSERT_EQ(llt.info(), Eigen::Success);
   std::mt19937 rng(11);
-  std::normal_distribution<double> d;
-  Eigen::VectorXd f(3 * n);
-  for (int i = 0; i < 3 * n; ++i) f[i] = d(rng);
-  Eigen::VectorXd ff(free.size());
-  for (size_t i = 0; i < free.size(); ++i) ff[i] = f[free[i]];
+  const Eigen::VectorXd f = random_load(3 * n, rng);
+  const Eigen::VectorXd ff = gather(f, free);
   const Eigen::VectorXd uf = llt.solve(ff);
   const StaticSolver scaled = solver.scaled(c);
   EXPECT_EQ(scaled.factor_nonzeros(), solver.factor_nonzeros());
@@ -300,11 +310,8 @@ TEST(StaticSolver, RefactorisedOnTheSameAnalysisEqualsAFreshFactorisation) {
   std::vector<int> free;
   const Eigen::LLT<Eigen::MatrixXd> llt(restrict(Eigen::MatrixXd(K2), fixed, free));
   ASSERT_EQ(llt.info(), Eigen::Success);
-  std::normal_distribution<double> d;
-  Eigen::VectorXd f(3 * n);
-  for (int i = 0; i < 3 * n; ++i) f[i] = d(rng);
-  Eigen::VectorXd ff(free.size());
-  for (size_t i = 0; i < free.size(); ++i) ff[i] = f[free[i]];
+  const Eigen::VectorXd f = random_load(3 * n, rng);
+  const Eigen::VectorXd ff = gather(f, free);
   const Eigen::VectorXd uf = llt.solve(ff);
   Eigen::VectorXd u, u_fresh, u_first;
   refactorised.solve(f, u);
@@ -362,11 +369,8 @@ TEST(StaticSolver, SingleFixedDofsMatchDenseSolve) {
   const Eigen::MatrixXd Kf = restrict(Eigen::MatrixXd(K), fixed, free);
   EXPECT_EQ(solver.n_free_dofs(), static_cast<int>(free.size()));
   std::mt19937 rng(6);
-  std::normal_distribution<double> d;
-  Eigen::VectorXd f(3 * n);
-  for (int i = 0; i < 3 * n; ++i) f[i] = d(rng);
-  Eigen::VectorXd ff(free.size());
-  for (size_t i = 0; i < free.size(); ++i) ff[i] = f[free[i]];
+  const Eigen::VectorXd f = random_load(3 * n, rng);
+  const Eigen::VectorXd ff = gather(f, free);
   const Eigen::VectorXd uf = Kf.ldlt().solve(ff);
   Eigen::VectorXd u;
   solver.solve(f, u);
