@@ -389,9 +389,9 @@ void build_collision_topology(const Scene& scene, Model& m) {
 }
 
 // The corotational solve's options from the scene: warm start extrapolated from the last two frames, the Anderson
-// history carried from frame to frame (but for a twist); a twist rotates the tube far from rest, so there the rest factorisation is
-// rotated per node (several times fewer CG iterations; slower for the small rotations of a press); the lagged
-// warped factorisation on the second core.
+// history carried from frame to frame (but for a twist); a twist rotates the tube far from rest, so there the rest
+// factorisation is rotated per node (several times fewer CG iterations; slower for the small rotations of a
+// press); the lagged warped factorisation on the second core.
 physics::CorotationalOptions corotational_options(const Scene& scene) {
   physics::CorotationalOptions o;
   o.tolerance = scene.solver.tolerance;

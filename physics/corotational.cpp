@@ -1013,7 +1013,7 @@ void start_factorisation(const CorotationalModel& model, const CorotationalOptio
   auto factorise = [&el, &fixed_nodes, &rest, tangent](std::vector<Eigen::Matrix3d> R, std::vector<TwistModes> modes) {
     Eigen::SparseMatrix<double> K = tangent ? el.tangent_stiffness(R, modes) : el.warped_stiffness(R);
     using Solver = std::shared_ptr<const StaticSolver>;
-    if (rest.has_pattern(K)) return Solver(std::make_shared<StaticSolver>(rest.refactorised(K)));
+    if (rest.has_pattern(K)) return Solver(std::make_shared<StaticSolver>(rest.refactorised(std::move(K))));
     return Solver(std::make_shared<StaticSolver>(K, fixed_nodes));
   };
   if (options.refactor_in_background) {

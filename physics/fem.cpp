@@ -382,17 +382,16 @@ StaticSolver::StaticSolver(const Eigen::SparseMatrix<double>& K, const std::vect
 StaticSolver::StaticSolver(std::shared_ptr<Impl> impl, double inverse_scale)
     : impl_(std::move(impl)), inverse_scale_(inverse_scale) {}
 
-StaticSolver StaticSolver::refactorised(const Eigen::SparseMatrix<double>& K) const {
-  Eigen::SparseMatrix<double> compressed = K;
-  compressed.makeCompressed();
-  if (!has_pattern(compressed)) {
+StaticSolver StaticSolver::refactorised(Eigen::SparseMatrix<double> K) const {
+  K.makeCompressed();
+  if (!has_pattern(K)) {
     throw std::invalid_argument("StaticSolver::refactorised: K must store the entries of the factorised matrix (" +
                                 std::to_string(impl_->K.nonZeros()) + " in a " + std::to_string(impl_->n) + " x " +
                                 std::to_string(impl_->n) + " pattern), got " + std::to_string(K.nonZeros()) +
                                 " in a " + std::to_string(K.rows()) + " x " + std::to_string(K.cols()));
   }
   auto impl = std::make_shared<Impl>();
-  impl->refactorise(*impl_, std::move(compressed));
+  impl->refactorise(*impl_, std::move(K));
   return StaticSolver(std::move(impl), 1.0);
 }
 

@@ -102,7 +102,7 @@ class StaticSolver {
   // what a matrix refreshed at new values (the corotational model's warped stiffness) needs. Throws
   // std::invalid_argument for another pattern, and as the constructor for a matrix that is not positive definite
   // or not finite. Reads this solver only, so it may run on another thread while this one solves.
-  StaticSolver refactorised(const Eigen::SparseMatrix<double>& K) const;
+  StaticSolver refactorised(Eigen::SparseMatrix<double> K) const;
   // Whether K (3n x 3n) stores exactly the entries of the factorised matrix (values aside).
   bool has_pattern(const Eigen::SparseMatrix<double>& K) const;
 
