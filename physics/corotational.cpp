@@ -588,13 +588,13 @@ class CholmodPreconditioner {
     ++applications_;
     Eigen::VectorXd z;
     if (!node_R_) {
-      solver_->solve(r, z);
+      solver_->solve_approximately(r, z);
       return z;
     }
     // Rn K^-1 Rn^T r, node by node.
     Eigen::VectorXd rl(r.size());
     for (size_t v = 0; v < node_R_->size(); ++v) rl.segment<3>(3 * v) = (*node_R_)[v].transpose() * r.segment<3>(3 * v);
-    solver_->solve(rl, z);
+    solver_->solve_approximately(rl, z);
     for (size_t v = 0; v < node_R_->size(); ++v) z.segment<3>(3 * v) = (*node_R_)[v] * z.segment<3>(3 * v).eval();
     return z;
   }
@@ -766,7 +766,9 @@ CorotationalModel::CorotationalModel(const TetMesh& mesh, const LinearMaterial& 
     : elements_(mesh, material, support),
       K_(elements_.with_support(assemble_stiffness(mesh, material))),
       fixed_nodes_(fixed_nodes),
-      solver_(K_, fixed_nodes) {}
+      solver_(K_, fixed_nodes) {
+  solver_.add_single_precision();
+}
 
 CorotationalModel::CorotationalModel(const QuadraticMesh& mesh, const LinearMaterial& material,
                                      const std::vector<int>& fixed_nodes, const Eigen::VectorXd& support)
@@ -774,7 +776,9 @@ CorotationalModel::CorotationalModel(const QuadraticMesh& mesh, const LinearMate
       // (The elements' stored K_e unrotated: assemble_stiffness(mesh) would evaluate every K_e a second time.)
       K_(elements_.warped_stiffness(std::vector<Eigen::Matrix3d>(elements_.n_tets(), Eigen::Matrix3d::Identity()))),
       fixed_nodes_(fixed_nodes),
-      solver_(K_, fixed_nodes) {}
+      solver_(K_, fixed_nodes) {
+  solver_.add_single_precision();
+}
 
 void validate_options(const CorotationalOptions& o) {
   const char* where = "CorotationalOptions";
@@ -1130,7 +1134,7 @@ void chord_iterations(const CorotationalModel& model, const CorotationalOptions&
     ++state.chord_steps_since_refresh;
     // The step on the lagged factorisation, mixed with the last ones when that lowers the residual.
     const StaticSolver& A = state.preconditioner ? *state.preconditioner : model.solver();
-    A.solve(residual.r(), du);
+    A.solve_approximately(residual.r(), du);
     ++result.iterations;
     ++result.cg_iterations;
     if (!du.allFinite()) break;  // keep the last finite iterate (not converged)

@@ -14,6 +14,8 @@
 #include <string>
 #include <utility>
 
+#include "physics/detail/supernodal_single.hpp"
+
 namespace lumen::physics {
 
 namespace {
@@ -180,6 +182,8 @@ struct StaticSolver::Impl {
   // The lower triangle on the free DOFs as CHOLMOD takes it (n_free + 1 column pointers, rows), and each stored
   // entry of K's place in its values (nnz(K); -1: not in it).
   std::vector<int> lower_p, lower_i, place_of;
+  // The factor's single-precision copy (add_single_precision; null: none).
+  std::unique_ptr<detail::SupernodalSingle> single;
   // Reused solve workspace (single right-hand side).
   mutable std::vector<double> rhs;
   mutable cholmod_dense* X = nullptr;
@@ -200,6 +204,22 @@ struct StaticSolver::Impl {
   Impl& operator=(const Impl&) = delete;
 
   int n_free() const { return static_cast<int>(dof_of.size()); }
+
+  // L's supernodes as SupernodalSingle reads them (L is supernodal: factorise asks CHOLMOD for it).
+  detail::SupernodalView supernodes() const {
+    if (!L || !L->is_super || L->itype != CHOLMOD_INT)
+      throw std::logic_error("StaticSolver: the factor must be supernodal with int indices");
+    detail::SupernodalView v;
+    v.n = static_cast<int>(L->n);
+    v.nsuper = static_cast<int>(L->nsuper);
+    v.super = static_cast<const int*>(L->super);
+    v.pi = static_cast<const int*>(L->pi);
+    v.px = static_cast<const int*>(L->px);
+    v.s = static_cast<const int*>(L->s);
+    v.x = static_cast<const double*>(L->x);
+    v.perm = static_cast<const int*>(L->Perm);
+    return v;
+  }
 
   // A cholmod_dense header over caller-owned column-major memory (nrow x ncol).
   static cholmod_dense wrap(double* data, int nrow, int ncol) {
@@ -327,6 +347,7 @@ struct StaticSolver::Impl {
     L = cholmod_copy_factor(from.L, &common);
     factorise_numeric(A);
     lnz = from.lnz;
+    if (from.single) single = std::make_unique<detail::SupernodalSingle>(supernodes());
   }
 };
 
@@ -492,6 +513,34 @@ class SolveGuard {
 };
 
 }  // namespace
+
+void StaticSolver::add_single_precision() {
+  if (!impl_->single) impl_->single = std::make_unique<detail::SupernodalSingle>(impl_->supernodes());
+}
+
+bool StaticSolver::has_single_precision() const { return impl_->single != nullptr; }
+
+void StaticSolver::solve_approximately(const Eigen::VectorXd& f, Eigen::VectorXd& u) const {
+  Impl& m = *impl_;
+  if (!m.single) {
+    solve(f, u);
+    return;
+  }
+  const SolveGuard guard(m.busy, "StaticSolver::solve_approximately");
+  if (f.size() != m.n) {
+    throw std::invalid_argument("StaticSolver::solve_approximately: f must have " + std::to_string(m.n) +
+                                " entries, got " + std::to_string(f.size()));
+  }
+  // Gather the free DOFs, the two triangular solves on the rounded factor, scatter (fixed DOFs are 0).
+  const int nf = m.n_free();
+  m.rhs.resize(2 * static_cast<size_t>(nf));
+  double* b = m.rhs.data();
+  double* x = b + nf;
+  for (int k = 0; k < nf; ++k) b[k] = f[m.dof_of[k]];
+  m.single->solve(b, x);
+  u.setZero(m.n);
+  for (int k = 0; k < nf; ++k) u[m.dof_of[k]] = inverse_scale_ * x[k];
+}
 
 void StaticSolver::solve(const Eigen::VectorXd& f, Eigen::VectorXd& u) const {
   Impl& m = *impl_;

@@ -89,6 +89,15 @@ class StaticSolver {
   long factor_nonzeros() const;
   // u = K^-1 f (full vectors, 3n).
   void solve(const Eigen::VectorXd& f, Eigen::VectorXd& u) const;
+  // A single-precision copy of the factor for solve_approximately (half the bytes a back-substitution reads; the
+  // solver's memory grows by about half). Solvers made from this one by refactorised() make their own; those made
+  // by scaled() share it.
+  void add_single_precision();
+  bool has_single_precision() const;
+  // u ~ K^-1 f for preconditioning: on the single-precision copy when there is one, in double arithmetic on its
+  // rounded values (so the operator is symmetric positive definite, K's Cholesky factor rounded to float, to the
+  // last bits of double; relative error about float's epsilon times the factor's condition), else solve().
+  void solve_approximately(const Eigen::VectorXd& f, Eigen::VectorXd& u) const;
   // Many right-hand sides at once (3n x m).
   Eigen::MatrixXd solve_many(const Eigen::MatrixXd& F) const;
   bool is_fixed_dof(int dof) const;

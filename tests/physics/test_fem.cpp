@@ -352,6 +352,68 @@ TEST(StaticSolver, RefactorisedOnTheSameAnalysisEqualsAFreshFactorisation) {
   EXPECT_EQ(message(nan), "StaticSolver: K(3, 3) must be finite, got nan");
 }
 
+// The single-precision copy of the factor (the corotational solves' preconditioner): K^-1 f to float's precision
+// against the dense Cholesky, a symmetric operator to double round-off (its solves are double arithmetic on the
+// rounded factor, which CG needs), commuting with scaling K, shared by scaled views, made again by refactorised();
+// without it, solve_approximately is solve.
+TEST(StaticSolver, SinglePrecisionCopySolvesToFloatPrecisionAndSymmetrically) {
+  const TetMesh mesh = small_mesh();
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
+  const std::vector<int>& fixed_nodes = mesh.node_set(kStartEnd);
+  StaticSolver solver(K, fixed_nodes);
+  const int n = mesh.n_nodes();
+  std::vector<char> fixed(3 * n, 0);
+  for (int v : fixed_nodes)
+    for (int c = 0; c < 3; ++c) fixed[3 * v + c] = 1;
+  std::vector<int> free;
+  const Eigen::LLT<Eigen::MatrixXd> llt(restrict(Eigen::MatrixXd(K), fixed, free));
+  ASSERT_EQ(llt.info(), Eigen::Success);
+  std::mt19937 rng(31);
+  const Eigen::VectorXd f = random_load(3 * n, rng), g = random_load(3 * n, rng);
+  Eigen::VectorXd u, u_exact, v;
+  // Without the copy: the double solve, bit for bit.
+  EXPECT_FALSE(solver.has_single_precision());
+  solver.solve_approximately(f, u);
+  solver.solve(f, u_exact);
+  EXPECT_EQ((u - u_exact).norm(), 0.0);
+  // With it: float's precision against the dense twin, 0 on fixed DOFs, symmetric to round-off.
+  solver.add_single_precision();
+  ASSERT_TRUE(solver.has_single_precision());
+  solver.solve_approximately(f, u);
+  const Eigen::VectorXd uf = llt.solve(gather(f, free));
+  EXPECT_LE((gather(u, free) - uf).norm(), 1e-5 * uf.norm());
+  EXPECT_GT((u - u_exact).norm(), 0.0);  // it is the rounded factor's solve, not the double one
+  for (int d = 0; d < 3 * n; ++d) {
+    if (fixed[d]) {
+      EXPECT_EQ(u[d], 0.0);
+    }
+  }
+  solver.solve_approximately(g, v);
+  EXPECT_NEAR(g.dot(u), f.dot(v), 1e-12 * std::abs(f.dot(v)));
+  // A scaled view shares the copy: exactly 1/c of it.
+  Eigen::VectorXd w;
+  solver.scaled(4.0).solve_approximately(f, w);
+  EXPECT_LE((4.0 * w - u).norm(), 1e-15 * u.norm());
+  // It commutes with scaling K (a factorisation of 50 K of its own): the rounding is relative to the factor's
+  // largest diagonal entry, so no unit of K enters it.
+  StaticSolver fifty(Eigen::SparseMatrix<double>(50.0 * K), fixed_nodes);
+  fifty.add_single_precision();
+  fifty.solve_approximately(f, w);
+  EXPECT_LE((50.0 * w - u).norm(), 1e-12 * u.norm());
+  // A refactorisation makes its own copy, of its own matrix.
+  std::uniform_real_distribution<double> scale(0.5, 2.0);
+  Eigen::VectorXd D(3 * n);
+  for (int i = 0; i < 3 * n; ++i) D[i] = scale(rng);
+  const Eigen::SparseMatrix<double> K2 = D.asDiagonal() * K * D.asDiagonal();
+  const StaticSolver refactorised = solver.refactorised(K2);
+  ASSERT_TRUE(refactorised.has_single_precision());
+  const Eigen::LLT<Eigen::MatrixXd> llt2(restrict(Eigen::MatrixXd(K2), fixed, free));
+  refactorised.solve_approximately(f, u);
+  const Eigen::VectorXd uf2 = llt2.solve(gather(f, free));
+  EXPECT_LE((gather(u, free) - uf2).norm(), 1e-5 * uf2.norm());
+  EXPECT_THROW(solver.solve_approximately(Eigen::VectorXd::Zero(5), u), std::invalid_argument);
+}
+
 TEST(StaticSolver, SingleFixedDofsMatchDenseSolve) {
   const TetMesh mesh = small_mesh();
   const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{2000.0, 0.3});

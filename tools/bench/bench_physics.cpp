@@ -84,6 +84,23 @@ void BM_PhysicsSolve(benchmark::State& state) {
 }
 BENCHMARK(BM_PhysicsSolve)->Unit(benchmark::kMicrosecond);
 
+// The same on the factor's single-precision copy (the corotational solves' preconditioner), and its relative
+// difference from the double solve.
+void BM_PhysicsSolveSinglePrecision(benchmark::State& state) {
+  const PaperModel& m = model();
+  StaticSolver single(m.K, m.fixed);
+  single.add_single_precision();
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(m.solver->n_dofs()), u, u_double;
+  f[3 * m.mesh.surface(kInnerWall)(500, 0) + 1] = -0.05;
+  for (auto _ : state) {
+    single.solve_approximately(f, u);
+    benchmark::DoNotOptimize(u.data());
+  }
+  m.solver->solve(f, u_double);
+  state.counters["rel_diff"] = (u - u_double).norm() / u_double.norm();
+}
+BENCHMARK(BM_PhysicsSolveSinglePrecision)->Unit(benchmark::kMicrosecond);
+
 void BM_PhysicsSolveMany(benchmark::State& state) {
   const PaperModel& m = model();
   const Eigen::MatrixXd F = Eigen::MatrixXd::Random(m.solver->n_dofs(), state.range(0));
