@@ -28,6 +28,9 @@ constexpr double kNewtonSeriesRange = 0.25;
 // The fewest back-substitutions a PCG step takes (the start's preconditioning and one iteration's): a work bound
 // with fewer left ends the solve.
 constexpr int kPcgStepBackSubstitutions = 2;
+// After the secant start was refused (it did not lower the residual: one evaluation of the rotations and forces
+// for nothing), this many solves start where the last one ended before it is tried again.
+constexpr int kSecantRetryAfter = 4;
 // The twist modes' index pairs (i, j) of the signed singular values, and the least s_i + s_j at which a twist
 // eigenvalue (psi_i + psi_j) / (s_i + s_j) is evaluated (below it the tet has collapsed across the pair).
 constexpr int kTwistPairs[3][2] = {{1, 2}, {0, 2}, {0, 1}};
@@ -883,8 +886,8 @@ void prescribe(const CorotationalModel& model, const Eigen::VectorXd& f_ext, con
   if (!any_prescribed && f.isZero(0.0)) state.u.setZero();
 }
 
-// Secant predictor u + (u - u_before) on the free DOFs, kept only when it lowers the residual; returns the
-// residual at the kept start.
+// Secant predictor u + (u - u_before) on the free DOFs, kept only when it lowers the residual (refused: the next
+// kSecantRetryAfter solves do not try it); returns the residual at the kept start.
 double extrapolate_start(CorotationalState& state, CorotationalResidual& residual, const std::vector<char>& fixed,
                          const Eigen::VectorXd& u_before, double residual_now) {
   CorotationalState saved;
@@ -897,6 +900,8 @@ double extrapolate_start(CorotationalState& state, CorotationalResidual& residua
     if (!fixed[d]) state.u[d] += state.u[d] - u_before[d];
   const double predicted = residual.evaluate();
   if (predicted < residual_now) return predicted;
+  // Refused: back to the start, and the next solves do not try it.
+  state.secant_skips = kSecantRetryAfter;
   state.u = u_start;
   std::swap(saved.rotations, state.rotations);
   std::swap(saved.f_int, state.f_int);
@@ -1158,7 +1163,8 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
   if (contacts) validate_contacts(where, *contacts, el.n_nodes());
   if (state.u.size() == 0) state.u.setZero(n);
   detail::check_vector(where, "state.u", state.u, n);
-  const bool can_extrapolate = options.extrapolate && state.u_previous.size() == n;
+  const bool can_extrapolate = options.extrapolate && state.u_previous.size() == n && state.secant_skips == 0;
+  if (state.secant_skips > 0) --state.secant_skips;
   const Eigen::VectorXd u_before = can_extrapolate ? state.u_previous : Eigen::VectorXd();
   state.u_previous = state.u;
 

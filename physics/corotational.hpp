@@ -259,7 +259,8 @@ struct CorotationalOptions {
   // Precondition with Rn K^-1 Rn^T (per-node average rotations) instead of K^-1.
   bool rotate_preconditioner = false;
   // Start from the secant prediction u + (u - u_previous) (the last two solutions of a frame sequence) instead
-  // of u, when that lowers the residual (one extra evaluation of the rotations and forces).
+  // of u, when that lowers the residual (one extra evaluation of the rotations and forces); after a refusal the
+  // next few solves do not try it (CorotationalState::secant_skips).
   bool extrapolate = false;
   // Lagged warped preconditioner (quasi-static solve only): when a linear solve takes more than this many PCG
   // iterations, K_w at the current rotations is factorised and preconditions the following solves (of this and
@@ -294,6 +295,7 @@ struct CorotationalState {
   int n_inverted = 0;                         // inverted tets at u_eval
   Eigen::VectorXd u_previous;                 // u before the last solve (for extrapolate), 3n, metres
   int chord_steps_since_refresh = 0;          // chord steps (over solves) since a factorisation was last asked for
+  int secant_skips = 0;                       // solves left that start without trying the secant start
   // The PCG solves' Anderson history left by the last solve (options.carry_anderson_history): per kept pair, the
   // differences of iterates and of steps, 3n each, oldest first.
   std::vector<Eigen::VectorXd> anderson_dX, anderson_dF;

@@ -198,6 +198,36 @@ TEST(AndersonMixing, ReachesTheSameEquilibriumAsThePlainIteration) {
   EXPECT_LT((a.u - b.u).norm(), 1e-6 * a.u.norm());
 }
 
+// The secant start is tried while it is kept and, once refused, not again for the next four solves: a press
+// ramped up (the secant prediction lowers the residual: kept, no skips), then reversed (the prediction overshoots
+// the other way: refused, four skips counted down). Every frame reaches the equilibrium of the same ramp solved
+// without secant starts, at a tight tolerance.
+TEST(CorotationalSolve, ARefusedSecantStartIsNotTriedForTheNextFourSolves) {
+  const Pressed p = pressed_tube(3e-2);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
+  CorotationalOptions plain;
+  plain.tolerance = 1e-8;
+  plain.max_iterations = 400;
+  plain.anderson_depth = 5;
+  CorotationalOptions secant = plain;
+  secant.extrapolate = true;
+  CorotationalState a, b;
+  // Up over four frames, then back down over four.
+  const double scale[] = {0.25, 0.5, 0.75, 1.0, 0.75, 0.5, 0.25, 0.0};
+  std::vector<int> skips;
+  for (double s : scale) {
+    const CorotationalResult ra = solve_corotational(model, s * p.f, a, plain);
+    const CorotationalResult rb = solve_corotational(model, s * p.f, b, secant);
+    ASSERT_TRUE(ra.converged && rb.converged) << "load " << s;
+    EXPECT_LE((a.u - b.u).norm(), 1e-6 * std::max(a.u.norm(), 1e-9)) << "load " << s;
+    skips.push_back(b.secant_skips);
+    EXPECT_EQ(a.secant_skips, 0);
+  }
+  // Ramping up, the secant start is kept (the first frame has no prediction yet); the first frame down refuses
+  // it, and each later solve counts the skips down (the last, unloaded, goes back to rest without a step).
+  EXPECT_EQ(skips, (std::vector<int>{0, 0, 0, 0, 4, 3, 2, 1})) << ::testing::PrintToString(skips);
+}
+
 // The Anderson history carried from solve to solve (a frame sequence: the press ramped over 12 frames, secant
 // starts, the lagged factorisation at once so that the runs are deterministic) changes the path, not the
 // equilibria: every frame against the same ramp solved with each solve's history afresh, at a tight tolerance.
