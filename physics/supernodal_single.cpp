@@ -1,4 +1,5 @@
-// Single-precision copy of a supernodal Cholesky factor and its triangular solves (physics/detail/supernodal_single.hpp).
+// Single-precision copy of a supernodal Cholesky factor and its triangular solves
+// (physics/detail/supernodal_single.hpp).
 #include "physics/detail/supernodal_single.hpp"
 
 #include <algorithm>
@@ -149,10 +150,21 @@ SupernodalSingle::SupernodalSingle(const SupernodalView& L) : n_(L.n) {
   pi_.assign(L.pi, L.pi + L.nsuper + 1);
   px_.assign(L.px, L.px + L.nsuper + 1);
   s_.assign(L.s, L.s + L.pi[L.nsuper]);
-  if (L.perm) perm_.assign(L.perm, L.perm + L.n);
-  // Round each supernode's values divided by the largest diagonal entry (the gaps CHOLMOD may leave between
-  // supernodes are copied as well): a power of the scale would leave rounding that depends on K's units, and the
-  // preconditioner then would not commute with scaling K (the corotational modulus sweep checks that it does).
+  if (L.perm) {
+    // A permutation of 0 .. n - 1.
+    std::vector<char> seen(L.n, 0);
+    for (int k = 0; k < L.n; ++k) {
+      if (L.perm[k] < 0 || L.perm[k] >= L.n || seen[L.perm[k]])
+        fail("SupernodalSingle: perm[" + std::to_string(k) + "] must be a row of [0, " + std::to_string(L.n) +
+             ") not taken before, got " + std::to_string(L.perm[k]));
+      seen[L.perm[k]] = 1;
+    }
+    perm_.assign(L.perm, L.perm + L.n);
+  }
+  // The values over the largest diagonal entry, rounded: rounded as they are, scaling K by c (L by sqrt c) would
+  // round differently unless c were a power of 4, and the preconditioner would not commute with scaling K (the
+  // corotational modulus sweep checks that it does). Only what the sweeps read, each supernode's lower
+  // trapezoid, is read and checked; the rest of x_ (the diagonal blocks' upper triangles, any gaps) is 0.
   double largest = 0.0;
   for (int k = 0; k < L.nsuper; ++k) {
     const int nrow = L.pi[k + 1] - L.pi[k];
@@ -160,14 +172,19 @@ SupernodalSingle::SupernodalSingle(const SupernodalView& L) : n_(L.n) {
       largest = std::max(largest, L.x[L.px[k] + j + static_cast<long>(j) * nrow]);
   }
   inverse_square_scale_ = 1.0 / (largest * largest);
-  const size_t nx = static_cast<size_t>(L.px[L.nsuper]);
-  x_.resize(nx);
+  x_.assign(static_cast<size_t>(L.px[L.nsuper]), 0.0f);
   constexpr double kFloatMax = std::numeric_limits<float>::max();
-  for (size_t i = 0; i < nx; ++i) {
-    const double scaled = L.x[i] / largest;
-    if (!(std::abs(scaled) <= kFloatMax))
-      fail_value("SupernodalSingle: value " + std::to_string(i), "must be finite and within float's range of the largest diagonal entry", L.x[i]);
-    x_[i] = static_cast<float>(scaled);
+  for (int k = 0; k < L.nsuper; ++k) {
+    const int nrow = L.pi[k + 1] - L.pi[k];
+    for (int j = 0; j < L.super[k + 1] - L.super[k]; ++j)
+      for (int i = j; i < nrow; ++i) {
+        const long at = L.px[k] + i + static_cast<long>(j) * nrow;
+        const double scaled = L.x[at] / largest;
+        if (!(std::abs(scaled) <= kFloatMax))
+          fail_value("SupernodalSingle: value " + std::to_string(at),
+                     "must be finite and within float's range of the largest diagonal entry", L.x[at]);
+        x_[at] = static_cast<float>(scaled);
+      }
   }
   y_.resize(n_);
   t_.resize(max_rows);

@@ -127,6 +127,10 @@ TEST(SupernodalSingle, RefusesAMalformedFactorByName) {
   EXPECT_EQ(message(g).rfind("SupernodalSingle: value 1 must be finite and within float's range of the largest "
                              "diagonal entry, got 1", 0), 0u)
       << message(g);
+  g = hand_factor({3, 2}, true, rng);
+  g.perm[1] = g.perm[0];  // not a permutation
+  EXPECT_EQ(message(g), "SupernodalSingle: perm[1] must be a row of [0, 5) not taken before, got " +
+                            std::to_string(g.perm[0]));
   g = f;
   g.super.back() = 4;
   EXPECT_EQ(message(g), "SupernodalSingle: the supernodes must cover columns 0 to n = 5, got 0 to 4");
