@@ -205,6 +205,19 @@ struct StaticSolver::Impl {
 
   int n_free() const { return static_cast<int>(dof_of.size()); }
 
+  // b (n_free) = f on the free DOFs; f must have n entries (`where` names the caller in the error).
+  void gather(const char* where, const Eigen::VectorXd& f, double* b) const {
+    if (f.size() != n)
+      throw std::invalid_argument(std::string(where) + ": f must have " + std::to_string(n) + " entries, got " +
+                                  std::to_string(f.size()));
+    for (int k = 0; k < n_free(); ++k) b[k] = f[dof_of[k]];
+  }
+  // u (n) = scale x on the free DOFs, 0 on the fixed ones.
+  void scatter(const double* x, double scale, Eigen::VectorXd& u) const {
+    u.setZero(n);
+    for (int k = 0; k < n_free(); ++k) u[dof_of[k]] = scale * x[k];
+  }
+
   // L's supernodes as SupernodalSingle reads them (L is supernodal: factorise asks CHOLMOD for it).
   detail::SupernodalView supernodes() const {
     if (!L || !L->is_super || L->itype != CHOLMOD_INT)
@@ -527,44 +540,29 @@ void StaticSolver::solve_approximately(const Eigen::VectorXd& f, Eigen::VectorXd
     return;
   }
   const SolveGuard guard(m.busy, "StaticSolver::solve_approximately");
-  if (f.size() != m.n) {
-    throw std::invalid_argument("StaticSolver::solve_approximately: f must have " + std::to_string(m.n) +
-                                " entries, got " + std::to_string(f.size()));
-  }
   // Gather the free DOFs, the two triangular solves on the rounded factor, scatter (fixed DOFs are 0).
   const int nf = m.n_free();
   m.rhs.resize(2 * static_cast<size_t>(nf));
   double* b = m.rhs.data();
   double* x = b + nf;
-  for (int k = 0; k < nf; ++k) b[k] = f[m.dof_of[k]];
+  m.gather("StaticSolver::solve_approximately", f, b);
   m.single->solve(b, x);
-  u.setZero(m.n);
-  for (int k = 0; k < nf; ++k) u[m.dof_of[k]] = inverse_scale_ * x[k];
+  m.scatter(x, inverse_scale_, u);
 }
 
 void StaticSolver::solve(const Eigen::VectorXd& f, Eigen::VectorXd& u) const {
   Impl& m = *impl_;
   const SolveGuard guard(m.busy, "StaticSolver::solve");
-  if (f.size() != m.n) {
-    throw std::invalid_argument("StaticSolver::solve: f must have " + std::to_string(m.n) + " entries, got " +
-                                std::to_string(f.size()));
-  }
   // Gather the free DOFs, back-substitute with reused workspace, scatter (fixed DOFs are 0).
   const int nf = m.n_free();
   m.rhs.resize(nf);
-  for (int k = 0; k < nf; ++k) m.rhs[k] = f[m.dof_of[k]];
+  m.gather("StaticSolver::solve", f, m.rhs.data());
   cholmod_dense B = Impl::wrap(m.rhs.data(), nf, 1);
   if (!cholmod_solve2(CHOLMOD_A, m.L, &B, nullptr, &m.X, nullptr, &m.Y, &m.E, &m.common)) {
     throw std::runtime_error("StaticSolver::solve: CHOLMOD solve failed (status " + std::to_string(m.common.status) +
                              ")");
   }
-  const double* x = static_cast<const double*>(m.X->x);
-  u.setZero(m.n);
-  if (inverse_scale_ == 1.0) {
-    for (int k = 0; k < nf; ++k) u[m.dof_of[k]] = x[k];
-  } else {
-    for (int k = 0; k < nf; ++k) u[m.dof_of[k]] = inverse_scale_ * x[k];
-  }
+  m.scatter(static_cast<const double*>(m.X->x), inverse_scale_, u);
 }
 
 Eigen::MatrixXd StaticSolver::solve_many(const Eigen::MatrixXd& F) const {

@@ -14,8 +14,8 @@ namespace lumen::physics::detail {
 namespace {
 
 // Validates one supernode of the view: its rows start with its own columns, every row is in range, and its
-// diagonal is positive and finite.
-void check_supernode(const SupernodalView& L, int k) {
+// diagonal is positive and finite. Returns its largest diagonal entry.
+double check_supernode(const SupernodalView& L, int k) {
   const std::string where = "SupernodalSingle: supernode " + std::to_string(k);
   const int c0 = L.super[k], ncol = L.super[k + 1] - c0, nrow = L.pi[k + 1] - L.pi[k];
   if (ncol < 1 || nrow < ncol || c0 < 0 || c0 + ncol > L.n)
@@ -30,10 +30,13 @@ void check_supernode(const SupernodalView& L, int k) {
       fail(where + ": row " + std::to_string(i) + " must be in [0, " + std::to_string(L.n) + "), got " +
            std::to_string(rows[i]));
   }
+  double largest = 0.0;
   for (int j = 0; j < ncol; ++j) {
     const double d = L.x[L.px[k] + j + static_cast<long>(j) * nrow];
     if (!(d > 0.0) || !std::isfinite(d)) fail_value(where + ": diagonal " + std::to_string(j), "must be > 0", d);
+    largest = std::max(largest, d);
   }
+  return largest;
 }
 
 // The sweeps are compiled for AVX2 and FMA as well as for the build's baseline, chosen at load time where the
@@ -142,8 +145,9 @@ SupernodalSingle::SupernodalSingle(const SupernodalView& L) : n_(L.n) {
     fail("SupernodalSingle: the supernodes must cover columns 0 to n = " + std::to_string(L.n) + ", got " +
          std::to_string(L.super[0]) + " to " + std::to_string(L.super[L.nsuper]));
   size_t max_rows = 0;
+  double largest = 0.0;  // the largest diagonal entry
   for (int k = 0; k < L.nsuper; ++k) {
-    check_supernode(L, k);
+    largest = std::max(largest, check_supernode(L, k));
     max_rows = std::max(max_rows, static_cast<size_t>(L.pi[k + 1] - L.pi[k]));
   }
   super_.assign(L.super, L.super + L.nsuper + 1);
@@ -165,12 +169,6 @@ SupernodalSingle::SupernodalSingle(const SupernodalView& L) : n_(L.n) {
   // round differently unless c were a power of 4, and the preconditioner would not commute with scaling K (the
   // corotational modulus sweep checks that it does). Only what the sweeps read, each supernode's lower
   // trapezoid, is read and checked; the rest of x_ (the diagonal blocks' upper triangles, any gaps) is 0.
-  double largest = 0.0;
-  for (int k = 0; k < L.nsuper; ++k) {
-    const int nrow = L.pi[k + 1] - L.pi[k];
-    for (int j = 0; j < L.super[k + 1] - L.super[k]; ++j)
-      largest = std::max(largest, L.x[L.px[k] + j + static_cast<long>(j) * nrow]);
-  }
   inverse_square_scale_ = 1.0 / (largest * largest);
   x_.assign(static_cast<size_t>(L.px[L.nsuper]), 0.0f);
   constexpr double kFloatMax = std::numeric_limits<float>::max();

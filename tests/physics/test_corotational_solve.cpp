@@ -44,6 +44,16 @@ Pressed pressed_tube(double force) {
   return p;
 }
 
+// Options that solve a frame of the press ramps below to a tight tolerance, Anderson-mixed: the reference every
+// variant of the ramp is compared with.
+CorotationalOptions tight_mixed_options() {
+  CorotationalOptions o;
+  o.tolerance = 1e-8;
+  o.max_iterations = 400;
+  o.anderson_depth = 5;
+  return o;
+}
+
 // The lagged preconditioners are factorised on the rest factorisation's symbolic analysis
 // (StaticSolver::refactorised): the warped stiffness and the projected tangent at a pressed state store the rest
 // stiffness' entries, and their refactorised solvers solve as fresh factorisations of them.
@@ -205,10 +215,7 @@ TEST(AndersonMixing, ReachesTheSameEquilibriumAsThePlainIteration) {
 TEST(CorotationalSolve, ARefusedSecantStartIsNotTriedForTheNextFourSolves) {
   const Pressed p = pressed_tube(3e-2);
   const CorotationalModel model(p.mesh, kTissue, p.fixed);
-  CorotationalOptions plain;
-  plain.tolerance = 1e-8;
-  plain.max_iterations = 400;
-  plain.anderson_depth = 5;
+  const CorotationalOptions plain = tight_mixed_options();
   CorotationalOptions secant = plain;
   secant.extrapolate = true;
   CorotationalState a, b;
@@ -237,10 +244,7 @@ TEST(CorotationalSolve, ARefusedSecantStartIsNotTriedForTheNextFourSolves) {
 TEST(AndersonMixing, HistoryCarriedAcrossSolvesReachesTheSameEquilibria) {
   const Pressed p = pressed_tube(3e-2);
   const CorotationalModel model(p.mesh, kTissue, p.fixed);
-  CorotationalOptions fresh;
-  fresh.tolerance = 1e-8;
-  fresh.max_iterations = 400;
-  fresh.anderson_depth = 5;
+  CorotationalOptions fresh = tight_mixed_options();
   fresh.extrapolate = true;
   fresh.refactor_cg_iterations = 5;
   CorotationalOptions carried = fresh;

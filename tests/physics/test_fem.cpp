@@ -144,6 +144,14 @@ Eigen::MatrixXd restrict(const Eigen::MatrixXd& K, const std::vector<char>& fixe
   return Kf;
 }
 
+// The fixed mask (3n, 1 = fixed) of whole nodes.
+std::vector<char> whole_node_mask(const std::vector<int>& nodes, int n_nodes) {
+  std::vector<char> fixed(3 * n_nodes, 0);
+  for (int v : nodes)
+    for (int c = 0; c < 3; ++c) fixed[3 * v + c] = 1;
+  return fixed;
+}
+
 // A load of standard normal entries (n_dofs), and a vector's entries on the free DOFs (in their order).
 Eigen::VectorXd random_load(int n_dofs, std::mt19937& rng) {
   std::normal_distribution<double> d;
@@ -204,9 +212,7 @@ TEST(StaticSolver, PositiveDefiniteWithEndsFixedAndMatchesDenseCholesky) {
   EXPECT_GT(solver.factor_nonzeros(), 0);
 
   // Independent twin: Eigen dense Cholesky of K on the free DOFs succeeds; x^T K x > 0 for random x.
-  std::vector<char> fixed(3 * n, 0);
-  for (int v : fixed_nodes)
-    for (int c = 0; c < 3; ++c) fixed[3 * v + c] = 1;
+  const std::vector<char> fixed = whole_node_mask(fixed_nodes, n);
   for (int d = 0; d < 3 * n; ++d) EXPECT_EQ(solver.is_fixed_dof(d), fixed[d] != 0);
   std::vector<int> free;
   const Eigen::MatrixXd Kf = restrict(Eigen::MatrixXd(K), fixed, free);
@@ -253,9 +259,7 @@ TEST(StaticSolver, ScaledViewSolvesTheScaledMatrixOnTheSameFactor) {
   const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
   const StaticSolver solver(K, mesh.node_set(kStartEnd));
   const int n = mesh.n_nodes();
-  std::vector<char> fixed(3 * n, 0);
-  for (int v : mesh.node_set(kStartEnd))
-    for (int c = 0; c < 3; ++c) fixed[3 * v + c] = 1;
+  const std::vector<char> fixed = whole_node_mask(mesh.node_set(kStartEnd), n);
   std::vector<int> free;
   const double c = 1600.0;  // e.g. 1 / h^2 at 40 fps
   const Eigen::LLT<Eigen::MatrixXd> llt(restrict(Eigen::MatrixXd(c * K), fixed, free));
@@ -304,9 +308,7 @@ TEST(StaticSolver, RefactorisedOnTheSameAnalysisEqualsAFreshFactorisation) {
   EXPECT_EQ(refactorised.n_free_dofs(), solver.n_free_dofs());
   EXPECT_EQ(refactorised.factor_nonzeros(), solver.factor_nonzeros());
   EXPECT_LE((Eigen::MatrixXd(refactorised.matrix()) - Eigen::MatrixXd(K2)).norm(), 0.0);
-  std::vector<char> fixed(3 * n, 0);
-  for (int v : fixed_nodes)
-    for (int c = 0; c < 3; ++c) fixed[3 * v + c] = 1;
+  const std::vector<char> fixed = whole_node_mask(fixed_nodes, n);
   std::vector<int> free;
   const Eigen::LLT<Eigen::MatrixXd> llt(restrict(Eigen::MatrixXd(K2), fixed, free));
   ASSERT_EQ(llt.info(), Eigen::Success);
@@ -362,9 +364,7 @@ TEST(StaticSolver, SinglePrecisionCopySolvesToFloatPrecisionAndSymmetrically) {
   const std::vector<int>& fixed_nodes = mesh.node_set(kStartEnd);
   StaticSolver solver(K, fixed_nodes);
   const int n = mesh.n_nodes();
-  std::vector<char> fixed(3 * n, 0);
-  for (int v : fixed_nodes)
-    for (int c = 0; c < 3; ++c) fixed[3 * v + c] = 1;
+  const std::vector<char> fixed = whole_node_mask(fixed_nodes, n);
   std::vector<int> free;
   const Eigen::LLT<Eigen::MatrixXd> llt(restrict(Eigen::MatrixXd(K), fixed, free));
   ASSERT_EQ(llt.info(), Eigen::Success);
@@ -483,9 +483,7 @@ TEST(StaticSolver, AFactorisationOnASecondThreadWhileTheFirstSolvesIsExact) {
   const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
   std::vector<int> fixed_nodes = mesh.node_set(kStartEnd);
   fixed_nodes.insert(fixed_nodes.end(), mesh.node_set(kStopEnd).begin(), mesh.node_set(kStopEnd).end());
-  std::vector<char> fixed(K.rows(), 0);
-  for (int v : fixed_nodes)
-    for (int c = 0; c < 3; ++c) fixed[3 * v + c] = 1;
+  const std::vector<char> fixed = whole_node_mask(fixed_nodes, mesh.n_nodes());
   auto free_residual = [&](const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& x, const Eigen::VectorXd& b) {
     Eigen::VectorXd r = A * x - b;
     double rn = 0.0, bn = 0.0;
