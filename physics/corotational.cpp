@@ -12,6 +12,9 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+
+#include <sys/resource.h>
+#include <unistd.h>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -46,6 +49,10 @@ constexpr double kArmijo = 1e-4;
 // grows with it. (The iterates past the start are never collided or committed, so a generous bound costs only
 // steps.)
 constexpr double kDivergenceGrowth = 1e4;
+// Nice value of the background factorisation's thread (Linux: per thread). A session has up to three busy threads on
+// two cores (the frame's, the frame writer's and this one); the frame's must not be the one that waits, and a
+// factorisation landing a frame later only lags the preconditioner.
+constexpr int kBackgroundFactorisationNice = 19;
 
 // Cofactor matrix of X (X^-T det X): its columns are cross products of the columns of X.
 [[gnu::always_inline]] inline Eigen::Matrix3d cofactor(const Eigen::Matrix3d& X) {
@@ -1026,7 +1033,12 @@ void start_factorisation(const CorotationalModel& model, const CorotationalOptio
     return Solver(std::make_shared<StaticSolver>(K, fixed_nodes));
   };
   if (options.refactor_in_background) {
-    state.pending = std::async(std::launch::async, factorise, state.rotations, std::move(twist));
+    auto in_background = [factorise](std::vector<Eigen::Matrix3d> R, std::vector<TwistModes> modes) {
+      // The lowest priority on this thread only (a scheduling hint: if refused, it runs at the default).
+      setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kBackgroundFactorisationNice);
+      return factorise(std::move(R), std::move(modes));
+    };
+    state.pending = std::async(std::launch::async, in_background, state.rotations, std::move(twist));
     return;
   }
   try {
