@@ -1003,6 +1003,7 @@ void adopt_finished_factorisation(CorotationalState& state, CorotationalResult& 
   if (!state.pending.valid() || state.pending.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return;
   try {
     state.preconditioner = state.pending.get();  // (get() leaves pending invalid, failed or not)
+    state.preconditioner_node_rotations = std::move(state.pending_node_rotations);
   } catch (const std::exception&) {
     ++result.refactor_failures;
   }
@@ -1032,7 +1033,11 @@ void start_factorisation(const CorotationalModel& model, const CorotationalOptio
     if (rest.has_pattern(K)) return Solver(std::make_shared<StaticSolver>(rest.refactorised(std::move(K))));
     return Solver(std::make_shared<StaticSolver>(K, fixed_nodes));
   };
+  // The nodes' rotations the factor is taken at (for preconditioning it turned by their rotation since).
+  std::vector<Eigen::Matrix3d> node_R;
+  if (options.rotate_preconditioner) el.node_rotations(state.rotations, node_R);
   if (options.refactor_in_background) {
+    state.pending_node_rotations = std::move(node_R);
     auto in_background = [factorise](std::vector<Eigen::Matrix3d> R, std::vector<TwistModes> modes) {
       // The lowest priority on this thread only (a scheduling hint: if refused, it runs at the default).
       setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kBackgroundFactorisationNice);
@@ -1043,6 +1048,7 @@ void start_factorisation(const CorotationalModel& model, const CorotationalOptio
   }
   try {
     state.preconditioner = factorise(state.rotations, std::move(twist));
+    state.preconditioner_node_rotations = std::move(node_R);
   } catch (const std::exception&) {
     ++result.refactor_failures;  // not positive definite or out of memory: keep the current preconditioner
   }
@@ -1221,10 +1227,18 @@ CorotationalResult solve_corotational(const CorotationalModel& model, const Eige
     // accurate than needed.
     auto linear_step = [&](bool with_tangent, bool may_refactor) {
       const StaticSolver& preconditioner = state.preconditioner ? *state.preconditioner : model.solver();
-      const bool rotate = options.rotate_preconditioner && !state.preconditioner;
+      // (A lagged factor turns by the nodes' rotations since it was factorised, R_now R_then^T; one factorised
+      // without them stays as it is.)
+      const std::vector<Eigen::Matrix3d>& then = state.preconditioner_node_rotations;
+      const bool rotate = options.rotate_preconditioner &&
+                          (!state.preconditioner || static_cast<int>(then.size()) == el.n_nodes());
       const WarpedSystem system{&el, &state.rotations, nullptr, 0.0, 1.0, contacts, &residual.pushing(),
                                 with_tangent ? &state.twist : nullptr};
-      if (rotate) el.node_rotations(state.rotations, node_R);
+      if (rotate) {
+        el.node_rotations(state.rotations, node_R);
+        if (state.preconditioner)
+          for (size_t v = 0; v < node_R.size(); ++v) node_R[v] = node_R[v] * then[v].transpose();
+      }
       const double cg_tol =
           std::max(options.cg_tolerance, std::min(0.5, 0.5 * options.tolerance * residual.scale() / residual.norm()));
       du.resize(0);

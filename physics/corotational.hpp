@@ -256,7 +256,8 @@ struct CorotationalOptions {
   // all its linear steps; the solve stops before a step that could pass it, not converged, and the next solve
   // goes on from its iterate. 0 = no bound, else >= 2 (a PCG step takes at least two); PCG steps only.
   int max_back_substitutions = 0;
-  // Precondition with Rn K^-1 Rn^T (per-node average rotations) instead of K^-1.
+  // Precondition with Rn K^-1 Rn^T (per-node average rotations) instead of K^-1; for a lagged factorisation,
+  // Rn the nodes' rotations since it was factorised.
   bool rotate_preconditioner = false;
   // Start from the secant prediction u + (u - u_previous) (the last two solutions of a frame sequence) instead
   // of u, when that lowers the residual (one extra evaluation of the rotations and forces); after a refusal the
@@ -303,6 +304,10 @@ struct CorotationalState {
   // and a factorisation in progress on a background thread (valid() while one runs).
   std::shared_ptr<const StaticSolver> preconditioner;
   std::future<std::shared_ptr<const StaticSolver>> pending;
+  // With options.rotate_preconditioner: the per-node rotations at which `preconditioner` and `pending` were
+  // factorised (n_nodes each; empty: identity, the rest factorisation), so that the solves precondition with
+  // the factor turned by each node's rotation since then.
+  std::vector<Eigen::Matrix3d> preconditioner_node_rotations, pending_node_rotations;
 };
 
 // Result of a quasi-static solve.
