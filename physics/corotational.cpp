@@ -12,12 +12,12 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
-
-#include <sys/resource.h>
-#include <unistd.h>
 #include <stdexcept>
 #include <string>
 #include <utility>
+
+#include <sys/resource.h>  // setpriority (the background factorisation's thread)
+#include <unistd.h>        // gettid
 
 namespace lumen::physics {
 
