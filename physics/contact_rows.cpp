@@ -100,14 +100,24 @@ const Eigen::VectorXd& CouplingMatrix::column(int s) {
   if (s < 0 || s >= m) fail("CouplingMatrix::column: s must be in [0, " + std::to_string(m) + "), got " + std::to_string(s));
   Eigen::VectorXd& col = columns_[s];
   if (col.size() == m) return col;
-  const SurfaceCompliance& sc = *compliance_;
+  SurfaceCompliance& sc = *compliance_;
   // y_a = C_{a, .} h_s for every touched node a: sum over the row's entries (node b, w_b n_s) of C_ab w_b n_s.
   y_.setZero();
   const int nt = static_cast<int>(touched_.size());
+  bool half = false;  // (a lazy set: its part through z = sum of Y_b w_b n_s, below)
   for (int e = entry_begin_[s]; e < entry_begin_[s + 1]; ++e) {
     const int b = touched_[entry_slot_[e]], ib = touched_set_index_[entry_slot_[e]];
     const Eigen::Vector3d& wn = entry_wn_[e];
-    if (ib >= 0) {
+    if (ib >= 0 && sc.lazy_) {
+      // b in a lazy set: its half columns into z for the touched set nodes; the others' cached columns.
+      sc.scatter_half(ib, wn, sc.half_z_);
+      half = true;
+      for (int t = 0; t < nt; ++t)
+        if (touched_set_index_[t] < 0) {
+          const Eigen::MatrixXd& X = sc.extra_cols_[sc.extra_index_[touched_[t]]];  // 3n x 3, columns of a
+          y_.row(t) += (X.middleRows<3>(3 * b).transpose() * wn).transpose();
+        }
+    } else if (ib >= 0) {
       // b in the set: rows of its column block for touched nodes in the set; for the others, the cached
       // columns of a (C symmetric: C_ab = (C_ba)^T).
       const Eigen::Ref<const Eigen::MatrixXd> Cb = sc.set_block(ib);  // 3s x 3
@@ -131,6 +141,13 @@ const Eigen::VectorXd& CouplingMatrix::column(int s) {
       const Eigen::MatrixXd& X = sc.extra_cols_[sc.extra_index_[b]];  // 3n x 3
       for (int t = 0; t < nt; ++t) y_.row(t) += (X.middleRows<3>(3 * touched_[t]) * wn).transpose();
     }
+  }
+  // The lazy set's part: y_a += Y_a^T z for the touched set nodes a (C_ab = Y_a^T Y_b), then z back to 0.
+  if (half) {
+    for (int t = 0; t < nt; ++t)
+      if (touched_set_index_[t] >= 0) y_.row(t) += sc.gather_half(touched_set_index_[t], sc.half_z_).transpose();
+    for (int e = entry_begin_[s]; e < entry_begin_[s + 1]; ++e)
+      if (touched_set_index_[entry_slot_[e]] >= 0) sc.clear_half(touched_set_index_[entry_slot_[e]], sc.half_z_);
   }
   // A_rs = sum over row r's entries of (w n_r) . y_slot.
   col.resize(m);

@@ -189,6 +189,17 @@ struct StaticSolver::Impl {
   mutable cholmod_dense* X = nullptr;
   mutable cholmod_dense* Y = nullptr;
   mutable cholmod_dense* E = nullptr;
+  // Partial solves (half_column): a second factorisation of the matrix, ordered by nested dissection, the free
+  // index of each of its columns inverted (position), the one-entry right-hand side (dense and its pattern), and
+  // CHOLMOD's outputs and workspace. Made on first use, under the solve guard.
+  mutable cholmod_factor* half_L = nullptr;
+  mutable std::vector<int> position;
+  mutable cholmod_dense* half_b = nullptr;
+  mutable cholmod_sparse* half_bset = nullptr;
+  mutable cholmod_sparse* half_xset = nullptr;
+  mutable cholmod_dense* half_x = nullptr;
+  mutable cholmod_dense* half_y = nullptr;
+  mutable cholmod_dense* half_e = nullptr;
   // Whether a solve is running (the workspace and the CHOLMOD common above are one per factorisation).
   mutable std::atomic<bool> busy{false};
 
@@ -197,6 +208,13 @@ struct StaticSolver::Impl {
     cholmod_free_dense(&X, &common);
     cholmod_free_dense(&Y, &common);
     cholmod_free_dense(&E, &common);
+    cholmod_free_factor(&half_L, &common);
+    cholmod_free_dense(&half_b, &common);
+    cholmod_free_sparse(&half_bset, &common);
+    cholmod_free_sparse(&half_xset, &common);
+    cholmod_free_dense(&half_x, &common);
+    cholmod_free_dense(&half_y, &common);
+    cholmod_free_dense(&half_e, &common);
     cholmod_free_factor(&L, &common);
     cholmod_finish(&common);
   }
@@ -321,6 +339,49 @@ struct StaticSolver::Impl {
           << "); the fixed DOFs must remove all rigid motion";
       throw std::invalid_argument(msg.str());
     }
+  }
+
+  // half_column's factorisation (nested dissection, supernodal LL^T) and workspace, unless made already.
+  void prepare_half() {
+    if (half_L) return;
+    cholmod_sparse* A = lower_matrix();
+    const int nmethods = common.nmethods, ordering = common.method[0].ordering;
+    common.nmethods = 1;
+    common.method[0].ordering = CHOLMOD_METIS;
+    common.supernodal = CHOLMOD_SUPERNODAL;
+    half_L = cholmod_analyze(A, &common);
+    common.nmethods = nmethods;
+    common.method[0].ordering = ordering;
+    use_one_blas_thread();
+    const bool ok = half_L && cholmod_factorize(A, half_L, &common) && common.status == CHOLMOD_OK;
+    cholmod_free_sparse(&A, &common);
+    if (!ok) {
+      cholmod_free_factor(&half_L, &common);
+      throw std::runtime_error("StaticSolver::half_column: CHOLMOD factorisation failed (status " +
+                               std::to_string(common.status) + ")");
+    }
+    const int nf = n_free();
+    position.resize(nf);
+    const int* perm = static_cast<const int*>(half_L->Perm);
+    for (int j = 0; j < nf; ++j) position[perm[j]] = j;
+    half_b = cholmod_zeros(nf, 1, CHOLMOD_REAL, &common);
+    half_bset = cholmod_allocate_sparse(nf, 1, 1, 1, 1, 0, CHOLMOD_PATTERN, &common);
+    if (!half_b || !half_bset)
+      throw std::runtime_error("StaticSolver::half_column: CHOLMOD allocation failed (status " +
+                               std::to_string(common.status) + ")");
+    static_cast<int*>(half_bset->p)[0] = 0;
+    static_cast<int*>(half_bset->p)[1] = 1;
+  }
+
+  // y = L^-1 e_j on half_L (j in its order), on the reach of j only: half_xset holds the pattern, half_x the values.
+  void half_solve(int j) {
+    static_cast<double*>(half_b->x)[j] = 1.0;
+    static_cast<int*>(half_bset->i)[0] = j;
+    const int ok = cholmod_solve2(CHOLMOD_L, half_L, half_b, half_bset, &half_x, &half_xset, &half_y, &half_e, &common);
+    static_cast<double*>(half_b->x)[j] = 0.0;
+    if (!ok)
+      throw std::runtime_error("StaticSolver::half_column: CHOLMOD partial solve failed (status " +
+                               std::to_string(common.status) + ")");
   }
 
   // Copies the lower triangle of K on the free DOFs into CHOLMOD, analyses and factorises it (supernodal LL^T).
@@ -563,6 +624,37 @@ void StaticSolver::solve(const Eigen::VectorXd& f, Eigen::VectorXd& u) const {
                              ")");
   }
   m.scatter(static_cast<const double*>(m.X->x), inverse_scale_, u);
+}
+
+void StaticSolver::prepare_half_columns() const {
+  Impl& m = *impl_;
+  const SolveGuard guard(m.busy, "StaticSolver::prepare_half_columns");
+  m.prepare_half();
+  if (m.n_free() > 0) m.half_solve(0);  // (CHOLMOD's first partial solve sets up its workspace)
+}
+
+void StaticSolver::half_column(int dof, std::vector<int>& index, std::vector<double>& value) const {
+  Impl& m = *impl_;
+  const SolveGuard guard(m.busy, "StaticSolver::half_column");
+  if (dof < 0 || dof >= m.n)
+    throw std::invalid_argument("StaticSolver::half_column: dof must be in [0, " + std::to_string(m.n) + "), got " +
+                                std::to_string(dof));
+  index.clear();
+  value.clear();
+  const int k = m.free_of[dof];
+  if (k < 0) return;
+  // L y = e_k in the factor's order (no permutation: sys L), then its reach's entries, ascending, scaled by
+  // sqrt(inverse scale) (L L^T is the factorised matrix, whose inverse this solver returns times inverse_scale_).
+  m.prepare_half();
+  m.half_solve(m.position[k]);
+  const int* xp = static_cast<const int*>(m.half_xset->p);
+  const int* xi = static_cast<const int*>(m.half_xset->i);
+  const double* x = static_cast<const double*>(m.half_x->x);
+  const double scale = std::sqrt(inverse_scale_);
+  index.assign(xi + xp[0], xi + xp[1]);
+  std::sort(index.begin(), index.end());
+  value.resize(index.size());
+  for (size_t e = 0; e < index.size(); ++e) value[e] = scale * x[index[e]];
 }
 
 Eigen::MatrixXd StaticSolver::solve_many(const Eigen::MatrixXd& F) const {

@@ -46,7 +46,10 @@ SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vect
   // A set too large for its matrix keeps its columns per node, solved on first use.
   lazy_ = 9.0 * s * s * sizeof(double) > static_cast<double>(max_set_matrix_bytes);
   if (lazy_) {
-    set_cols_.resize(s);
+    half_.resize(s);
+    half_solved_.assign(s, 0);
+    half_z_.assign(solver.n_free_dofs(), 0.0);
+    solver.prepare_half_columns();  // (now, not at the first contact)
     return;
   }
   // C by blocks of unit columns: solve, keep the rows of the set (and all rows when they fit the budget).
@@ -88,14 +91,59 @@ const Eigen::MatrixXd& SurfaceCompliance::matrix() const {
 
 int SurfaceCompliance::n_set_columns() const {
   if (!lazy_) return static_cast<int>(nodes_.size());
-  return static_cast<int>(std::count_if(set_cols_.begin(), set_cols_.end(), [](const Eigen::MatrixXd& c) { return c.size() > 0; }));
+  return static_cast<int>(std::count(half_solved_.begin(), half_solved_.end(), 1));
 }
 
 Eigen::Ref<const Eigen::MatrixXd> SurfaceCompliance::set_block(int a) const {
-  if (!lazy_) return C_.middleCols(3 * a, 3);
-  if (set_cols_[a].size() == 0)
-    throw std::logic_error("SurfaceCompliance: the columns of set node " + std::to_string(nodes_[a]) + " are not at hand");
-  return set_cols_[a];
+  if (lazy_)
+    throw std::logic_error("SurfaceCompliance: set node " + std::to_string(nodes_[a]) + " has half columns (lazy)");
+  return C_.middleCols(3 * a, 3);
+}
+
+void SurfaceCompliance::solve_half_columns(int a) {
+  HalfColumns& h = half_[a];
+  h.index.clear();
+  h.value.clear();
+  std::vector<int> index;
+  std::vector<double> value;
+  for (int c = 0; c < 3; ++c) {
+    solver_->half_column(3 * nodes_[a] + c, index, value);
+    h.index.insert(h.index.end(), index.begin(), index.end());
+    h.value.insert(h.value.end(), value.begin(), value.end());
+    h.start[c + 1] = static_cast<int>(h.index.size());
+  }
+  half_solved_[a] = 1;
+}
+
+void SurfaceCompliance::scatter_half(int a, const Eigen::Vector3d& w, std::vector<double>& z) const {
+  const HalfColumns& h = half_[a];
+  for (int c = 0; c < 3; ++c)
+    for (int e = h.start[c]; e < h.start[c + 1]; ++e) z[h.index[e]] += h.value[e] * w[c];
+}
+
+Eigen::Vector3d SurfaceCompliance::gather_half(int a, const std::vector<double>& z) const {
+  const HalfColumns& h = half_[a];
+  Eigen::Vector3d y = Eigen::Vector3d::Zero();
+  for (int c = 0; c < 3; ++c)
+    for (int e = h.start[c]; e < h.start[c + 1]; ++e) y[c] += h.value[e] * z[h.index[e]];
+  return y;
+}
+
+void SurfaceCompliance::clear_half(int a, std::vector<double>& z) const {
+  for (int i : half_[a].index) z[i] = 0.0;
+}
+
+Eigen::Matrix3d SurfaceCompliance::half_block(int a, int b) {
+  if (!half_solved_[a]) solve_half_columns(a);
+  if (!half_solved_[b]) solve_half_columns(b);
+  // Column j of C_ab: Y_a^T (Y_b e_j), through the zeroed workspace.
+  Eigen::Matrix3d block;
+  for (int j = 0; j < 3; ++j) {
+    scatter_half(b, Eigen::Vector3d::Unit(j), half_z_);
+    block.col(j) = gather_half(a, half_z_);
+    clear_half(b, half_z_);
+  }
+  return block;
 }
 
 namespace {
@@ -128,6 +176,17 @@ void SurfaceCompliance::displacement(const Eigen::VectorXd& f, Eigen::VectorXd& 
   const int n = solver_->n_dofs();
   if (f.size() != n) fail("SurfaceCompliance::displacement: f must have " + std::to_string(n) + " entries, got " +
                           std::to_string(f.size()));
+  // A lazy set's last back-substitution (the response's check) for the same forces, plus the cached whole-mesh
+  // columns of nodes whose load changed since (the held probe points' forces): exact, without a solve.
+  if (lazy_ && last_f_.size() == n) {
+    const Eigen::VectorXd change = f - last_f_;
+    const std::vector<int> changed = loaded_nodes(change);
+    if (std::all_of(changed.begin(), changed.end(), [&](int v) { return extra_index_[v] >= 0; })) {
+      du = last_du_;
+      for (int v : changed) du.noalias() += extra_cols_[extra_index_[v]] * change.segment<3>(3 * v);
+      return;
+    }
+  }
   if (needs_solve(f)) {
     if (keeps_view_rows() && loads_only_view(f)) {
       displacement_on_view(f, du);
@@ -165,27 +224,28 @@ void SurfaceCompliance::ensure_columns(const std::vector<int>& nodes) {
   for (int v : nodes) {
     check_node(v, "node");
     const int a = index_[v];
-    const bool at_hand = a >= 0 ? !lazy_ || set_cols_[a].size() > 0 : extra_index_[v] >= 0;
+    const bool at_hand = a >= 0 ? !lazy_ || half_solved_[a] : extra_index_[v] >= 0;
     if (!at_hand && std::find(missing.begin(), missing.end(), v) == missing.end()) missing.push_back(v);
   }
+  // A lazy set's nodes: their half columns, each a partial forward solve.
+  missing.erase(std::remove_if(missing.begin(), missing.end(), [&](int v) {
+                  if (index_[v] < 0) return false;
+                  solve_half_columns(index_[v]);
+                  return true;
+                }),
+                missing.end());
   if (missing.empty()) return;
-  // One multi-column solve for all of them: a set node keeps the set's rows, another the whole mesh's.
-  const int n = solver_->n_dofs(), s = static_cast<int>(nodes_.size()), nm = static_cast<int>(missing.size());
+  // One multi-column solve for the nodes outside the set: their whole-mesh columns.
+  const int n = solver_->n_dofs(), nm = static_cast<int>(missing.size());
   Eigen::MatrixXd F = Eigen::MatrixXd::Zero(n, 3 * nm);
   for (int k = 0; k < nm; ++k)
     for (int c = 0; c < 3; ++c) F(3 * missing[k] + c, 3 * k + c) = 1.0;
   const Eigen::MatrixXd X = solver_->solve_many(F);
   for (int k = 0; k < nm; ++k) {
     const int v = missing[k];
-    if (index_[v] >= 0) {
-      Eigen::MatrixXd& col = set_cols_[index_[v]];
-      col.resize(3 * s, 3);
-      for (int a = 0; a < s; ++a) col.middleRows<3>(3 * a) = X.block(3 * nodes_[a], 3 * k, 3, 3);
-    } else {
-      extra_index_[v] = static_cast<int>(extra_nodes_.size());
-      extra_nodes_.push_back(v);
-      extra_cols_.push_back(X.middleCols(3 * k, 3));
-    }
+    extra_index_[v] = static_cast<int>(extra_nodes_.size());
+    extra_nodes_.push_back(v);
+    extra_cols_.push_back(X.middleCols(3 * k, 3));
   }
 }
 
@@ -193,11 +253,8 @@ Eigen::Matrix3d SurfaceCompliance::block(int node_a, int node_b) {
   check_node(node_a, "node_a");
   check_node(node_b, "node_b");
   const int ia = index_[node_a], ib = index_[node_b];
-  // Both in the set: the set's column block of b.
-  if (ia >= 0 && ib >= 0) {
-    ensure_columns({node_b});
-    return set_block(ib).middleRows<3>(3 * ia);
-  }
+  // Both in the set: the set's column block of b, or the product of their half columns.
+  if (ia >= 0 && ib >= 0) return lazy_ ? half_block(ia, ib) : Eigen::Matrix3d(set_block(ib).middleRows<3>(3 * ia));
   // Otherwise a cached column of b (rows of a), or of a transposed (C is symmetric).
   if (ib < 0) {
     ensure_columns({node_b});
@@ -249,6 +306,16 @@ void SurfaceCompliance::displacement_on_set(const Eigen::VectorXd& f, Eigen::Vec
   const int n = solver_->n_dofs(), s = static_cast<int>(nodes_.size());
   if (f.size() != n) fail("SurfaceCompliance::displacement_on_set: f must have " + std::to_string(n) +
                           " entries, got " + std::to_string(f.size()));
+  // Lazy: one back-substitution (kept for displacement() of the same forces), on the set and the listed nodes.
+  if (lazy_) {
+    for (int v : also) check_node(v, "also");
+    solver_->solve(f, last_du_);
+    last_f_ = f;
+    du.setZero(n);
+    for (int v : nodes_) du.segment<3>(3 * v) = last_du_.segment<3>(3 * v);
+    for (int v : also) du.segment<3>(3 * v) = last_du_.segment<3>(3 * v);
+    return;
+  }
   // Loaded nodes; columns of the ones outside the set, and of the listed outside nodes, at hand.
   const std::vector<int> loaded = loaded_nodes(f);
   std::vector<int> wanted = loaded;  // the loaded nodes, and the listed ones outside the set

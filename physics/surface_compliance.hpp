@@ -19,8 +19,11 @@ class CouplingMatrix;
 // short sum of columns instead of a back-substitution (see displacement()).
 //
 // C itself (3s x 3s) is solved for at construction when it takes at most max_set_matrix_bytes; a larger set (a
-// whole organ's wall: 4,200 nodes of the whole colon are 1.3 GB) keeps its columns per node, solved on first use
-// (a contact's nodes, in one multi-column solve), with the same values to round-off. The default budget, 1 GiB,
+// whole organ's wall: 4,200 nodes of the whole colon are 1.3 GB) is lazy: each node keeps half columns
+// y = L^-1 P e (StaticSolver::half_column, solved on first use), and a block is C_ab = Y_a^T Y_b, with the same
+// values to round-off. A half column is a sparse forward solve over the node's path in the elimination tree (on the
+// whole colon's factor a small part of it), where a column of C needs both whole sweeps (3.5 ms a column there); a
+// lazy set's displacements are one back-substitution, kept for the whole-mesh correction of the same forces. The default budget, 1 GiB,
 // keeps the shipped real-time scenes eager: lazily, their first-contact frames pay for the columns (the
 // oesophagus scope, 525 MB eager: 2 frames over budget, response max 72 ms, against 0 over and 5.6 ms; its start
 // 1.8 s instead of 20 s).
@@ -45,16 +48,16 @@ class SurfaceCompliance {
   // C, 3s x 3s, metres per newton: C(3a + i, 3b + j) = d u(nodes[a], i) / d f(nodes[b], j). Only when it was
   // solved for at construction (std::logic_error otherwise: see lazy()).
   const Eigen::MatrixXd& matrix() const;
-  // Whether the set's columns are solved per node on first use instead of at construction.
+  // Whether the set keeps half columns per node, solved on first use, instead of C solved at construction.
   bool lazy() const { return lazy_; }
-  // Number of set nodes whose columns are at hand (all of them unless lazy).
+  // Number of set nodes whose columns (lazy: half columns) are at hand (all of them unless lazy).
   int n_set_columns() const;
 
   // 3 x 3 block d u(node_a) / d f(node_b) for any two mesh nodes; columns of nodes outside the set are
   // solved for and cached on first use.
   Eigen::Matrix3d block(int node_a, int node_b);
-  // Solves for the columns of every listed node not at hand yet (outside the set and not cached, or in a lazy set
-  // and not solved), in one solve_many.
+  // Solves for the columns of every listed node not at hand yet: outside the set and not cached (in one
+  // solve_many), or in a lazy set without its half columns.
   void ensure_columns(const std::vector<int>& nodes);
   // Number of nodes outside the set whose columns are cached.
   int n_cached_nodes() const { return static_cast<int>(extra_nodes_.size()); }
@@ -85,20 +88,38 @@ class SurfaceCompliance {
   // thread while this object is not used. Needs keeps_view_rows() (std::logic_error otherwise).
   void complete_interior(Eigen::VectorXd& du) const;
   // du = K^-1 f on the set nodes and on the nodes listed in `also` only, every other entry 0 (3n, metres): what
-  // a check of the set (the inner wall) needs, for a fraction of the whole-mesh cost.
+  // a check of the set (the inner wall) needs, for a fraction of the whole-mesh cost. Lazy: one back-substitution,
+  // whose whole-mesh result displacement() reuses for the same f (or one changed only on nodes whose whole-mesh
+  // columns are cached) without solving again.
   void displacement_on_set(const Eigen::VectorXd& f, Eigen::VectorXd& du, const std::vector<int>& also = {});
 
  private:
   void check_node(int node, const char* what) const;
-  // Column block of set node a (position in nodes_): 3s x 3, C's columns 3a .. 3a + 2; it must be at hand.
+  // Column block of set node a (position in nodes_): 3s x 3, C's columns 3a .. 3a + 2 (not lazy).
   Eigen::Ref<const Eigen::MatrixXd> set_block(int a) const;
+  // Half columns of a lazy set's node: 3 sparse columns over the factor's rows, column c the entries
+  // [start[c], start[c + 1]) of index (ascending) and value.
+  struct HalfColumns {
+    int start[4] = {0, 0, 0, 0};
+    std::vector<int> index;
+    std::vector<double> value;
+  };
+  void solve_half_columns(int a);  // half_[a] of set node a (position in nodes_)
+  // z (n_free) += Y_a w; y = Y_a^T z (3); C_ab = Y_a^T Y_b (3 x 3).
+  void scatter_half(int a, const Eigen::Vector3d& w, std::vector<double>& z) const;
+  Eigen::Vector3d gather_half(int a, const std::vector<double>& z) const;
+  Eigen::Matrix3d half_block(int a, int b);
+  void clear_half(int a, std::vector<double>& z) const;  // z = 0 on Y_a's pattern
   friend class CouplingMatrix;
   const StaticSolver* solver_;
   std::vector<int> nodes_;
   std::vector<int> index_;                   // mesh node -> position in nodes_, or -1
   bool lazy_ = false;
   Eigen::MatrixXd C_;                        // 3s x 3s, m/N (empty when lazy)
-  std::vector<Eigen::MatrixXd> set_cols_;    // lazy: per set node, 3s x 3 (empty until solved), m/N
+  std::vector<HalfColumns> half_;            // lazy: per set node, its half columns (sqrt(m/N))
+  std::vector<char> half_solved_;            // lazy: per set node, 1 when half_ holds them
+  std::vector<double> half_z_;               // lazy: workspace over the factor's rows (n_free), kept 0 between uses
+  Eigen::VectorXd last_f_, last_du_;         // lazy: the last back-substitution's forces and whole-mesh result
   Eigen::MatrixXd Kc_;                       // 3n x 3s whole-mesh columns of the set DOFs, m/N (or empty)
   std::vector<int> view_nodes_;              // nodes outside the set whose rows are kept (sorted)
   Eigen::MatrixXd V_;                        // 3v x 3s, rows of view_nodes_ in the set's columns, m/N (or empty)

@@ -3,8 +3,8 @@
 --render), runs alternating between the binaries, in the order old new new old old new ... (ABBA), so that drifts
 of the machine and a first run's cold caches hit both alike. Per binary and
 scene, the median over runs of each run's physics median and p99, of physics + collision + response per frame
-(pcr) median and p99, of the whole frame's median and p99, and of the back-substitutions over the session (the
-frames' cg_iterations summed). Written as CSV (--out) with the command in its header.
+(pcr) median and p99, of the whole frame's median, p99 and maximum, of the response's maximum, and of the
+back-substitutions over the session (the frames' cg_iterations summed). Written as CSV (--out) with the command in its header.
 
 Example (the supernodal solves, docs/bench_supernodal_solves.csv):
   tools/bench_ab.py --old /tmp/old/lumen --new build/lumen --old-label simplicial --new-label supernodal \\
@@ -49,6 +49,7 @@ def one_run(binary, scene, render):
     return {"physics_median_ms": physics["median_ms"], "physics_p99_ms": physics["p99_ms"],
             "pcr_median_ms": statistics.median(pcr), "pcr_p99_ms": percentile(pcr, 99),
             "total_median_ms": statistics.median(total), "total_p99_ms": percentile(total, 99),
+            "total_max_ms": max(total), "response_max_ms": max(f["response_ms"] for f in frames),
             "back_substitutions": sum(f["cg_iterations"] for f in frames),
             "fallback_frames": report["fallback_frames"], "over_budget_frames": report["over_budget_frames"]}
 

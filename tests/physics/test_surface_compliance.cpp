@@ -68,6 +68,19 @@ TEST(SurfaceCompliance, LazySetColumnsEqualTheEagerOnes) {
   const Eigen::VectorXd twin = m.Kinv * f;
   EXPECT_LE((du_lazy - du_eager).norm(), 1e-12 * twin.norm());
   for (int v : m.inner) EXPECT_LE((du_lazy.segment<3>(3 * v) - twin.segment<3>(3 * v)).norm(), 1e-9 * twin.norm());
+  // The whole mesh for the same forces (the set-only solve reused), for forces changed on a node whose columns are
+  // cached (`out`: added to it), and changed on one whose columns are not (a solve): each the dense twin's.
+  Eigen::VectorXd du;
+  lazy.displacement(f, du);
+  EXPECT_LE((du - twin).norm(), 1e-9 * twin.norm());
+  Eigen::VectorXd f2 = f;
+  f2.segment<3>(3 * out) << 0.002, -0.001, 0.004;
+  lazy.displacement(f2, du);
+  EXPECT_LE((du - m.Kinv * f2).norm(), 1e-9 * twin.norm());
+  f2.segment<3>(3 * m.outer_free[7]) << -0.003, 0.0, 0.001;
+  lazy.displacement(f2, du);
+  EXPECT_LE((du - m.Kinv * f2).norm(), 1e-9 * twin.norm());
+  EXPECT_EQ(lazy.n_cached_nodes(), 1);  // (out: the listed outer node and the last change came from solves)
 }
 
 // Whole-mesh and set-only displacements for sparse nodal forces equal the dense twin K^-1 f, with the
