@@ -108,30 +108,25 @@ const Eigen::VectorXd& CouplingMatrix::column(int s) {
   for (int e = entry_begin_[s]; e < entry_begin_[s + 1]; ++e) {
     const int b = touched_[entry_slot_[e]], ib = touched_set_index_[entry_slot_[e]];
     const Eigen::Vector3d& wn = entry_wn_[e];
-    if (ib >= 0 && sc.lazy_) {
-      // b in a lazy set: its half columns into z for the touched set nodes; the others' cached columns.
-      sc.scatter_half(ib, wn, sc.half_z_);
-      half = true;
-      for (int t = 0; t < nt; ++t)
-        if (touched_set_index_[t] < 0) {
-          const Eigen::MatrixXd& X = sc.extra_cols_[sc.extra_index_[touched_[t]]];  // 3n x 3, columns of a
-          y_.row(t) += (X.middleRows<3>(3 * b).transpose() * wn).transpose();
-        }
-    } else if (ib >= 0) {
-      // b in the set: rows of its column block for touched nodes in the set; for the others, the cached
-      // columns of a (C symmetric: C_ab = (C_ba)^T).
-      const Eigen::Ref<const Eigen::MatrixXd> Cb = sc.set_block(ib);  // 3s x 3
-      const double* c0 = Cb.col(0).data();
-      const double* c1 = Cb.col(1).data();
-      const double* c2 = Cb.col(2).data();
+    if (ib >= 0) {
+      // b in the set: for touched nodes in the set, the rows of its column block, or (lazy) its half columns into
+      // z, their part below; for the others, the cached columns of a (C symmetric: C_ab = (C_ba)^T).
+      const double *c0 = nullptr, *c1 = nullptr, *c2 = nullptr;
+      if (sc.lazy_) {
+        sc.scatter_half(ib, wn, sc.half_z_);
+        half = true;
+      } else {
+        const Eigen::Ref<const Eigen::MatrixXd> Cb = sc.set_block(ib);  // 3s x 3, columns of C itself
+        c0 = Cb.col(0).data(), c1 = Cb.col(1).data(), c2 = Cb.col(2).data();
+      }
       for (int t = 0; t < nt; ++t) {
         const int ia = touched_set_index_[t];
-        if (ia >= 0) {
+        if (ia >= 0 && c0) {
           const int i0 = 3 * ia;
           y_(t, 0) += c0[i0] * wn[0] + c1[i0] * wn[1] + c2[i0] * wn[2];
           y_(t, 1) += c0[i0 + 1] * wn[0] + c1[i0 + 1] * wn[1] + c2[i0 + 1] * wn[2];
           y_(t, 2) += c0[i0 + 2] * wn[0] + c1[i0 + 2] * wn[1] + c2[i0 + 2] * wn[2];
-        } else {
+        } else if (ia < 0) {
           const Eigen::MatrixXd& X = sc.extra_cols_[sc.extra_index_[touched_[t]]];  // 3n x 3, columns of a
           y_.row(t) += (X.middleRows<3>(3 * b).transpose() * wn).transpose();
         }

@@ -321,19 +321,19 @@ struct StaticSolver::Impl {
     return A;
   }
 
-  // Numeric factorisation of A into L (symbolic or numeric already: then refactorised on its analysis), and the
-  // checks: CHOLMOD's status, positive definiteness, singularity up to round-off.
-  void factorise_numeric(cholmod_sparse* A) {
+  // Numeric factorisation of A into F (L or half_L; symbolic or numeric already: then refactorised on its analysis),
+  // and the checks: CHOLMOD's status, positive definiteness, singularity up to round-off. Frees A.
+  void factorise_numeric(cholmod_sparse* A, cholmod_factor* F) {
     use_one_blas_thread();
-    const bool ok = L && cholmod_factorize(A, L, &common);
+    const bool ok = F && cholmod_factorize(A, F, &common);
     cholmod_free_sparse(&A, &common);
     if (!ok || common.status == CHOLMOD_OUT_OF_MEMORY) {
       throw std::runtime_error("StaticSolver: CHOLMOD factorisation failed (status " + std::to_string(common.status) +
                                ")");
     }
     // Not positive definite, or singular up to round-off (rigid motion left free).
-    const double rcond = cholmod_rcond(L, &common);
-    if (common.status == CHOLMOD_NOT_POSDEF || static_cast<int>(L->minor) < n_free() || !(rcond > 1e-12)) {
+    const double rcond = cholmod_rcond(F, &common);
+    if (common.status == CHOLMOD_NOT_POSDEF || static_cast<int>(F->minor) < n_free() || !(rcond > 1e-12)) {
       std::ostringstream msg;
       msg << "StaticSolver: K on the free DOFs is not positive definite (reciprocal condition estimate " << rcond
           << "); the fixed DOFs must remove all rigid motion";
@@ -341,36 +341,36 @@ struct StaticSolver::Impl {
     }
   }
 
-  // half_column's factorisation (nested dissection, supernodal LL^T) and workspace, unless made already.
+  // half_column's factorisation (nested dissection, supernodal LL^T) and workspace, unless made already (half_L,
+  // set last, says they are).
   void prepare_half() {
     if (half_L) return;
-    cholmod_sparse* A = lower_matrix();
-    const int nmethods = common.nmethods, ordering = common.method[0].ordering;
-    common.nmethods = 1;
-    common.method[0].ordering = CHOLMOD_METIS;
-    common.supernodal = CHOLMOD_SUPERNODAL;
-    half_L = cholmod_analyze(A, &common);
-    common.nmethods = nmethods;
-    common.method[0].ordering = ordering;
-    use_one_blas_thread();
-    const bool ok = half_L && cholmod_factorize(A, half_L, &common) && common.status == CHOLMOD_OK;
-    cholmod_free_sparse(&A, &common);
-    if (!ok) {
-      cholmod_free_factor(&half_L, &common);
-      throw std::runtime_error("StaticSolver::half_column: CHOLMOD factorisation failed (status " +
-                               std::to_string(common.status) + ")");
-    }
     const int nf = n_free();
-    position.resize(nf);
-    const int* perm = static_cast<const int*>(half_L->Perm);
-    for (int j = 0; j < nf; ++j) position[perm[j]] = j;
-    half_b = cholmod_zeros(nf, 1, CHOLMOD_REAL, &common);
-    half_bset = cholmod_allocate_sparse(nf, 1, 1, 1, 1, 0, CHOLMOD_PATTERN, &common);
+    if (!half_b) half_b = cholmod_zeros(nf, 1, CHOLMOD_REAL, &common);
+    if (!half_bset) half_bset = cholmod_allocate_sparse(nf, 1, 1, 1, 1, 0, CHOLMOD_PATTERN, &common);
     if (!half_b || !half_bset)
       throw std::runtime_error("StaticSolver::half_column: CHOLMOD allocation failed (status " +
                                std::to_string(common.status) + ")");
     static_cast<int*>(half_bset->p)[0] = 0;
     static_cast<int*>(half_bset->p)[1] = 1;
+    cholmod_sparse* A = lower_matrix();
+    const int nmethods = common.nmethods, ordering = common.method[0].ordering;
+    common.nmethods = 1;
+    common.method[0].ordering = CHOLMOD_METIS;
+    common.supernodal = CHOLMOD_SUPERNODAL;
+    cholmod_factor* F = cholmod_analyze(A, &common);
+    common.nmethods = nmethods;
+    common.method[0].ordering = ordering;
+    try {
+      factorise_numeric(A, F);
+    } catch (...) {
+      cholmod_free_factor(&F, &common);
+      throw;
+    }
+    position.resize(nf);
+    const int* perm = static_cast<const int*>(F->Perm);
+    for (int j = 0; j < nf; ++j) position[perm[j]] = j;
+    half_L = F;
   }
 
   // y = L^-1 e_j on half_L (j in its order), on the reach of j only: half_xset holds the pattern, half_x the values.
@@ -396,7 +396,7 @@ struct StaticSolver::Impl {
     common.supernodal = CHOLMOD_SUPERNODAL;
     common.print = 0;
     L = cholmod_analyze(A, &common);
-    factorise_numeric(A);
+    factorise_numeric(A, L);
     lnz = static_cast<long>(common.lnz);
     // Solves run on the supernodal factor itself (BLAS-2 / BLAS-3 per supernode, OpenBLAS: use_one_blas_thread).
     // Measured on the paper mesh (lumen_benchmarks, 3 alternating runs, 2026-12-05): one solve 0.58-0.64 ms
@@ -419,7 +419,7 @@ struct StaticSolver::Impl {
     common.supernodal = CHOLMOD_SUPERNODAL;
     common.print = 0;
     L = cholmod_copy_factor(from.L, &common);
-    factorise_numeric(A);
+    factorise_numeric(A, L);
     lnz = from.lnz;
     if (from.single) single = std::make_unique<detail::SupernodalSingle>(supernodes());
   }

@@ -166,10 +166,14 @@ bool SurfaceCompliance::needs_solve(const Eigen::VectorXd& f) const {
   const std::vector<int> loaded = loaded_nodes(f);
   for (int v : loaded)
     if (!((index_[v] >= 0 && Kc_.size() > 0) || extra_index_[v] >= 0)) return true;
-  // Summing 3 columns of 3n per loaded node against two sweeps over the factor (forward and back).
-  const double sum_cost = 3.0 * n * static_cast<double>(loaded.size());
+  return !summing_is_cheaper(loaded.size());
+}
+
+bool SurfaceCompliance::summing_is_cheaper(size_t nodes) const {
+  // 3 columns of 3n per node against two sweeps over the factor (forward and back).
+  const double sum_cost = 3.0 * solver_->n_dofs() * static_cast<double>(nodes);
   const double solve_cost = 2.0 * static_cast<double>(solver_->factor_nonzeros());
-  return sum_cost > solve_cost;
+  return sum_cost <= solve_cost;
 }
 
 void SurfaceCompliance::displacement(const Eigen::VectorXd& f, Eigen::VectorXd& du) {
@@ -181,7 +185,8 @@ void SurfaceCompliance::displacement(const Eigen::VectorXd& f, Eigen::VectorXd& 
   if (lazy_ && last_f_.size() == n) {
     const Eigen::VectorXd change = f - last_f_;
     const std::vector<int> changed = loaded_nodes(change);
-    if (std::all_of(changed.begin(), changed.end(), [&](int v) { return extra_index_[v] >= 0; })) {
+    if (summing_is_cheaper(changed.size()) &&
+        std::all_of(changed.begin(), changed.end(), [&](int v) { return extra_index_[v] >= 0; })) {
       du = last_du_;
       for (int v : changed) du.noalias() += extra_cols_[extra_index_[v]] * change.segment<3>(3 * v);
       return;
@@ -221,19 +226,14 @@ int SurfaceCompliance::index_of(int node) const {
 void SurfaceCompliance::ensure_columns(const std::vector<int>& nodes) {
   // Nodes whose columns are not at hand, each once: outside the set and not cached, or in a lazy set not solved.
   std::vector<int> missing;
+  // (A lazy set's nodes get their half columns at once, each a partial forward solve.)
   for (int v : nodes) {
     check_node(v, "node");
     const int a = index_[v];
-    const bool at_hand = a >= 0 ? !lazy_ || half_solved_[a] : extra_index_[v] >= 0;
-    if (!at_hand && std::find(missing.begin(), missing.end(), v) == missing.end()) missing.push_back(v);
+    if (a >= 0 && lazy_ && !half_solved_[a]) solve_half_columns(a);
+    if (a < 0 && extra_index_[v] < 0 && std::find(missing.begin(), missing.end(), v) == missing.end())
+      missing.push_back(v);
   }
-  // A lazy set's nodes: their half columns, each a partial forward solve.
-  missing.erase(std::remove_if(missing.begin(), missing.end(), [&](int v) {
-                  if (index_[v] < 0) return false;
-                  solve_half_columns(index_[v]);
-                  return true;
-                }),
-                missing.end());
   if (missing.empty()) return;
   // One multi-column solve for the nodes outside the set: their whole-mesh columns.
   const int n = solver_->n_dofs(), nm = static_cast<int>(missing.size());

@@ -95,6 +95,8 @@ class SurfaceCompliance {
 
  private:
   void check_node(int node, const char* what) const;
+  // Whether summing the whole-mesh columns of this many loaded nodes costs no more than a back-substitution.
+  bool summing_is_cheaper(size_t nodes) const;
   // Column block of set node a (position in nodes_): 3s x 3, C's columns 3a .. 3a + 2 (not lazy).
   Eigen::Ref<const Eigen::MatrixXd> set_block(int a) const;
   // Half columns of a lazy set's node: 3 sparse columns over the factor's rows, column c the entries
