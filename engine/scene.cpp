@@ -36,6 +36,8 @@ constexpr const char* kTwistEndNames[] = {"", "start", "stop"};
 constexpr const char* kNodeSetNames[] = {"ends", "start", "stop"};
 constexpr const char* kCameraNames[] = {"side", "diagonal", "endoscope"};
 constexpr const char* kMeshTypeNames[] = {"hollow_cylinder", "swept_tube", "volume", "surface_wall", "surface_pair"};
+// Names of physics::PairMesher (mesh.mesher of a surface pair).
+constexpr const char* kPairMesherNames[] = {"gmsh", "netgen"};
 // Names of MeshUnits (mesh.units of a swept tube, an instrument mesh's units).
 constexpr const char* kLengthUnitNames[] = {"m", "mm"};
 // A range end within this fraction of the centreline's arc length past it is its end (decimal rounding).
@@ -352,16 +354,22 @@ void read_surface_wall(const Reader& r, const json& m, const std::filesystem::pa
 // The wall between two closed surface files (mesh.type "surface_pair"), relative to the scene file, tetrahedralised
 // at load.
 void read_surface_pair(const Reader& r, const json& m, const std::filesystem::path& dir, Scene& scene) {
-  r.only_keys(m, "mesh", {"type", "element", "inner", "outer", "units", "max_edge", "optimise_steps", "target_edge"});
+  r.only_keys(m, "mesh",
+              {"type", "element", "inner", "outer", "units", "mesher", "max_edge", "optimise_steps", "target_edge"});
   SurfacePairSpec& spec = scene.surface_pair.spec;
   spec.metres_per_unit = read_metres_per_unit(r, m);
   spec.inner_file = scene_relative(r, r.require(m, "mesh", "inner"), "mesh.inner", dir);
   spec.outer_file = scene_relative(r, r.require(m, "mesh", "outer"), "mesh.outer", dir);
-  if (m.contains("max_edge")) spec.size.max_edge = spec.metres_per_unit * r.positive(m.at("max_edge"), "mesh.max_edge");
+  if (m.contains("mesher"))
+    spec.options.mesher = r.choice<physics::PairMesher>(m.at("mesher"), "mesh.mesher", kPairMesherNames);
+  if (m.contains("max_edge"))
+    spec.options.max_edge = spec.metres_per_unit * r.positive(m.at("max_edge"), "mesh.max_edge");
   if (m.contains("target_edge"))
     spec.target_edge = spec.metres_per_unit * r.positive(m.at("target_edge"), "mesh.target_edge");
+  if (m.contains("max_edge") && spec.options.mesher == physics::PairMesher::kGmsh)
+    r.fail("mesh.max_edge", physics::kGmshMaxEdgeRefused, &m.at("max_edge"));
   if (m.contains("optimise_steps"))
-    spec.size.optimise_steps =
+    spec.options.optimise_steps =
         r.integer_in(m.at("optimise_steps"), "mesh.optimise_steps", 0, physics::kPairMesherMaxOptimiseSteps);
   const auto t0 = Clock::now();
   scene.surface_pair.pair = mesh_surface_pair(spec);

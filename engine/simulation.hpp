@@ -20,6 +20,7 @@
 #include "physics/fem.hpp"
 #include "physics/integrator.hpp"
 #include "physics/mesh.hpp"
+#include "physics/pair_mesh.hpp"
 #include "physics/surface_compliance.hpp"
 
 namespace lumen::engine {
@@ -96,9 +97,10 @@ struct Model {
   // The mesh source's file: a volume mesh's, a surface wall's surface, a swept tube's radius surface, a surface
   // pair's inner surface; "" otherwise.
   std::string mesh_file;
-  // A surface pair's outer surface file, its mesher's time (ms), the nodes it added inside the wall and the time
-  // reading and checking both surfaces took (ms).
+  // A surface pair's outer surface file, its mesher, the mesher's time (ms), the nodes it added inside the wall and
+  // the time reading and checking both surfaces took (ms).
   std::string mesh_outer_file;
+  physics::PairMesher pair_mesher = physics::PairMesher::kGmsh;
   double mesher_ms = 0.0;
   int mesher_added_nodes = 0;
   double surface_check_ms = 0.0;

@@ -95,7 +95,7 @@ SurfacePair mesh_surface_pair(const SurfacePairSpec& spec) {
   pair.check_ms = ms_since(t0) - pair.remesh_ms;
   // The volume between them.
   try {
-    physics::PairMesh m = physics::tetrahedralise_pair(in.points, in.tris, out.points, out.tris, spec.size);
+    physics::PairMesh m = physics::tetrahedralise_pair(in.points, in.tris, out.points, out.tris, spec.options);
     pair.mesh = std::move(m.mesh);
     pair.added_nodes = m.added_nodes;
     pair.mesher_ms = m.mesher_ms;

@@ -1,6 +1,6 @@
 #pragma once
 // mesh.type "surface_pair": a hollow organ's wall given as two closed surface files, inner (the lumen's) and outer,
-// tetrahedralised at load by Netgen (physics/pair_mesh.hpp) into the volume between them.
+// tetrahedralised at load by gmsh or Netgen (physics/pair_mesh.hpp) into the volume between them.
 #include <string>
 
 #include "engine/surface_file.hpp"
@@ -15,7 +15,7 @@ struct SurfacePairSpec {
   std::string inner_file;        // the lumen's surface (OBJ, STL, PLY, OFF), absolute path
   std::string outer_file;        // the outer wall's surface, absolute path
   double metres_per_unit = 1.0;  // the files' (and max_edge's) unit
-  physics::PairMeshSize size;    // metres
+  physics::PairMeshOptions options;  // the mesher and its sizes (metres)
   double target_edge = 0.0;      // metres: both surfaces remeshed to this edge first (0: as read)
 };
 
@@ -24,9 +24,9 @@ struct SurfacePair {
   physics::TetMesh mesh;      // physics::tetrahedralise_pair: surfaces inner, outer, ends (empty); no node sets
   int inner_triangles = 0;    // of the inner surface file
   int outer_triangles = 0;
-  int added_nodes = 0;        // nodes Netgen added inside the wall
+  int added_nodes = 0;        // nodes the mesher added inside the wall
   double check_ms = 0.0;      // reading both files and their checks (closed, intersections, enclosure), ms
-  double mesher_ms = 0.0;     // Netgen's time, milliseconds
+  double mesher_ms = 0.0;     // the mesher's time, milliseconds
   double remesh_ms = 0.0;     // both surfaces remeshed to the target edge, milliseconds (0 without one)
 };
 
@@ -41,7 +41,7 @@ double winding_number(const SurfaceMesh& s, const Eigen::Vector3d& p);
 // intersect each other: triangle I of the inner surface and triangle J of the outer surface intersect (K
 // intersecting pairs)"; refuses an outer surface that does not enclose the inner one: "OUTER: does not enclose the
 // inner surface INNER: its vertex V at [x, y, z] lies outside" (with ", and the outer surface lies inside the inner
-// one: inner and outer are swapped" when so); then tetrahedralises the volume between them, refusing what Netgen
+// one: inner and outer are swapped" when so); then tetrahedralises the volume between them, refusing what the mesher
 // fails on: "INNER and OUTER: <PairMesherError's message>". All as InputError.
 SurfacePair mesh_surface_pair(const SurfacePairSpec& spec);
 

@@ -1,6 +1,6 @@
 #pragma once
-// The volume between two closed surfaces (a hollow organ's inner and outer wall) tetrahedralised by Netgen's nglib
-// (LGPL), keeping every input triangle as a boundary face and every input vertex as a node.
+// The volume between two closed surfaces (a hollow organ's inner and outer wall) tetrahedralised by gmsh (GPL-2+) or
+// Netgen's nglib (LGPL), keeping every input triangle as a boundary face and every input vertex as a node.
 #include <stdexcept>
 #include <string>
 
@@ -8,48 +8,63 @@
 
 namespace lumen::physics {
 
-// Netgen's name and the version Lumen was measured with (Debian's libnglib-dev), for reports and messages.
-inline constexpr char kPairMesherName[] = "netgen nglib 6.2";
-// Netgen meshes in a frame where the surfaces' bounding box has this diagonal (centred at the origin): some of its
-// tolerances are absolute, so it sees the same geometry whatever the input's units. The input vertices keep their
-// exact positions; only the nodes Netgen adds are mapped back.
+// The meshers that fill the volume between two surfaces keeping both (chosen by measurement, docs/bench_meshers.csv):
+// gmsh's HXT (Delaunay, Marot et al. 2019) with gmsh's tet optimiser, the default: 12-16x faster than Netgen on the
+// organ pairs with close angles; Netgen's advancing front with its optimisation passes, kept for comparison.
+enum class PairMesher { kGmsh, kNetgen };
+// Their names and the versions Lumen was measured with (Debian's libgmsh-dev, libnglib-dev), for reports and
+// messages.
+inline constexpr char kGmshMesherName[] = "gmsh 4.8 hxt";
+inline constexpr char kNetgenMesherName[] = "netgen nglib 6.2";
+const char* pair_mesher_name(PairMesher mesher);
+// The meshers work in a frame where the surfaces' bounding box has this diagonal (centred at the origin): some of
+// their tolerances are absolute, so they see the same geometry whatever the input's units. The input vertices keep
+// their exact positions; only the nodes a mesher adds are mapped back.
 inline constexpr double kPairMesherFrameDiagonal = 100.0;
-// Netgen's mesh-optimisation passes after the advancing front by default (nglib's optsteps_3d default), and the
-// most a scene may ask for.
-inline constexpr int kPairMesherOptimiseSteps = 3;
+// Optimisation passes after the volume is filled by default (Netgen: nglib's optsteps_3d default; gmsh: one run
+// of its tet optimiser, as its Mesh.Optimize), and the most a scene may ask for.
+inline constexpr int kNetgenOptimiseSteps = 3;
+inline constexpr int kGmshOptimiseSteps = 1;
 inline constexpr int kPairMesherMaxOptimiseSteps = 10;
 
+// gmsh 4.8.4's HXT (Debian's) crashes (a segmentation fault in hxtRefineTetrahedra) refining Lumen's test spheres to
+// a maximum edge, with or without its optimiser, one thread or two; without one it meshed all 24 sphere pairs tried.
+// A maximum edge therefore takes Netgen, and asking gmsh for one is refused with this message.
+inline constexpr char kGmshMaxEdgeRefused[] =
+    "a maximum edge needs Netgen: gmsh 4.8's HXT crashed refining to one (use the mesher netgen)";
+
 // How the volume is filled.
-struct PairMeshSize {
-  double max_edge = 0.0;  // longest tet edge Netgen aims for, metres; 0: no limit (the surfaces set the size)
-  int optimise_steps = kPairMesherOptimiseSteps;  // Netgen's optimisation passes, [0, kPairMesherMaxOptimiseSteps]
+struct PairMeshOptions {
+  PairMesher mesher = PairMesher::kGmsh;
+  double max_edge = 0.0;    // longest tet edge Netgen aims for, metres; 0: no limit (the surfaces set the size)
+  int optimise_steps = -1;  // optimisation passes, [0, kPairMesherMaxOptimiseSteps]; -1: the mesher's default
 };
 
 // The tet mesh between the surfaces and how it was made.
 struct PairMesh {
-  TetMesh mesh;            // nodes: inner vertices, outer vertices, then the nodes Netgen added inside the wall
-  int added_nodes = 0;     // nodes Netgen added (none on the surfaces)
-  double mesher_ms = 0.0;  // Netgen's time (its input, meshing and output), milliseconds
+  TetMesh mesh;            // nodes: inner vertices, outer vertices, then the nodes the mesher added inside the wall
+  int added_nodes = 0;     // nodes the mesher added (none on the surfaces)
+  double mesher_ms = 0.0;  // the mesher's time (its input, meshing and output), milliseconds
 };
 
-// Netgen failed, or its mesh does not keep the input surfaces (what() says which and what Netgen said).
+// The mesher failed, or its mesh does not keep the input surfaces (what() says which and what the mesher said).
 class PairMesherError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
 
 // Tetrahedralises the volume between `inner` (closed, triangles facing outwards, i.e. away from the lumen it
-// encloses) and `outer` (closed, facing outwards) with Netgen (size.optimise_steps optimisation passes, size.max_edge
-// as its maxh). The caller has checked that both are closed, edge-manifold, consistently oriented and
-// free of intersections, and that `outer` encloses `inner`. Every tet positive. Surfaces (make_hollow_cylinder's
-// names, normals out of the volume): kInnerWall (the inner triangles reversed: facing the lumen), kOuterWall (the
-// outer triangles, node ids offset by the inner vertex count), kEndCaps (empty: closed walls); no node sets.
-// Throws PairMesherError "Netgen failed: <what it said>" when Netgen throws (its exception's words), "Netgen failed:
-// <its result code> with N tets (its log ends: <its last two lines>)" when it returns a failure, and "Netgen did not
-// keep the input surface: ..." when a boundary face of its tets is not an input triangle (or the reverse), an input
-// vertex moved, or a tet is inverted or flat; std::invalid_argument when a surface has no triangles or a triangle
-// names a vertex out of range.
+// encloses) and `outer` (closed, facing outwards) with options.mesher (options.optimise_steps optimisation passes,
+// options.max_edge as its largest size). The caller has checked that both are closed, edge-manifold, consistently
+// oriented and free of intersections, and that `outer` encloses `inner`. Every tet positive. Surfaces
+// (make_hollow_cylinder's names, normals out of the volume): kInnerWall (the inner triangles reversed: facing the
+// lumen), kOuterWall (the outer triangles, node ids offset by the inner vertex count), kEndCaps (empty: closed
+// walls); no node sets. Throws PairMesherError "<Mesher> failed: <what it said>" when the mesher throws or reports an
+// error (its words; Netgen: its result code and the last two lines of its log), and "<Mesher> did not keep the input
+// surface: ..." when a boundary face of its tets is not an input triangle (or the reverse), an input vertex moved,
+// or a tet is inverted or flat; std::invalid_argument when a surface has no triangles, a triangle names a vertex
+// out of range, or gmsh is given a maximum edge (kGmshMaxEdgeRefused).
 PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const Points& outer, const Tris& outer_tris,
-                             const PairMeshSize& size);
+                             const PairMeshOptions& options);
 
 }  // namespace lumen::physics

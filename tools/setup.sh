@@ -7,7 +7,7 @@ set -euo pipefail
 pkgs=(build-essential cmake pkg-config libeigen3-dev libsuitesparse-dev libopenblas0-pthread libosmesa6-dev
       libassimp-dev libexpat1-dev libpng-dev libavcodec-dev libavformat-dev libavutil-dev libswscale-dev
       nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev python3 python3-meshio python3-matplotlib
-      calculix-ccx libopenigtlink-dev openigtlink-examples libnglib-dev libcgal-dev clang libclang-rt-dev lld)
+      calculix-ccx libopenigtlink-dev openigtlink-examples libnglib-dev libgmsh-dev libcgal-dev clang libclang-rt-dev lld)
 missing=()
 for p in "${pkgs[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
 if [ ${#missing[@]} -gt 0 ]; then

@@ -1,5 +1,5 @@
-// The volume between two concentric spheres tetrahedralised by Netgen (physics/pair_mesh.hpp), against truths that
-// do not come from the mesher: the shell's volume by the divergence theorem over the input triangles, the input
+// The volume between two concentric spheres tetrahedralised by each mesher, gmsh and Netgen (physics/pair_mesh.hpp),
+// against truths that do not come from the mesher: the shell's volume by the divergence theorem over the input triangles, the input
 // triangles themselves as the tets' boundary (by vertex positions), the spheres' radii, every tet's sign.
 #include <gtest/gtest.h>
 
@@ -8,6 +8,8 @@
 #include <cmath>
 #include <set>
 #include <string>
+
+#include <Eigen/Geometry>
 
 #include "physics/mesh_quality.hpp"
 #include "physics/pair_mesh.hpp"
@@ -18,6 +20,7 @@
 namespace {
 
 using lumen::physics::PairMesh;
+using lumen::physics::PairMesher;
 using Corner = std::array<double, 3>;
 using Triangle = std::array<Corner, 3>;  // its corners' positions, sorted
 
@@ -56,19 +59,19 @@ std::multiset<Triangle> triangles(const lumen::Points& x, const lumen::Tris& t) 
   return s;
 }
 
-PairMesh mesh(const Pair& p, double max_edge = 0.0) {
-  return lumen::physics::tetrahedralise_pair(p.inner, p.inner_tris, p.outer, p.outer_tris, {max_edge});
+PairMesh mesh(const Pair& p, PairMesher mesher, double max_edge = 0.0) {
+  return lumen::physics::tetrahedralise_pair(p.inner, p.inner_tris, p.outer, p.outer_tris, {mesher, max_edge});
 }
 
-}  // namespace
+
 
 // The shell's tets fill exactly the volume between the input surfaces (the outer's enclosed volume minus the
 // inner's, over the input triangles), every tet positive; the tets' boundary faces are exactly the input triangles
 // (as sets of corner positions), the inner wall the inner sphere's (facing the centre) and the outer wall the outer
 // sphere's (facing away); every boundary node lies on its sphere, every added node strictly between the spheres.
-TEST(TetrahedralisePair, ConcentricSpheresFillExactlyTheShellAndKeepTheirTriangles) {
+void expect_spheres_fill_the_shell(PairMesher mesher) {
   const Pair p = spheres();
-  const PairMesh m = mesh(p);
+  const PairMesh m = mesh(p, mesher);
   const lumen::physics::TetMesh& t = m.mesh;
   ASSERT_GT(t.tets.rows(), 0);
   double volume = 0.0;
@@ -119,12 +122,12 @@ TEST(TetrahedralisePair, ConcentricSpheresFillExactlyTheShellAndKeepTheirTriangl
 }
 
 // A max_edge well below the wall's thickness makes Netgen add nodes inside the wall (and more tets), still filling
-// exactly the shell with the input triangles as its boundary.
-TEST(TetrahedralisePair, MaxEdgeRefinesTheInsideKeepingTheSurfaces) {
+// exactly the shell with the input triangles as its boundary. gmsh is refused one (kGmshMaxEdgeRefused).
+void expect_max_edge_refines_the_inside(PairMesher mesher) {
   const Pair p = spheres();
-  const PairMesh coarse = mesh(p);
+  const PairMesh coarse = mesh(p, mesher);
   const double max_edge = 0.25 * (kOuterRadius - kInnerRadius);
-  const PairMesh fine = mesh(p, max_edge);
+  const PairMesh fine = mesh(p, mesher, max_edge);
   EXPECT_GT(fine.added_nodes, coarse.added_nodes);
   EXPECT_GT(fine.mesh.tets.rows(), coarse.mesh.tets.rows());
   double volume = 0.0;
@@ -134,9 +137,31 @@ TEST(TetrahedralisePair, MaxEdgeRefinesTheInsideKeepingTheSurfaces) {
   EXPECT_EQ(lumen::physics::boundary_faces(fine.mesh.tets).rows(), p.inner_tris.rows() + p.outer_tris.rows());
 }
 
-// Two cubes 2^-21 of their size apart (parallel faces, no room for a tet of any shape): Netgen gives up, and the
-// error says what it said. A triangle naming a vertex that does not exist is refused before Netgen runs.
-TEST(TetrahedralisePair, NetgenFailureIsReportedWithItsWords) {
+}  // namespace
+
+TEST(TetrahedralisePair, ConcentricSpheresFillExactlyTheShellAndKeepTheirTrianglesGmsh) {
+  expect_spheres_fill_the_shell(PairMesher::kGmsh);
+}
+TEST(TetrahedralisePair, ConcentricSpheresFillExactlyTheShellAndKeepTheirTrianglesNetgen) {
+  expect_spheres_fill_the_shell(PairMesher::kNetgen);
+}
+TEST(TetrahedralisePair, MaxEdgeRefinesTheInsideKeepingTheSurfacesNetgen) {
+  expect_max_edge_refines_the_inside(PairMesher::kNetgen);
+}
+TEST(TetrahedralisePair, GmshIsRefusedAMaxEdge) {
+  const Pair p = spheres();
+  std::string what;
+  try {
+    mesh(p, PairMesher::kGmsh, 0.25 * (kOuterRadius - kInnerRadius));
+  } catch (const std::invalid_argument& e) {
+    what = e.what();
+  }
+  EXPECT_EQ(what, lumen::physics::kGmshMaxEdgeRefused);
+}
+
+// Two cubes 2^-21 of their size apart (parallel faces): Netgen gives up, and the error says what it said; gmsh fills
+// the gap, and fails on surfaces that cross, in its words. A triangle naming a vertex that does not exist is refused before Netgen runs.
+TEST(TetrahedralisePair, MesherFailureIsReportedWithItsWords) {
   auto cube = [](double h, lumen::Points& x, lumen::Tris& t) {
     x.resize(8, 3);
     for (int i = 0; i < 8; ++i) x.row(i) << (i & 1 ? h : -h), (i & 2 ? h : -h), (i & 4 ? h : -h);
@@ -149,17 +174,34 @@ TEST(TetrahedralisePair, NetgenFailureIsReportedWithItsWords) {
   cube(1.0 + std::ldexp(1.0, -21), out, out_t);
   // The cubes themselves are fine: 1.5 apart they mesh into the 27 - 8 = 19 between.
   lumen::Points wide = 1.5 * out;
-  const PairMesh ok = lumen::physics::tetrahedralise_pair(in, in_t, wide, out_t, {});
+  const PairMesh ok = lumen::physics::tetrahedralise_pair(in, in_t, wide, out_t, {PairMesher::kNetgen});
   double volume = 0.0;
   for (int e = 0; e < ok.mesh.tets.rows(); ++e) volume += lumen::physics::tet_volume(ok.mesh.rest, ok.mesh.tets, e);
   EXPECT_NEAR(volume, 27.0 * std::pow(1.0 + std::ldexp(1.0, -21), 3) - 8.0, kVolumeRoundOff * 19.0);
   std::string what;
   try {
-    lumen::physics::tetrahedralise_pair(in, in_t, out, out_t, {});
+    lumen::physics::tetrahedralise_pair(in, in_t, out, out_t, {PairMesher::kNetgen});
   } catch (const lumen::physics::PairMesherError& e) {
     what = e.what();
   }
   EXPECT_EQ(what, "Netgen failed: Stop meshing since too many attempts");
+  // gmsh meshes the same thin gap (its volume exactly), but fails on an outer cube turned 45 degrees about z whose
+  // faces the inner cube's vertical edges pierce (surfaces the caller would have refused), in its own words.
+  const PairMesh thin = lumen::physics::tetrahedralise_pair(in, in_t, out, out_t, {PairMesher::kGmsh});
+  volume = 0.0;
+  for (int e = 0; e < thin.mesh.tets.rows(); ++e)
+    volume += lumen::physics::tet_volume(thin.mesh.rest, thin.mesh.tets, e);
+  EXPECT_NEAR(volume, 8.0 * (std::pow(1.0 + std::ldexp(1.0, -21), 3) - 1.0), 1e-6 * 8.0 * 3.0 * std::ldexp(1.0, -21));
+  lumen::Points turned = 1.2 * in;
+  const Eigen::Matrix3d quarter = Eigen::AngleAxisd(0.25 * EIGEN_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  turned = (turned * quarter.transpose()).eval();
+  what.clear();
+  try {
+    lumen::physics::tetrahedralise_pair(in, in_t, turned, out_t, {PairMesher::kGmsh});
+  } catch (const lumen::physics::PairMesherError& e) {
+    what = e.what();
+  }
+  EXPECT_EQ(what, "gmsh failed: HXT 3D mesh failed");
   lumen::Tris bad = out_t;
   bad(3, 1) = 8;
   EXPECT_THROW(lumen::physics::tetrahedralise_pair(in, in_t, out, bad, {}), std::invalid_argument);

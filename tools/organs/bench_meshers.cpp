@@ -1,9 +1,11 @@
-// lumen_bench_meshers: the surface-pair meshers measured on the same pair (docs/bench_meshers.csv): Netgen's nglib
-// as Lumen calls it at load (physics/pair_mesh.hpp) and TetGen's command-line program (Debian's tetgen), each run
+// lumen_bench_meshers: the surface-pair meshers measured on the same pair (docs/bench_meshers.csv): gmsh's HXT and
+// Netgen's nglib as Lumen calls them at load (physics/pair_mesh.hpp) and TetGen's command-line program (Debian's
+// tetgen), each run
 // `repeats` times (the median time kept), their tets measured by Lumen's own quality measure, volume and boundary.
-//   lumen_bench_meshers NAME INNER OUTER UNITS MAX_EDGE STEPS REPEATS [TETGEN_SWITCHES...]  (CSV rows on stdout)
-// UNITS: "mm" or "m" (the files'); MAX_EDGE in those units, 0 for none (Netgen's maxh; TetGen gets none); STEPS:
-// Netgen's optimisation passes, a comma-separated list (one Netgen row each, e.g. 3,1); each
+//   lumen_bench_meshers NAME INNER OUTER UNITS MAX_EDGE MESHER:PASSES[,...] REPEATS [TETGEN_SWITCHES...]  (CSV rows on stdout)
+// UNITS: "mm" or "m" (the files'); MAX_EDGE in those units, 0 for none (the meshers' maxh; TetGen gets none);
+// MESHER:PASSES: a comma-separated list of a mesher (gmsh, netgen) and its optimisation passes (one row each, e.g.
+// gmsh:1,netgen:3); each
 // TETGEN_SWITCHES (e.g. pYQ, pYQq1.414) is one TetGen run. TetGen's time is its whole process (starting, reading the
 // .smesh written beforehand, meshing, writing its .node and .ele files).
 #include <algorithm>
@@ -160,7 +162,7 @@ void print_row(const std::string& name, const Row& r, const std::vector<Face>& i
 
 int main(int argc, char** argv) {
   if (argc < kFixedArguments) {
-    std::fprintf(stderr, "usage: lumen_bench_meshers NAME INNER OUTER UNITS MAX_EDGE STEPS REPEATS [TETGEN_SWITCHES...]\n");
+    std::fprintf(stderr, "usage: lumen_bench_meshers NAME INNER OUTER UNITS MAX_EDGE MESHER:PASSES[,...] REPEATS [TETGEN_SWITCHES...]\n");
     return 2;
   }
   try {
@@ -168,7 +170,8 @@ int main(int argc, char** argv) {
     const double unit = units == "mm" ? kMillimetre : 1.0, max_edge = std::atof(argv[5]) * unit;
     const int repeats = std::max(1, std::atoi(argv[7]));
     // Both surfaces as Lumen reads and checks them at load.
-    lumen::engine::SurfacePairSpec spec{argv[2], argv[3], unit, {max_edge, lumen::physics::kPairMesherOptimiseSteps}};
+    lumen::engine::SurfacePairSpec spec{argv[2], argv[3], unit, {}};
+    spec.options.max_edge = max_edge;
     const SurfaceMesh in = lumen::engine::read_closed_surface(spec.inner_file, unit);
     const SurfaceMesh out = lumen::engine::read_closed_surface(spec.outer_file, unit);
     const double between = lumen::engine::enclosed_volume(out) - lumen::engine::enclosed_volume(in);
@@ -181,15 +184,21 @@ int main(int argc, char** argv) {
       std::sort(rs.begin(), rs.end(), [](const Row& a, const Row& b) { return a.ms < b.ms; });
       return rs[rs.size() / kMedian];
     };
-    // Netgen, as at load (its own time, the checks before it excluded), each number of optimisation passes.
-    std::istringstream steps(argv[6]);
-    for (std::string s; std::getline(steps, s, ',');) {
-      spec.size.optimise_steps = std::atoi(s.c_str());
+    // gmsh and Netgen, as at load (their own time, the checks before them excluded), each MESHER:PASSES.
+    std::istringstream runs_wanted(argv[6]);
+    for (std::string s; std::getline(runs_wanted, s, ',');) {
+      const size_t colon = s.find(':');
+      const std::string mesher = s.substr(0, colon);
+      if (colon == std::string::npos || (mesher != "gmsh" && mesher != "netgen"))
+        throw std::runtime_error("STEPS entry '" + s + "': want gmsh:N or netgen:N");
+      spec.options.mesher = mesher == "gmsh" ? lumen::physics::PairMesher::kGmsh : lumen::physics::PairMesher::kNetgen;
+      spec.options.optimise_steps = std::atoi(s.c_str() + colon + 1);
       std::vector<Row> runs;
       for (int k = 0; k < repeats; ++k) {
         lumen::engine::SurfacePair p = lumen::engine::mesh_surface_pair(spec);
-        runs.push_back({lumen::physics::kPairMesherName,
-                        "optsteps_3d " + s + (max_edge > 0 ? " maxh " + std::string(argv[5]) + " " + units : ""),
+        runs.push_back({lumen::physics::pair_mesher_name(spec.options.mesher),
+                        (mesher == "gmsh" ? "optimise " : "optsteps_3d ") + s.substr(colon + 1) +
+                            (max_edge > 0 ? " maxh " + std::string(argv[5]) + " " + units : ""),
                         p.mesher_ms, std::move(p.mesh), static_cast<int>(in.points.rows() + out.points.rows())});
       }
       print_row(name, median(runs), input, between);

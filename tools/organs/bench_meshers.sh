@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The surface-pair mesher comparison (docs/bench_meshers.csv): Netgen's nglib as Lumen calls it at load against
+# The surface-pair mesher comparison (docs/bench_meshers.csv): gmsh (HXT) and Netgen as Lumen calls them at load against
 # TetGen's command-line program (Debian's tetgen) on the same pairs, by build/lumen_bench_meshers.
 #   tools/organs/bench_meshers.sh [BUILD_DIR]  (default build; needs lumen_grow_surface and lumen_bench_meshers built, and tetgen)
 # Pairs: the shipped coarse aneurysm pair (data/organs), the full-resolution aneurysm with a 0.5 mm wall grown by
@@ -60,7 +60,7 @@ PY
 echo "pair,mesher,options,median_ms,tets,nodes,added_nodes,min_dihedral_deg,p1_dihedral_deg,p50_dihedral_deg,min_radius_ratio,p1_radius_ratio,p50_radius_ratio,degenerate_tets,volume_rel_error,keeps_input_triangles"
 organs="$root/data/organs"
 "$build/lumen_bench_meshers" aneurysm-coarse-0.5mm "$organs/sofa-aneurysm3D_1-coarse.off" \
-  "$organs/sofa-aneurysm3D_1-coarse-outer-0.5mm.off" mm 0 3,1,0 3 pYQ pYQq1.414
-"$build/lumen_bench_meshers" aneurysm-full-0.5mm "$tmp/an_in.off" "$tmp/an_out.off" mm 0 3,1,0 3 pYQ pYQq1.414
-"$build/lumen_bench_meshers" icospheres-10-14mm "$tmp/ico_in.off" "$tmp/ico_out.off" mm 0 3,1,0 3 pYQ pYQq1.414
-"$build/lumen_bench_meshers" uv-spheres-10-14mm "$tmp/uv_in.off" "$tmp/uv_out.off" mm 0 3,1,0 3 pYQ pYQq1.414
+  "$organs/sofa-aneurysm3D_1-coarse-outer-0.5mm.off" mm 0 gmsh:1,gmsh:0,netgen:3,netgen:1,netgen:0 3 pYQ pYQq1.414
+"$build/lumen_bench_meshers" aneurysm-full-0.5mm "$tmp/an_in.off" "$tmp/an_out.off" mm 0 gmsh:1,gmsh:0,netgen:3,netgen:1,netgen:0 3 pYQ pYQq1.414
+"$build/lumen_bench_meshers" icospheres-10-14mm "$tmp/ico_in.off" "$tmp/ico_out.off" mm 0 gmsh:1,gmsh:0,netgen:3,netgen:1,netgen:0 3 pYQ pYQq1.414
+"$build/lumen_bench_meshers" uv-spheres-10-14mm "$tmp/uv_in.off" "$tmp/uv_out.off" mm 0 gmsh:1,gmsh:0,netgen:3,netgen:1,netgen:0 3 pYQ pYQq1.414
