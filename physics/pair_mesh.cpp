@@ -1,24 +1,31 @@
 // The volume between two closed surfaces tetrahedralised by gmsh or Netgen's nglib (physics/pair_mesh.hpp).
 #include "physics/pair_mesh.hpp"
 
+#include <signal.h>
+#include <spawn.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
 #include <cassert>
+#include <cerrno>
 #include <chrono>
+#include <cstdint>
+#include <cstdlib>
+#include <cstring>
 #include <exception>
 #include <mutex>
 #include <ostream>
 #include <set>
-#include <unordered_map>
-#include <utility>
 #include <sstream>
 #include <vector>
 
 #include "physics/detail/messages.hpp"
 #include "physics/mesh_quality.hpp"
+#include "physics/pair_mesh_protocol.hpp"
 #include "physics/volume_mesh.hpp"
-
-#include <gmsh.h>
 
 // nglib declares its interface in namespace nglib when included inside it (its own examples do so).
 namespace nglib {
@@ -41,10 +48,6 @@ using Face = std::array<int, 3>;
 constexpr int kLogLinesInMessage = 2;
 // The input vertices must come back within this distance (in the meshers' frame) of where they went in.
 constexpr double kMovedVertexTolerance = 1e-9 * kPairMesherFrameDiagonal;
-// gmsh's element type numbers (its documentation's table) and its HXT volume algorithm (Mesh.Algorithm3D).
-constexpr int kGmshTriangle = 2;
-constexpr int kGmshTet = 4;
-constexpr int kGmshHxt = 10;
 
 // What a mesher returns, in its frame: every node (the input vertices first, in their order) and the tets
 // (#tets x 4 node indices, any orientation).
@@ -208,121 +211,139 @@ RawMesh run_netgen(const PairInput& in, double maxh, int steps) {
   return out;
 }
 
-// gmsh keeps global state too: one initialisation (no configuration files, nothing on the terminal), one model at a
-// time, its log collected meanwhile and removed on every path.
-class GmshSession {
- public:
-  GmshSession() : lock_(gmsh_mutex()) {
-    static std::once_flag once;
-    std::call_once(once, [] {
-      gmsh::initialize(0, nullptr, false);
-      gmsh::option::setNumber("General.Terminal", 0);
-    });
-    gmsh::logger::start();
-    gmsh::model::add("lumen_pair");
+// The gmsh process's executable: LUMEN_GMSH_MESHER when set (tests point it elsewhere), else the one built beside
+// Lumen.
+std::string gmsh_mesher_path() {
+  const char* env = std::getenv("LUMEN_GMSH_MESHER");
+  return env && *env ? std::string(env) : std::string(LUMEN_GMSH_MESHER_PATH);
+}
+
+bool send_all(int fd, const void* data, size_t bytes) {
+  const auto* p = static_cast<const char*>(data);
+  while (bytes > 0) {
+    const ssize_t n = ::send(fd, p, bytes, MSG_NOSIGNAL);  // a process that died is an error, not our SIGPIPE
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    p += n;
+    bytes -= static_cast<size_t>(n);
   }
-  ~GmshSession() {
-    try {
-      gmsh::model::remove();
-      gmsh::logger::stop();
-    } catch (...) {  // nothing to add to the failure being reported
+  return true;
+}
+bool receive_all(int fd, void* data, size_t bytes) {
+  auto* p = static_cast<char*>(data);
+  while (bytes > 0) {
+    const ssize_t n = ::recv(fd, p, bytes, 0);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    p += n;
+    bytes -= static_cast<size_t>(n);
+  }
+  return true;
+}
+
+// The gmsh process: started with one end of a socket pair as its standard input and output, sent the request,
+// its reply read, waited for. Every way it can fail is a PairMesherError naming it.
+class GmshProcess {
+ public:
+  explicit GmshProcess(const std::string& path) : path_(path) {
+    int ends[2];
+    if (::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, ends) != 0)
+      mesher_failed(PairMesher::kGmsh, "no socket pair for its process (" + std::string(std::strerror(errno)) + ")");
+    fd_ = ends[0];
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_adddup2(&actions, ends[1], STDIN_FILENO);
+    posix_spawn_file_actions_adddup2(&actions, ends[1], STDOUT_FILENO);
+    char* argv[] = {const_cast<char*>(path_.c_str()), nullptr};
+    const int err = ::posix_spawn(&pid_, path_.c_str(), &actions, nullptr, argv, environ);
+    posix_spawn_file_actions_destroy(&actions);
+    ::close(ends[1]);
+    if (err != 0) {
+      ::close(fd_);
+      mesher_failed(PairMesher::kGmsh, "cannot start its process " + path_ + " (" + std::strerror(err) + ")");
     }
   }
-  GmshSession(const GmshSession&) = delete;
-  GmshSession& operator=(const GmshSession&) = delete;
-  // Its last error, or the last lines of its log.
-  static std::string said() {
-    std::string error;
-    gmsh::logger::getLastError(error);
-    if (!error.empty()) return error;
-    std::vector<std::string> log;
-    gmsh::logger::get(log);
-    std::string joined;
-    for (const std::string& line : log) joined += line + "\n";
-    return "its log ends: " + last_lines(joined, kLogLinesInMessage);
+  ~GmshProcess() {
+    if (fd_ >= 0) ::close(fd_);
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+  GmshProcess(const GmshProcess&) = delete;
+  GmshProcess& operator=(const GmshProcess&) = delete;
+  int fd() const { return fd_; }
+  // Closes the socket and waits: "" when it exited 0, else how it ended.
+  std::string finish() {
+    ::close(fd_);
+    fd_ = -1;
+    int status = 0;
+    while (::waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
+    }
+    pid_ = -1;
+    if (WIFSIGNALED(status))
+      return "its process " + path_ + " died of signal " + std::to_string(WTERMSIG(status)) + " (" +
+             strsignal(WTERMSIG(status)) + ")";
+    if (WIFEXITED(status) && WEXITSTATUS(status) != 0)
+      return "its process " + path_ + " exited with status " + std::to_string(WEXITSTATUS(status));
+    return "";
   }
 
  private:
-  static std::mutex& gmsh_mutex() {
-    static std::mutex m;
-    return m;
-  }
-  std::lock_guard<std::mutex> lock_;
+  std::string path_;
+  int fd_ = -1;
+  pid_t pid_ = -1;
 };
 
-// gmsh's HXT on the two surfaces as discrete entities (their triangles kept), one thread (the same mesh every run),
-// then its tet optimiser. No maximum size (kGmshMaxEdgeRefused).
+// gmsh's HXT and its optimiser in a process of its own (physics/gmsh_mesher/main.cpp): each mesh a first call of a
+// fresh gmsh, so the same input gives the same mesh, and a crash inside gmsh is reported, not shared.
 RawMesh run_gmsh(const PairInput& in, int steps) {
-  GmshSession session;
-  std::vector<std::size_t> tets, node_tags;
-  std::vector<double> coords, parametric;
-  try {
-    // Input: each surface a discrete entity with its vertices (tags 1-based, in x's order) and triangles; the
-    // volume between them.
-    const size_t nv = static_cast<size_t>(in.x.rows()), ni = static_cast<size_t>(in.inner_vertices);
-    auto add_surface = [&](size_t v0, size_t v1, size_t f0, size_t f1) {
-      const int entity = gmsh::model::addDiscreteEntity(2);
-      std::vector<std::size_t> tags;
-      std::vector<double> xyz;
-      for (size_t v = v0; v < v1; ++v) {
-        tags.push_back(v + 1);
-        for (int c = 0; c < 3; ++c) xyz.push_back(in.x(static_cast<Eigen::Index>(v), c));
-      }
-      gmsh::model::mesh::addNodes(2, entity, tags, xyz);
-      std::vector<std::size_t> tri;
-      for (size_t f = f0; f < f1; ++f)
-        for (int k = 0; k < 3; ++k) tri.push_back(static_cast<std::size_t>(in.faces[f][static_cast<size_t>(k)]) + 1);
-      gmsh::model::mesh::addElementsByType(entity, kGmshTriangle, {}, tri);
-      return gmsh::model::geo::addSurfaceLoop({entity});
-    };
-    const int inner_loop = add_surface(0, ni, 0, in.inner_faces);
-    const int outer_loop = add_surface(ni, nv, in.inner_faces, in.faces.size());
-    gmsh::model::geo::addVolume({outer_loop, inner_loop});
-    gmsh::model::geo::synchronize();
-    gmsh::option::setNumber("Mesh.Algorithm3D", kGmshHxt);
-    gmsh::option::setNumber("Mesh.Optimize", steps > 0 ? 1 : 0);
-    gmsh::option::setNumber("General.NumThreads", 1);
-    gmsh::option::setNumber("Mesh.MaxNumThreads3D", 1);
-    gmsh::model::mesh::generate(3);
-    if (steps > 1) gmsh::model::mesh::optimize("", false, steps - 1);
-    std::vector<std::size_t> element_tags;
-    gmsh::model::mesh::getElementsByType(kGmshTet, element_tags, tets);
-    gmsh::model::mesh::getNodes(node_tags, coords, parametric, -1, -1, false, false);
-  } catch (const std::exception& e) {
-    mesher_failed(PairMesher::kGmsh, std::string(e.what()) + " (" + GmshSession::said() + ")");
-  } catch (...) {
-    mesher_failed(PairMesher::kGmsh, GmshSession::said());
-  }
-  if (tets.empty()) mesher_failed(PairMesher::kGmsh, "no tets (" + GmshSession::said() + ")");
-  // The nodes by tag: the input vertices keep theirs (1..#vertices), the added ones follow in tag order.
-  const size_t nv = static_cast<size_t>(in.x.rows());
-  std::vector<std::pair<std::size_t, size_t>> added;  // (tag, position in coords)
-  std::vector<long> index_of_input(nv + 1, -1);
-  for (size_t k = 0; k < node_tags.size(); ++k) {
-    if (node_tags[k] >= 1 && node_tags[k] <= nv)
-      index_of_input[node_tags[k]] = static_cast<long>(k);
-    else
-      added.push_back({node_tags[k], k});
-  }
-  std::sort(added.begin(), added.end());
-  RawMesh out{Points(static_cast<Eigen::Index>(nv + added.size()), 3), Tets(static_cast<Eigen::Index>(tets.size() / 4), 4)};
-  std::unordered_map<std::size_t, int> node_of_tag;
-  for (size_t v = 0; v < nv; ++v) {
-    if (index_of_input[v + 1] < 0) not_kept(PairMesher::kGmsh, "input vertex " + std::to_string(v) + " is missing");
-    for (int c = 0; c < 3; ++c) out.nodes(static_cast<Eigen::Index>(v), c) = coords[3 * index_of_input[v + 1] + c];
-    node_of_tag[v + 1] = static_cast<int>(v);
-  }
-  for (size_t a = 0; a < added.size(); ++a) {
-    const Eigen::Index row = static_cast<Eigen::Index>(nv + a);
-    for (int c = 0; c < 3; ++c) out.nodes(row, c) = coords[3 * added[a].second + c];
-    node_of_tag[added[a].first] = static_cast<int>(row);
-  }
-  for (Eigen::Index e = 0; e < out.tets.rows(); ++e)
-    for (int k = 0; k < 4; ++k) {
-      const auto it = node_of_tag.find(tets[static_cast<size_t>(4 * e + k)]);
-      if (it == node_of_tag.end()) mesher_failed(PairMesher::kGmsh, "tet " + std::to_string(e) + " names an unknown node");
-      out.tets(e, k) = it->second;
+  namespace pp = pair_protocol;
+  GmshProcess process(gmsh_mesher_path());
+  const std::int32_t head[5] = {static_cast<std::int32_t>(in.x.rows()), static_cast<std::int32_t>(in.faces.size()),
+                                in.inner_vertices, static_cast<std::int32_t>(in.inner_faces), steps};
+  std::vector<double> xyz(3 * static_cast<size_t>(in.x.rows()));
+  for (Eigen::Index v = 0; v < in.x.rows(); ++v)
+    for (int c = 0; c < 3; ++c) xyz[3 * static_cast<size_t>(v) + c] = in.x(v, c);
+  std::vector<std::int32_t> tris;
+  tris.reserve(3 * in.faces.size());
+  for (const Face& f : in.faces) tris.insert(tris.end(), f.begin(), f.end());
+  const bool sent = send_all(process.fd(), pp::kRequestMagic, sizeof pp::kRequestMagic) &&
+                    send_all(process.fd(), head, sizeof head) &&
+                    send_all(process.fd(), xyz.data(), xyz.size() * sizeof(double)) &&
+                    send_all(process.fd(), tris.data(), tris.size() * sizeof(std::int32_t));
+  // Its reply: the mesh, or what gmsh said.
+  char magic[sizeof pp::kReplyMagic] = {};
+  std::int32_t status = -1;
+  bool replied = sent && receive_all(process.fd(), magic, sizeof magic) &&
+                 std::equal(magic, magic + sizeof magic, pp::kReplyMagic) &&
+                 receive_all(process.fd(), &status, sizeof status);
+  RawMesh out;
+  std::string said;
+  if (replied && status == pp::kReplyOk) {
+    std::int64_t counts[2] = {0, 0};
+    replied = receive_all(process.fd(), counts, sizeof counts) && counts[0] >= in.x.rows() && counts[1] > 0;
+    if (replied) {
+      std::vector<double> nodes(3 * static_cast<size_t>(counts[0]));
+      std::vector<std::int32_t> tets(4 * static_cast<size_t>(counts[1]));
+      replied = receive_all(process.fd(), nodes.data(), nodes.size() * sizeof(double)) &&
+                receive_all(process.fd(), tets.data(), tets.size() * sizeof(std::int32_t));
+      out.nodes = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(nodes.data(), counts[0], 3);
+      out.tets = Eigen::Map<const Eigen::Matrix<std::int32_t, Eigen::Dynamic, 4, Eigen::RowMajor>>(tets.data(), counts[1], 4)
+                     .cast<int>();
+      if (replied && (out.tets.minCoeff() < 0 || out.tets.maxCoeff() >= counts[0]))
+        mesher_failed(PairMesher::kGmsh, "its process returned a tet naming a node it did not return");
     }
+  } else if (replied && status == pp::kReplyFailed) {
+    std::int64_t length = 0;
+    replied = receive_all(process.fd(), &length, sizeof length) && length >= 0 && length < (1 << 20);
+    said.resize(replied ? static_cast<size_t>(length) : 0);
+    replied = replied && receive_all(process.fd(), said.data(), said.size());
+  }
+  const std::string ended = process.finish();
+  if (!ended.empty()) mesher_failed(PairMesher::kGmsh, ended);
+  if (!replied) mesher_failed(PairMesher::kGmsh, "its process's reply was cut short or malformed");
+  if (status == pp::kReplyFailed) mesher_failed(PairMesher::kGmsh, said);
   return out;
 }
 

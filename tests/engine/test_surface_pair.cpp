@@ -1,4 +1,4 @@
-// mesh.type "surface_pair": two closed surface files (inner, outer) tetrahedralised at load by Netgen. Every format
+// mesh.type "surface_pair": two closed surface files (inner, outer) tetrahedralised at load by gmsh (or Netgen). Every format
 // the surface reader takes, the tets against the files' own triangles and volumes, every refusal by its message,
 // the program's exit code, and report.json's mesh block from a short checked session.
 #include <gtest/gtest.h>
@@ -208,15 +208,18 @@ TEST(SurfacePair, RefusesBadPairsNamingFileProblemAndWhere) {
   EXPECT_EQ(error("out.obj", "in.obj"), in + ": does not enclose the inner surface " + out +
                                             ": its vertex 0 at [0, 0, -0.014] lies outside, and the outer surface lies "
                                             "inside the inner one: inner and outer are swapped");
-  // Two cubes 2^-21 apart: Netgen gives up.
+  // Two cubes 2^-21 apart: Netgen gives up (gmsh, the default, fills the gap).
   Vertices v;
   Faces f;
   cube(1.0, v, f);
   write_surface(d / "cube.obj", v, f);
   cube(1.0 + kCubeGap, v, f);
   write_surface(d / "cube2.obj", v, f);
-  EXPECT_EQ(error("cube.obj", "cube2.obj"), (d / "cube.obj").string() + " and " + (d / "cube2.obj").string() +
-                                                ": Netgen failed: Stop meshing since too many attempts");
+  json cubes = pair_scene("cube.obj", "cube2.obj");
+  cubes["mesh"]["mesher"] = "netgen";
+  EXPECT_EQ(load_error(write_scene(d, cubes)), (d / "cube.obj").string() + " and " + (d / "cube2.obj").string() +
+                                                   ": Netgen failed: Stop meshing since too many attempts");
+  EXPECT_EQ(error("cube.obj", "cube2.obj"), "");
   // Keys.
   auto scene_error = [&](const std::function<void(json&)>& edit) {
     json j = pair_scene("in.obj", "out.obj");
@@ -227,6 +230,11 @@ TEST(SurfacePair, RefusesBadPairsNamingFileProblemAndWhere) {
   EXPECT_EQ(scene_error([](json& j) { j["mesh"].erase("outer"); }), scene + ": mesh.outer: missing key");
   EXPECT_EQ(scene_error([](json& j) { j["mesh"]["outer"] = 3; }), scene + ": mesh.outer: must be a string (value 3)");
   EXPECT_EQ(scene_error([](json& j) { j["mesh"]["max_edge"] = 0.0; }), scene + ": mesh.max_edge: must be > 0 (value 0.0)");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["max_edge"] = 1.0; }),
+            scene + ": mesh.max_edge: " + lumen::physics::kGmshMaxEdgeRefused + " (value 1.0)");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["mesher"] = "netgen", j["mesh"]["max_edge"] = 1.0; }), "");
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["mesher"] = "tetgen"; }),
+            scene + ": mesh.mesher: must be one of gmsh, netgen (value \"tetgen\")");
   EXPECT_EQ(scene_error([](json& j) { j["mesh"]["optimise_steps"] = 11; }),
             scene + ": mesh.optimise_steps: out of range [0, 10] (value 11)");
   EXPECT_EQ(scene_error([](json& j) { j["mesh"]["optimise_steps"] = 1.5; }),
@@ -266,14 +274,14 @@ TEST(SurfacePair, ShortCheckedSessionReportsTheMesherAndItsTime) {
   std::string text;
   ASSERT_EQ(run_lumen(scene, d / "out", text, " --no-render --check"), 0) << text;
   EXPECT_NE(text.find(" from " + (d / "in.off").string() + " and " + (d / "out.stl").string() +
-                      ", tetrahedralised by netgen nglib 6.2 in "), std::string::npos) << text;
+                      ", tetrahedralised by gmsh 4.8 hxt in "), std::string::npos) << text;
   std::ifstream in(d / "out" / "report.json");
   const json r = json::parse(in);
   const json& m = r["mesh"];
   EXPECT_EQ(m["source"], "surface_pair");
   EXPECT_EQ(m["file"], (d / "in.off").string());
   EXPECT_EQ(m["outer_file"], (d / "out.stl").string());
-  EXPECT_EQ(m["mesher"], "netgen nglib 6.2");
+  EXPECT_EQ(m["mesher"], "gmsh 4.8 hxt");
   EXPECT_GT(m["mesher_ms"].get<double>(), 0.0);
   EXPECT_LE(m["mesher_ms"].get<double>() + m["surface_check_ms"].get<double>(), m["build_ms"].get<double>());
   EXPECT_EQ(m["tets"], s.surface_pair.pair.mesh.tets.rows());
@@ -289,7 +297,7 @@ TEST(SurfacePair, ShortCheckedSessionReportsTheMesherAndItsTime) {
   for (const json& f : r["per_frame"]) EXPECT_EQ(f["intersecting_pairs"], 0) << f.dump();
 }
 
-// Both spheres (latitude-longitude: slivers at the poles) remeshed to 2 mm edges before Netgen (mesh.target_edge):
+// Both spheres (latitude-longitude: slivers at the poles) remeshed to 2 mm edges before gmsh (mesh.target_edge):
 // each wall of the tets has about the target's resolution (median edge within 20 %, every angle above 20 degrees,
 // unlike the files' poles), the tets are positive and fill the volume between the remeshed walls exactly (the
 // divergence theorem over the mesh's own wall triangles), and lumen run reports the target, the files' triangles
@@ -348,7 +356,7 @@ Eigen::Vector3d pair_probe_displacement(const char* model, const char* solver, d
 
 }  // namespace
 
-// Every model on the wall Netgen meshes between two closed surfaces (unstructured tets, not a generated tube): the
+// Every model on the wall gmsh meshes between two closed surfaces (unstructured tets, not a generated tube): the
 // corotational quasi-static answer approaches the linear one to second order as the load shrinks, the dynamic runs
 // settle on their quasi-static answers; and the 10-node tets on the same mesh (straight-sided) run with both
 // quasi-static models, the corotational again approaching the linear one to second order, and move more than the
@@ -376,7 +384,7 @@ TEST(SurfacePair, EveryModelRunsOnTheWallBetweenTwoSurfaces) {
   EXPECT_NEAR(diff_small / diff, 0.1, 0.05) << diff_small << " vs " << diff;
 }
 
-// A probe instrument pressing the wall between two surfaces (unstructured Netgen tets, no ends: the organ's boundary
+// A probe instrument pressing the wall between two surfaces (unstructured gmsh tets, no ends: the organ's boundary
 // is its two walls): the 3 mm sphere tip from 0.5 mm above the outer sphere's top (14 mm) to 2.5 mm into it in 20
 // frames, the wall held on its -x cap. The tool never penetrates (exact intersection count, brute-force clearance),
 // the wall is pushed in by millimetres, and on every solved contact frame the force on the tool is minus the organ's

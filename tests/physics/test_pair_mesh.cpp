@@ -6,6 +6,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <set>
 #include <string>
 
@@ -148,6 +151,39 @@ TEST(TetrahedralisePair, ConcentricSpheresFillExactlyTheShellAndKeepTheirTriangl
 TEST(TetrahedralisePair, MaxEdgeRefinesTheInsideKeepingTheSurfacesNetgen) {
   expect_max_edge_refines_the_inside(PairMesher::kNetgen);
 }
+// gmsh meshes in a process of its own: the same input gives the same mesh however many meshes the process made
+// before (in-process, gmsh 4.8 gave a different mesh on each call), and each way its process can fail is an error
+// naming it: a crash inside it (a process killed by SIGSEGV), no executable, an exit without a reply.
+TEST(TetrahedralisePair, GmshGivesTheSameMeshEachCallAndItsProcessFailuresAreErrors) {
+  const Pair p = spheres();
+  const PairMesh first = mesh(p, PairMesher::kGmsh);
+  const PairMesh second = mesh(p, PairMesher::kGmsh);
+  EXPECT_EQ(first.mesh.tets, second.mesh.tets);
+  EXPECT_EQ(first.mesh.rest, second.mesh.rest);
+  const std::string dir = ::testing::TempDir();
+  const std::string crash = dir + "/lumen_crashing_mesher.sh", silent = dir + "/lumen_silent_mesher.sh";
+  std::ofstream(crash) << "#!/bin/sh\nkill -SEGV $$\n";
+  std::ofstream(silent) << "#!/bin/sh\nexit 0\n";
+  std::filesystem::permissions(crash, std::filesystem::perms::owner_all);
+  std::filesystem::permissions(silent, std::filesystem::perms::owner_all);
+  auto failure = [&](const std::string& executable) {
+    ::setenv("LUMEN_GMSH_MESHER", executable.c_str(), 1);
+    std::string what;
+    try {
+      mesh(p, PairMesher::kGmsh);
+    } catch (const lumen::physics::PairMesherError& e) {
+      what = e.what();
+    }
+    ::unsetenv("LUMEN_GMSH_MESHER");
+    return what;
+  };
+  EXPECT_EQ(failure(crash), "gmsh failed: its process " + crash + " died of signal 11 (Segmentation fault)");
+  EXPECT_EQ(failure(dir + "/no_such_mesher"),
+            "gmsh failed: cannot start its process " + dir + "/no_such_mesher (No such file or directory)");
+  EXPECT_EQ(failure(silent), "gmsh failed: its process's reply was cut short or malformed");
+  EXPECT_EQ(mesh(p, PairMesher::kGmsh).mesh.tets, first.mesh.tets);
+}
+
 TEST(TetrahedralisePair, GmshIsRefusedAMaxEdge) {
   const Pair p = spheres();
   std::string what;
