@@ -73,9 +73,11 @@ std::string mesh_quality_line(const Model& model, const physics::MeshQuality& q)
           ? from + ", " + std::to_string(model.clamped_vertices) + " vertices' offsets clamped below the thickness, " +
                 std::to_string(model.untangled_vertices) + " vertices moved to untangle fold-overs" + remeshed
       : model.mesh_type == MeshType::kSurfacePair
-          ? from + " and " + model.mesh_outer_file + ", tetrahedralised by " + physics::pair_mesher_name(model.pair_mesher) + " in " +
-                one_decimal(model.mesher_ms) + " ms (" + std::to_string(model.mesher_added_nodes) +
-                " nodes added inside the wall)" + remeshed
+          ? from + " and " + model.mesh_outer_file + ", tetrahedralised by " +
+                physics::pair_mesher_name(model.pair_mesher) + " in " + one_decimal(model.mesher_ms) + " ms (" +
+                std::to_string(model.mesher_added_nodes) +
+                " nodes added inside the wall" +
+                (model.gmsh_failure.empty() ? std::string() : "; first " + model.gmsh_failure) + ")" + remeshed
           : from;
   char line[400];
   std::snprintf(line, sizeof line,

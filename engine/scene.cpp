@@ -37,7 +37,7 @@ constexpr const char* kNodeSetNames[] = {"ends", "start", "stop"};
 constexpr const char* kCameraNames[] = {"side", "diagonal", "endoscope"};
 constexpr const char* kMeshTypeNames[] = {"hollow_cylinder", "swept_tube", "volume", "surface_wall", "surface_pair"};
 // Names of physics::PairMesher (mesh.mesher of a surface pair).
-constexpr const char* kPairMesherNames[] = {"gmsh", "netgen"};
+constexpr const char* kPairMesherNames[] = {"auto", "gmsh", "netgen"};
 // Names of MeshUnits (mesh.units of a swept tube, an instrument mesh's units).
 constexpr const char* kLengthUnitNames[] = {"m", "mm"};
 // A range end within this fraction of the centreline's arc length past it is its end (decimal rounding).

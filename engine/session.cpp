@@ -322,6 +322,7 @@ nlohmann::json session_report(const Model& model, const SessionOptions& opt, con
   if (model.mesh_type == MeshType::kSurfacePair) {
     r["mesh"]["outer_file"] = model.mesh_outer_file;
     r["mesh"]["mesher"] = physics::pair_mesher_name(model.pair_mesher);
+    if (!model.gmsh_failure.empty()) r["mesh"]["gmsh_failure"] = model.gmsh_failure;
     r["mesh"]["mesher_ms"] = model.mesher_ms;
     r["mesh"]["surface_check_ms"] = model.surface_check_ms;
     r["mesh"]["mesher_added_nodes"] = model.mesher_added_nodes;

@@ -127,7 +127,8 @@ physics::TetMesh generate_mesh(const Scene& scene, Model& m) {
   if (scene.mesh_type == MeshType::kSurfacePair) {
     m.mesh_file = scene.surface_pair.spec.inner_file;
     m.mesh_outer_file = scene.surface_pair.spec.outer_file;
-    m.pair_mesher = scene.surface_pair.spec.options.mesher;
+    m.pair_mesher = scene.surface_pair.pair.mesher;
+    m.gmsh_failure = scene.surface_pair.pair.gmsh_failure;
     m.mesher_ms = scene.surface_pair.pair.mesher_ms;
     m.mesher_added_nodes = scene.surface_pair.pair.added_nodes;
     m.surface_check_ms = scene.surface_pair.pair.check_ms;

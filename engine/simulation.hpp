@@ -100,7 +100,8 @@ struct Model {
   // A surface pair's outer surface file, its mesher, the mesher's time (ms), the nodes it added inside the wall and
   // the time reading and checking both surfaces took (ms).
   std::string mesh_outer_file;
-  physics::PairMesher pair_mesher = physics::PairMesher::kGmsh;
+  physics::PairMesher pair_mesher = physics::PairMesher::kGmsh;  // the one that made the mesh
+  std::string gmsh_failure;  // mesher "auto": gmsh's failure when Netgen made the mesh instead
   double mesher_ms = 0.0;
   int mesher_added_nodes = 0;
   double surface_check_ms = 0.0;

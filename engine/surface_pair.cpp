@@ -99,6 +99,8 @@ SurfacePair mesh_surface_pair(const SurfacePairSpec& spec) {
     pair.mesh = std::move(m.mesh);
     pair.added_nodes = m.added_nodes;
     pair.mesher_ms = m.mesher_ms;
+    pair.mesher = m.mesher;
+    pair.gmsh_failure = std::move(m.gmsh_failure);
   } catch (const physics::PairMesherError& e) {
     throw InputError(spec.inner_file + " and " + spec.outer_file + ": " + e.what());
   }

@@ -27,6 +27,8 @@ struct SurfacePair {
   int added_nodes = 0;        // nodes the mesher added inside the wall
   double check_ms = 0.0;      // reading both files and their checks (closed, intersections, enclosure), ms
   double mesher_ms = 0.0;     // the mesher's time, milliseconds
+  physics::PairMesher mesher = physics::PairMesher::kNetgen;  // the mesher that made it
+  std::string gmsh_failure;   // mesher "auto": why gmsh did not, when Netgen made it; "" otherwise
   double remesh_ms = 0.0;     // both surfaces remeshed to the target edge, milliseconds (0 without one)
 };
 

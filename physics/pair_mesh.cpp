@@ -350,54 +350,35 @@ RawMesh run_gmsh(const PairInput& in, int steps) {
 }  // namespace
 
 const char* pair_mesher_name(PairMesher mesher) {
-  return mesher == PairMesher::kGmsh ? kGmshMesherName : kNetgenMesherName;
+  switch (mesher) {
+    case PairMesher::kAuto: return "auto";
+    case PairMesher::kGmsh: return kGmshMesherName;
+    case PairMesher::kNetgen: return kNetgenMesherName;
+  }
+  return "?";
 }
 
-PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const Points& outer, const Tris& outer_tris,
-                             const PairMeshOptions& options) {
-  const int ni = static_cast<int>(inner.rows()), no = static_cast<int>(outer.rows());
-  // An empty surface would reach the mesher with nothing to mesh (Netgen crashed there, measured with both empty).
-  if (inner_tris.rows() == 0 || outer_tris.rows() == 0)
-    detail::fail("tetrahedralise_pair: the " + std::string(inner_tris.rows() == 0 ? "inner" : "outer") +
-                 " surface has no triangles");
-  if (inner_tris.minCoeff() < 0 || inner_tris.maxCoeff() >= ni || outer_tris.minCoeff() < 0 ||
-      outer_tris.maxCoeff() >= no)
-    detail::fail("tetrahedralise_pair: a triangle names a vertex outside its surface");
-  if (options.mesher == PairMesher::kGmsh && options.max_edge > 0.0) detail::fail(kGmshMaxEdgeRefused);
-  assert(options.max_edge >= 0.0 && options.optimise_steps >= -1 &&
-         options.optimise_steps <= kPairMesherMaxOptimiseSteps);
-  const PairMesher mesher = options.mesher;
+namespace {
+
+// One mesher on the prepared input: its tets checked and mapped back to the caller's frame and surfaces.
+PairMesh mesh_with(PairMesher mesher, const PairInput& in, const Points& x, const Tris& inner_tris,
+                   const Tris& outer_tris, const Eigen::RowVector3d& centre, double scale, const PairMeshOptions& options) {
+  const Eigen::Index ni = in.inner_vertices, nv = x.rows();
   const int steps = options.optimise_steps >= 0
                         ? options.optimise_steps
                         : (mesher == PairMesher::kGmsh ? kGmshOptimiseSteps : kNetgenOptimiseSteps);
-  // Both surfaces as one point array (inner, then outer) and their triangles facing out of the volume.
-  Points x(ni + no, 3);
-  x << inner, outer;
-  PairInput in;
-  in.inner_vertices = ni;
-  in.inner_faces = static_cast<size_t>(inner_tris.rows());
-  for (Eigen::Index t = 0; t < inner_tris.rows(); ++t)
-    in.faces.push_back({inner_tris(t, 0), inner_tris(t, 2), inner_tris(t, 1)});
-  for (Eigen::Index t = 0; t < outer_tris.rows(); ++t)
-    in.faces.push_back({ni + outer_tris(t, 0), ni + outer_tris(t, 1), ni + outer_tris(t, 2)});
-  // The meshers' frame: centred on the bounding box, scaled to kPairMesherFrameDiagonal.
-  const Eigen::RowVector3d lo = x.colwise().minCoeff(), hi = x.colwise().maxCoeff();
-  const Eigen::RowVector3d centre = 0.5 * (lo + hi);
-  const double scale = kPairMesherFrameDiagonal / (hi - lo).norm();
-  in.x = (x.rowwise() - centre) * scale;
   PairMesh out;
+  out.mesher = mesher;
   const auto t0 = Clock::now();
-  RawMesh raw = mesher == PairMesher::kGmsh ? run_gmsh(in, steps)
-                                            : run_netgen(in, options.max_edge * scale, steps);
+  RawMesh raw = mesher == PairMesher::kGmsh ? run_gmsh(in, steps) : run_netgen(in, options.max_edge * scale, steps);
   const Eigen::Index np = raw.nodes.rows();
-  if (np < ni + no)
-    not_kept(mesher, "it returned " + std::to_string(np) + " points for " + std::to_string(ni + no) +
-                         " input vertices");
+  if (np < nv)
+    not_kept(mesher, "it returned " + std::to_string(np) + " points for " + std::to_string(nv) + " input vertices");
   // The nodes: the input vertices exactly where they were (checked), the added ones mapped back.
   out.mesh.rest.resize(np, 3);
-  out.mesh.rest.topRows(ni + no) = x;
+  out.mesh.rest.topRows(nv) = x;
   for (Eigen::Index v = 0; v < np; ++v) {
-    if (v >= ni + no)
+    if (v >= nv)
       out.mesh.rest.row(v) = raw.nodes.row(v) / scale + centre;
     else if (!((raw.nodes.row(v) - in.x.row(v)).norm() <= kMovedVertexTolerance))
       not_kept(mesher, "input vertex " + std::to_string(v) + " moved");
@@ -415,11 +396,59 @@ PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const 
                          std::to_string(q.degenerate_tets) + " such tets)");
   require_kept_surface(mesher, out.mesh.tets, in.faces);
   // The walls: the inner triangles reversed (facing the lumen, out of the volume), the outer ones as given.
-  out.added_nodes = static_cast<int>(np) - ni - no;
+  out.added_nodes = static_cast<int>(np - nv);
   Tris in_tris = inner_tris;
   in_tris.col(1).swap(in_tris.col(2));
-  out.mesh.surfaces = {{kInnerWall, in_tris}, {kOuterWall, outer_tris.array() + ni}, {kEndCaps, Tris(0, 3)}};
+  out.mesh.surfaces = {{kInnerWall, in_tris}, {kOuterWall, outer_tris.array() + static_cast<int>(ni)},
+                       {kEndCaps, Tris(0, 3)}};
   return out;
+}
+
+}  // namespace
+
+PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const Points& outer, const Tris& outer_tris,
+                             const PairMeshOptions& options) {
+  const int ni = static_cast<int>(inner.rows()), no = static_cast<int>(outer.rows());
+  // An empty surface would reach the mesher with nothing to mesh (Netgen crashed there, measured with both empty).
+  if (inner_tris.rows() == 0 || outer_tris.rows() == 0)
+    detail::fail("tetrahedralise_pair: the " + std::string(inner_tris.rows() == 0 ? "inner" : "outer") +
+                 " surface has no triangles");
+  if (inner_tris.minCoeff() < 0 || inner_tris.maxCoeff() >= ni || outer_tris.minCoeff() < 0 ||
+      outer_tris.maxCoeff() >= no)
+    detail::fail("tetrahedralise_pair: a triangle names a vertex outside its surface");
+  if (options.mesher == PairMesher::kGmsh && options.max_edge > 0.0) detail::fail(kGmshMaxEdgeRefused);
+  assert(options.max_edge >= 0.0 && options.optimise_steps >= -1 &&
+         options.optimise_steps <= kPairMesherMaxOptimiseSteps);
+  // Both surfaces as one point array (inner, then outer) and their triangles facing out of the volume.
+  Points x(ni + no, 3);
+  x << inner, outer;
+  PairInput in;
+  in.inner_vertices = ni;
+  in.inner_faces = static_cast<size_t>(inner_tris.rows());
+  for (Eigen::Index t = 0; t < inner_tris.rows(); ++t)
+    in.faces.push_back({inner_tris(t, 0), inner_tris(t, 2), inner_tris(t, 1)});
+  for (Eigen::Index t = 0; t < outer_tris.rows(); ++t)
+    in.faces.push_back({ni + outer_tris(t, 0), ni + outer_tris(t, 1), ni + outer_tris(t, 2)});
+  // The meshers' frame: centred on the bounding box, scaled to kPairMesherFrameDiagonal.
+  const Eigen::RowVector3d lo = x.colwise().minCoeff(), hi = x.colwise().maxCoeff();
+  const Eigen::RowVector3d centre = 0.5 * (lo + hi);
+  const double scale = kPairMesherFrameDiagonal / (hi - lo).norm();
+  in.x = (x.rowwise() - centre) * scale;
+  auto with = [&](PairMesher m) { return mesh_with(m, in, x, inner_tris, outer_tris, centre, scale, options); };
+  // Automatic: gmsh, and Netgen where gmsh fails (or for a maximum edge, which only Netgen takes).
+  if (options.mesher != PairMesher::kAuto) return with(options.mesher);
+  if (options.max_edge > 0.0) return with(PairMesher::kNetgen);
+  try {
+    return with(PairMesher::kGmsh);
+  } catch (const PairMesherError& gmsh_failed) {
+    try {
+      PairMesh out = with(PairMesher::kNetgen);
+      out.gmsh_failure = gmsh_failed.what();
+      return out;
+    } catch (const PairMesherError& netgen_failed) {
+      throw PairMesherError(std::string(gmsh_failed.what()) + "; then " + netgen_failed.what());
+    }
+  }
 }
 
 }  // namespace lumen::physics

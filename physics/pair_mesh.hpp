@@ -9,9 +9,11 @@
 namespace lumen::physics {
 
 // The meshers that fill the volume between two surfaces keeping both (chosen by measurement, docs/bench_meshers.csv):
-// gmsh's HXT (Delaunay, Marot et al. 2019) with gmsh's tet optimiser, the default: 12-16x faster than Netgen on the
-// organ pairs with close angles; Netgen's advancing front with its optimisation passes, kept for comparison.
-enum class PairMesher { kGmsh, kNetgen };
+// gmsh's HXT (Delaunay, Marot et al. 2019) with gmsh's tet optimiser, 7-10x faster than Netgen on the large pairs
+// with close angles, but it fails on some pairs Netgen meshes (the full aneurysm with its fold-over vertex
+// unmoved); Netgen's advancing front with its optimisation passes. kAuto (the default): gmsh, and Netgen where gmsh
+// fails or for a maximum edge.
+enum class PairMesher { kAuto, kGmsh, kNetgen };
 // Their names and the versions Lumen was measured with (Debian's libgmsh-dev, libnglib-dev), for reports and
 // messages.
 inline constexpr char kGmshMesherName[] = "gmsh 4.8 hxt";
@@ -35,7 +37,7 @@ inline constexpr char kGmshMaxEdgeRefused[] =
 
 // How the volume is filled.
 struct PairMeshOptions {
-  PairMesher mesher = PairMesher::kGmsh;
+  PairMesher mesher = PairMesher::kAuto;
   double max_edge = 0.0;    // longest tet edge Netgen aims for, metres; 0: no limit (the surfaces set the size)
   int optimise_steps = -1;  // optimisation passes, [0, kPairMesherMaxOptimiseSteps]; -1: the mesher's default
 };
@@ -45,6 +47,8 @@ struct PairMesh {
   TetMesh mesh;            // nodes: inner vertices, outer vertices, then the nodes the mesher added inside the wall
   int added_nodes = 0;     // nodes the mesher added (none on the surfaces)
   double mesher_ms = 0.0;  // the mesher's time (its input, meshing and output), milliseconds
+  PairMesher mesher = PairMesher::kNetgen;  // the one that made it (kGmsh or kNetgen)
+  std::string gmsh_failure;                 // kAuto: gmsh's failure when Netgen made the mesh instead; "" otherwise
 };
 
 // The mesher failed, or its mesh does not keep the input surfaces (what() says which and what the mesher said).
@@ -59,8 +63,9 @@ class PairMesherError : public std::runtime_error {
 // oriented and free of intersections, and that `outer` encloses `inner`. Every tet positive. Surfaces
 // (make_hollow_cylinder's names, normals out of the volume): kInnerWall (the inner triangles reversed: facing the
 // lumen), kOuterWall (the outer triangles, node ids offset by the inner vertex count), kEndCaps (empty: closed
-// walls); no node sets. Throws PairMesherError "<Mesher> failed: <what it said>" when the mesher throws or reports an
-// error (its words; Netgen: its result code and the last two lines of its log), and "<Mesher> did not keep the input
+// walls); no node sets. kAuto tries gmsh, then Netgen (out.gmsh_failure says why); both failing throw the two
+// messages joined by "; then ". Throws PairMesherError "<Mesher> failed: <what it said>" when the mesher throws or
+// reports an error (its words; Netgen: its result code and the last two lines of its log), and "<Mesher> did not keep the input
 // surface: ..." when a boundary face of its tets is not an input triangle (or the reverse), an input vertex moved,
 // or a tet is inverted or flat; std::invalid_argument when a surface has no triangles, a triangle names a vertex
 // out of range, or gmsh is given a maximum edge (kGmshMaxEdgeRefused).

@@ -22,6 +22,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # An override naming the full aneurysm's outer surface grown 0.5 mm by lumen_grow_surface into the run's folder
 # (a surface pair of about 42,600 tets: the largest real pair at hand).
 GROWN_OUTER = "<grown outer>"
+# ... and the inner surface it wrote beside it (the original with the one vertex it moved to untangle a fold-over).
+GROWN_INNER = "<grown inner>"
 # (case, shipped scene, overrides of its "mesh" object; file overrides relative to the repository): each past
 # 50,000 tets, or the largest surface pair.
 CASES = [
@@ -31,10 +33,12 @@ CASES = [
      {"segments_around": 24, "segment_length": 2.0}),
     ("full aneurysm wall grown 0.5 mm in 2 layers", "scenes/aneurysm-wall-press.json", {"layers": 2}),
     ("full aneurysm wall grown 0.5 mm in 3 layers", "scenes/aneurysm-wall-press.json", {"layers": 3}),
-    ("full aneurysm surface pair (0.5 mm outer grown beforehand), gmsh", "scenes/aneurysm-pair-press.json",
-     {"inner": "data/organs/sofa-aneurysm3D_1.off", "outer": GROWN_OUTER}),
-    ("full aneurysm surface pair (0.5 mm outer grown beforehand), Netgen", "scenes/aneurysm-pair-press.json",
-     {"inner": "data/organs/sofa-aneurysm3D_1.off", "outer": GROWN_OUTER, "mesher": "netgen"}),
+    ("full aneurysm surface pair: both surfaces as lumen_grow_surface wrote them, mesher auto",
+     "scenes/aneurysm-pair-press.json", {"inner": GROWN_INNER, "outer": GROWN_OUTER}),
+    ("full aneurysm surface pair: both surfaces as lumen_grow_surface wrote them, Netgen",
+     "scenes/aneurysm-pair-press.json", {"inner": GROWN_INNER, "outer": GROWN_OUTER, "mesher": "netgen"}),
+    ("full aneurysm surface pair: the original surface inside the grown one, mesher auto",
+     "scenes/aneurysm-pair-press.json", {"inner": "data/organs/sofa-aneurysm3D_1.off", "outer": GROWN_OUTER}),
 ]
 
 # Keys of "mesh" that name files relative to the scene (made absolute in the copy written elsewhere).
@@ -46,7 +50,7 @@ def grow_outer(lumen, folder):
     inner, outer = os.path.join(folder, "grown_inner.off"), os.path.join(folder, "grown_outer.off")
     subprocess.run([grow, os.path.join(ROOT, "data/organs/sofa-aneurysm3D_1.off"), "0.5", inner, outer],
                    check=True, stdout=subprocess.DEVNULL)
-    return outer
+    return inner, outer
 
 
 def scene_copy(path, overrides, folder, lumen):
@@ -58,8 +62,8 @@ def scene_copy(path, overrides, folder, lumen):
         if isinstance(mesh.get(key), str):
             mesh[key] = os.path.normpath(os.path.join(base, mesh[key]))
     for key, value in overrides.items():
-        if value == GROWN_OUTER:
-            value = grow_outer(lumen, folder)
+        if value in (GROWN_INNER, GROWN_OUTER):
+            value = grow_outer(lumen, folder)[0 if value == GROWN_INNER else 1]
         elif key in FILE_KEYS:
             value = os.path.join(ROOT, value)
         mesh[key] = value
@@ -96,7 +100,9 @@ def main():
         m = meshes[0]
         rows.append({
             "case": case, "scene": path,
-            "overrides": " ".join(f"{k}={'grown 0.5 mm' if v == GROWN_OUTER else v}" for k, v in overrides.items()),
+            "overrides": " ".join(f"{k}={v.strip('<>') if v in (GROWN_INNER, GROWN_OUTER) else v}"
+                                  for k, v in overrides.items()),
+            "mesher": m.get("mesher", ""),
             "source": m["source"], "tets": m["tets"], "nodes": m["nodes"],
             "build_ms_median": round(statistics.median(times), 1),
             "build_ms_runs": " ".join(f"{t:.1f}" for t in times),

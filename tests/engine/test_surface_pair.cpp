@@ -230,11 +230,11 @@ TEST(SurfacePair, RefusesBadPairsNamingFileProblemAndWhere) {
   EXPECT_EQ(scene_error([](json& j) { j["mesh"].erase("outer"); }), scene + ": mesh.outer: missing key");
   EXPECT_EQ(scene_error([](json& j) { j["mesh"]["outer"] = 3; }), scene + ": mesh.outer: must be a string (value 3)");
   EXPECT_EQ(scene_error([](json& j) { j["mesh"]["max_edge"] = 0.0; }), scene + ": mesh.max_edge: must be > 0 (value 0.0)");
-  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["max_edge"] = 1.0; }),
+  EXPECT_EQ(scene_error([](json& j) { j["mesh"]["mesher"] = "gmsh", j["mesh"]["max_edge"] = 1.0; }),
             scene + ": mesh.max_edge: " + lumen::physics::kGmshMaxEdgeRefused + " (value 1.0)");
   EXPECT_EQ(scene_error([](json& j) { j["mesh"]["mesher"] = "netgen", j["mesh"]["max_edge"] = 1.0; }), "");
   EXPECT_EQ(scene_error([](json& j) { j["mesh"]["mesher"] = "tetgen"; }),
-            scene + ": mesh.mesher: must be one of gmsh, netgen (value \"tetgen\")");
+            scene + ": mesh.mesher: must be one of auto, gmsh, netgen (value \"tetgen\")");
   EXPECT_EQ(scene_error([](json& j) { j["mesh"]["optimise_steps"] = 11; }),
             scene + ": mesh.optimise_steps: out of range [0, 10] (value 11)");
   EXPECT_EQ(scene_error([](json& j) { j["mesh"]["optimise_steps"] = 1.5; }),

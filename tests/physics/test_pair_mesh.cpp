@@ -182,6 +182,20 @@ TEST(TetrahedralisePair, GmshGivesTheSameMeshEachCallAndItsProcessFailuresAreErr
             "gmsh failed: cannot start its process " + dir + "/no_such_mesher (No such file or directory)");
   EXPECT_EQ(failure(silent), "gmsh failed: its process's reply was cut short or malformed");
   EXPECT_EQ(mesh(p, PairMesher::kGmsh).mesh.tets, first.mesh.tets);
+  // Automatic: gmsh's mesh when gmsh meshes; Netgen's, with gmsh's failure said, when gmsh's process crashes; Netgen's
+  // for a maximum edge.
+  const PairMesh automatic = mesh(p, PairMesher::kAuto);
+  EXPECT_EQ(automatic.mesher, PairMesher::kGmsh);
+  EXPECT_EQ(automatic.mesh.tets, first.mesh.tets);
+  EXPECT_EQ(automatic.gmsh_failure, "");
+  const PairMesh by_netgen = mesh(p, PairMesher::kNetgen);
+  ::setenv("LUMEN_GMSH_MESHER", crash.c_str(), 1);
+  const PairMesh fallen_back = mesh(p, PairMesher::kAuto);
+  ::unsetenv("LUMEN_GMSH_MESHER");
+  EXPECT_EQ(fallen_back.mesher, PairMesher::kNetgen);
+  EXPECT_EQ(fallen_back.mesh.tets, by_netgen.mesh.tets);
+  EXPECT_EQ(fallen_back.gmsh_failure, "gmsh failed: its process " + crash + " died of signal 11 (Segmentation fault)");
+  EXPECT_EQ(mesh(p, PairMesher::kAuto, 0.25 * (kOuterRadius - kInnerRadius)).mesher, PairMesher::kNetgen);
 }
 
 TEST(TetrahedralisePair, GmshIsRefusedAMaxEdge) {
