@@ -133,12 +133,14 @@ class NetgenSession {
   nglib::Ng_Mesh* mesh_ = nullptr;
 };
 
+// A mesher's name at the head of its messages.
+const char* said_by(PairMesher mesher) { return mesher == PairMesher::kGmsh ? "gmsh" : "Netgen"; }
+
 [[noreturn]] void not_kept(PairMesher mesher, const std::string& what) {
-  throw PairMesherError(std::string(mesher == PairMesher::kGmsh ? "gmsh" : "Netgen") +
-                        " did not keep the input surface: " + what);
+  throw PairMesherError(std::string(said_by(mesher)) + " did not keep the input surface: " + what);
 }
 
-// Refuses Netgen's tets unless their boundary faces are exactly the input triangles (as sets of node ids).
+// Refuses a mesher's tets unless their boundary faces are exactly the input triangles (as sets of node ids).
 void require_kept_surface(PairMesher mesher, const Tets& tets, const std::vector<Face>& input) {
   const Tris boundary = boundary_faces(tets);
   std::set<Face> in;
@@ -157,9 +159,8 @@ void require_kept_surface(PairMesher mesher, const Tets& tets, const std::vector
                std::to_string(f[2]) + ") is not a boundary face of its tets");
 }
 
-
 [[noreturn]] void mesher_failed(PairMesher mesher, const std::string& what) {
-  throw PairMesherError(std::string(mesher == PairMesher::kGmsh ? "gmsh" : "Netgen") + " failed: " + what);
+  throw PairMesherError(std::string(said_by(mesher)) + " failed: " + what);
 }
 
 // Netgen's advancing front and optimisation passes.
