@@ -329,9 +329,10 @@ RawMesh run_gmsh(const PairInput& in, int steps) {
       std::vector<std::int32_t> tets(4 * static_cast<size_t>(counts[1]));
       replied = receive_all(process.fd(), nodes.data(), nodes.size() * sizeof(double)) &&
                 receive_all(process.fd(), tets.data(), tets.size() * sizeof(std::int32_t));
-      out.nodes = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(nodes.data(), counts[0], 3);
-      out.tets = Eigen::Map<const Eigen::Matrix<std::int32_t, Eigen::Dynamic, 4, Eigen::RowMajor>>(tets.data(), counts[1], 4)
-                     .cast<int>();
+      using NodeRows = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+      using TetRows = Eigen::Matrix<std::int32_t, Eigen::Dynamic, 4, Eigen::RowMajor>;
+      out.nodes = Eigen::Map<const NodeRows>(nodes.data(), counts[0], 3);
+      out.tets = Eigen::Map<const TetRows>(tets.data(), counts[1], 4).cast<int>();
       if (replied && (out.tets.minCoeff() < 0 || out.tets.maxCoeff() >= counts[0]))
         mesher_failed(PairMesher::kGmsh, "its process returned a tet naming a node it did not return");
     }
@@ -348,22 +349,10 @@ RawMesh run_gmsh(const PairInput& in, int steps) {
   return out;
 }
 
-}  // namespace
-
-const char* pair_mesher_name(PairMesher mesher) {
-  switch (mesher) {
-    case PairMesher::kAuto: return "auto";
-    case PairMesher::kGmsh: return kGmshMesherName;
-    case PairMesher::kNetgen: return kNetgenMesherName;
-  }
-  return "?";
-}
-
-namespace {
-
 // One mesher on the prepared input: its tets checked and mapped back to the caller's frame and surfaces.
 PairMesh mesh_with(PairMesher mesher, const PairInput& in, const Points& x, const Tris& inner_tris,
-                   const Tris& outer_tris, const Eigen::RowVector3d& centre, double scale, const PairMeshOptions& options) {
+                   const Tris& outer_tris, const Eigen::RowVector3d& centre, double scale,
+                   const PairMeshOptions& options) {
   const Eigen::Index ni = in.inner_vertices, nv = x.rows();
   const int steps = options.optimise_steps >= 0
                         ? options.optimise_steps
@@ -406,6 +395,15 @@ PairMesh mesh_with(PairMesher mesher, const PairInput& in, const Points& x, cons
 }
 
 }  // namespace
+
+const char* pair_mesher_name(PairMesher mesher) {
+  switch (mesher) {
+    case PairMesher::kAuto: return "auto";
+    case PairMesher::kGmsh: return kGmshMesherName;
+    case PairMesher::kNetgen: return kNetgenMesherName;
+  }
+  return "?";
+}
 
 PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const Points& outer, const Tris& outer_tris,
                              const PairMeshOptions& options) {

@@ -65,10 +65,10 @@ class PairMesherError : public std::runtime_error {
 // lumen), kOuterWall (the outer triangles, node ids offset by the inner vertex count), kEndCaps (empty: closed
 // walls); no node sets. kAuto tries gmsh, then Netgen (out.gmsh_failure says why); both failing throw the two
 // messages joined by "; then ". Throws PairMesherError "<Mesher> failed: <what it said>" when the mesher throws or
-// reports an error (its words; Netgen: its result code and the last two lines of its log), and "<Mesher> did not keep the input
-// surface: ..." when a boundary face of its tets is not an input triangle (or the reverse), an input vertex moved,
-// or a tet is inverted or flat; std::invalid_argument when a surface has no triangles, a triangle names a vertex
-// out of range, or gmsh is given a maximum edge (kGmshMaxEdgeRefused).
+// reports an error (its words; Netgen: its result code and the last two lines of its log), and "<Mesher> did not
+// keep the input surface: ..." when a boundary face of its tets is not an input triangle (or the reverse), an
+// input vertex moved, or a tet is inverted or flat; std::invalid_argument when a surface has no triangles, a
+// triangle names a vertex out of range, or gmsh is given a maximum edge (kGmshMaxEdgeRefused).
 PairMesh tetrahedralise_pair(const Points& inner, const Tris& inner_tris, const Points& outer, const Tris& outer_tris,
                              const PairMeshOptions& options);
 
