@@ -186,9 +186,12 @@ CorotationalElements::CorotationalElements(const QuadraticMesh& mesh, const Line
 }
 
 void CorotationalElements::build_node_elements() {
-  // Node -> incident elements (CSR, over every node of an element), for per-node rotations.
   const int nt = n_tets();
   const int per_element = order_ == ElementOrder::kLinear ? 4 : 10;
+  // The stiffness matrices' pattern and where each element's entries go in it.
+  assembly_ = order_ == ElementOrder::kLinear ? ElementAssembly(tets_.data(), nt, 4, n_nodes_)
+                                             : ElementAssembly(nodes10_.data(), nt, 10, n_nodes_);
+  // Node -> incident elements (CSR, over every node of an element), for per-node rotations.
   auto node = [&](int t, int a) { return order_ == ElementOrder::kLinear ? tets_(t, a) : nodes10_(t, a); };
   node_tet_start_.assign(n_nodes_ + 1, 0);
   for (int t = 0; t < nt; ++t)
@@ -215,12 +218,11 @@ void CorotationalElements::add_support(const Eigen::VectorXd& v, Eigen::VectorXd
 
 Eigen::SparseMatrix<double> CorotationalElements::with_support(Eigen::SparseMatrix<double> K) const {
   if (!support_.size()) return K;
-  Eigen::SparseMatrix<double> S(n_dofs(), n_dofs());
-  std::vector<Eigen::Triplet<double>> diagonal;
+  // (In place: a diagonal entry missing from K's pattern is inserted.)
   for (int d = 0; d < n_dofs(); ++d)
-    if (support_[d] != 0.0) diagonal.emplace_back(d, d, support_[d]);
-  S.setFromTriplets(diagonal.begin(), diagonal.end());
-  return K + S;
+    if (support_[d] != 0.0) K.coeffRef(d, d) += support_[d];
+  K.makeCompressed();
+  return K;
 }
 
 void CorotationalElements::require_linear(const char* where) const {
@@ -339,11 +341,8 @@ Eigen::Matrix<double, 12, 12> CorotationalElements::warped_element(const Eigen::
 Eigen::SparseMatrix<double> CorotationalElements::warped_stiffness(const std::vector<Eigen::Matrix3d>& R) const {
   check_rotations("CorotationalElements::warped_stiffness", R);
   if (order_ == ElementOrder::kQuadratic) return with_support(quadratic_stiffness(R));
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(static_cast<size_t>(n_tets()) * 144);
-  for (int t = 0; t < n_tets(); ++t) scatter_element_matrix(warped_element(R[t], t), tets_.row(t), triplets);
-  Eigen::SparseMatrix<double> K(n_dofs(), n_dofs());
-  K.setFromTriplets(triplets.begin(), triplets.end());
+  Eigen::SparseMatrix<double> K = assembly_.zero_matrix();
+  for (int t = 0; t < n_tets(); ++t) assembly_.add(t, warped_element(R[t], t), K);
   return with_support(std::move(K));
 }
 
@@ -402,15 +401,12 @@ Eigen::SparseMatrix<double> CorotationalElements::tangent_stiffness(const std::v
   require_linear("CorotationalElements::tangent_stiffness");
   check_rotations("CorotationalElements::tangent_stiffness", R);
   check_modes("CorotationalElements::tangent_stiffness", modes);
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(static_cast<size_t>(n_tets()) * 144);
+  Eigen::SparseMatrix<double> K = assembly_.zero_matrix();
   for (int t = 0; t < n_tets(); ++t) {
     const Eigen::Matrix<double, 12, 12> Kt =
         warped_element(R[t], t) + modes[t].b * modes[t].stiffness.asDiagonal() * modes[t].b.transpose();
-    scatter_element_matrix(Kt, tets_.row(t), triplets);
+    assembly_.add(t, Kt, K);
   }
-  Eigen::SparseMatrix<double> K(n_dofs(), n_dofs());
-  K.setFromTriplets(triplets.begin(), triplets.end());
   return with_support(std::move(K));
 }
 
@@ -483,19 +479,16 @@ void CorotationalElements::quadratic_product(const std::vector<Eigen::Matrix3d>&
 }
 
 Eigen::SparseMatrix<double> CorotationalElements::quadratic_stiffness(const std::vector<Eigen::Matrix3d>& R) const {
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(static_cast<size_t>(n_tets()) * kTet10Dofs * kTet10Dofs);
+  Eigen::SparseMatrix<double> K = assembly_.zero_matrix();
   Eigen::Matrix<double, 30, 30> W;
   for (int t = 0; t < n_tets(); ++t) {
     // Block (a, b): R K_ab R^T.
-    const auto K = element_stiffness(t);
+    const auto Ke = element_stiffness(t);
     for (int a = 0; a < 10; ++a)
       for (int b = 0; b < 10; ++b)
-        W.block<3, 3>(3 * a, 3 * b) = R[t] * K.block<3, 3>(3 * a, 3 * b) * R[t].transpose();
-    scatter_element_matrix(W, nodes10_.row(t), triplets);
+        W.block<3, 3>(3 * a, 3 * b) = R[t] * Ke.block<3, 3>(3 * a, 3 * b) * R[t].transpose();
+    assembly_.add(t, W, K);
   }
-  Eigen::SparseMatrix<double> K(n_dofs(), n_dofs());
-  K.setFromTriplets(triplets.begin(), triplets.end());
   return K;
 }
 

@@ -143,6 +143,7 @@ class CorotationalElements {
   LinearMaterial material_;
   double lambda_ = 0.0, mu_ = 0.0;         // Lame parameters, pascals
   Eigen::VectorXd support_;                // the supports' springs to rest, 3n, N/m (empty: none)
+  ElementAssembly assembly_;               // the stiffness matrices' pattern over the elements (corners or 10 nodes)
 };
 
 // Contacts carried into the nonlinear equilibrium by an augmented Lagrangian (the method of multipliers): rows

@@ -145,6 +145,56 @@ double tet_energy(const Mat43& X, const Mat43& u, const LinearMaterial& m) {
   return volume * (mu * eps.squaredNorm() + 0.5 * lambda * tr * tr);
 }
 
+ElementAssembly::ElementAssembly(const int* nodes, int n_elements, int k, int n_nodes)
+    : k_(k), n_elements_(n_elements) {
+  if (k < 1 || n_elements < 0 || n_nodes < 0)
+    throw std::invalid_argument("ElementAssembly: needs k >= 1 nodes an element and counts >= 0, got k = " +
+                                std::to_string(k) + ", " + std::to_string(n_elements) + " elements, " +
+                                std::to_string(n_nodes) + " nodes");
+  const size_t per_element = static_cast<size_t>(k);
+  for (size_t i = 0; i < per_element * static_cast<size_t>(n_elements); ++i)
+    if (nodes[i] < 0 || nodes[i] >= n_nodes)
+      throw std::invalid_argument("ElementAssembly: node " + std::to_string(i % per_element) + " of element " +
+                                  std::to_string(i / per_element) + " must be a node id in [0, " +
+                                  std::to_string(n_nodes) + "), got " + std::to_string(nodes[i]));
+  // Each node's neighbours (the nodes it shares an element with, itself included), sorted.
+  std::vector<std::vector<int>> neighbours(n_nodes);
+  for (int e = 0; e < n_elements; ++e)
+    for (int a = 0; a < k; ++a)
+      for (int b = 0; b < k; ++b) neighbours[nodes[e * k + a]].push_back(nodes[e * k + b]);
+  for (std::vector<int>& list : neighbours) {
+    std::sort(list.begin(), list.end());
+    list.erase(std::unique(list.begin(), list.end()), list.end());
+  }
+  // The pattern: column 3 v + j holds rows 3 w + i for every neighbour w of v (the matrix is structurally symmetric).
+  const int n = 3 * n_nodes;
+  std::vector<int> column_start(n + 1, 0);
+  for (int v = 0; v < n_nodes; ++v)
+    for (int j = 0; j < 3; ++j) column_start[3 * v + j + 1] = column_start[3 * v + j] + 3 * static_cast<int>(neighbours[v].size());
+  pattern_.resize(n, n);
+  pattern_.resizeNonZeros(column_start[n]);
+  std::copy(column_start.begin(), column_start.end(), pattern_.outerIndexPtr());
+  int* rows = pattern_.innerIndexPtr();
+  for (int v = 0; v < n_nodes; ++v)
+    for (int j = 0; j < 3; ++j) {
+      int p = column_start[3 * v + j];
+      for (int w : neighbours[v])
+        for (int i = 0; i < 3; ++i) rows[p++] = 3 * w + i;
+    }
+  std::fill(pattern_.valuePtr(), pattern_.valuePtr() + pattern_.nonZeros(), 0.0);
+  // Per element block column (a, b, j): where row 3 nodes(a) sits in column 3 nodes(b) + j.
+  block_start_.resize(static_cast<size_t>(n_elements) * k * k * 3);
+  size_t out = 0;
+  for (int e = 0; e < n_elements; ++e)
+    for (int a = 0; a < k; ++a)
+      for (int b = 0; b < k; ++b) {
+        const int wa = nodes[e * k + a], vb = nodes[e * k + b];
+        const std::vector<int>& list = neighbours[vb];
+        const int at = static_cast<int>(std::lower_bound(list.begin(), list.end(), wa) - list.begin());
+        for (int j = 0; j < 3; ++j) block_start_[out++] = column_start[3 * vb + j] + 3 * at;
+      }
+}
+
 Eigen::SparseMatrix<double> assemble_stiffness(const TetMesh& mesh, const LinearMaterial& m) {
   validate_material(m);
   const int n = mesh.n_nodes();
