@@ -30,8 +30,10 @@ using Mat43 = Eigen::Matrix<double, 4, 3>;
 // openblas_set_num_threads(1) when the BLAS loaded is OpenBLAS (looked up at run time: no link to it), once.
 // CHOLMOD itself (Debian's SuiteSparse 5.12) runs loops of its supernodal factorisation on 4 OpenMP threads, a
 // number compiled in (CHOLMOD_OMP_NUM_THREADS) that OMP_NUM_THREADS does not change: on 2 cores those threads
-// wait on each other and on the engine's. omp_set_max_active_levels(0) makes every OpenMP region of the process
-// run on its calling thread (nothing else in Lumen uses OpenMP). Measured on the paper mesh (lumen_benchmarks
+// wait on each other and on the engine's. omp_set_max_active_levels(0) makes the OpenMP regions of the thread that
+// calls it run on that thread alone (nothing else in Lumen uses OpenMP). libgomp keeps that setting per thread, so
+// it is set on every call, by whichever thread factorises: set once, on the first thread, it left every background
+// factorisation (a new thread each time) with teams of 4. Measured on the paper mesh (lumen_benchmarks
 // BM_PhysicsFactorise, 3 repetitions, twice each way alternating): 60-65 ms wall for 40 ms of the calling thread's
 // CPU, against 28-34 ms on one thread.
 void use_one_blas_thread() {
@@ -39,9 +41,10 @@ void use_one_blas_thread() {
   std::call_once(once, [] {
     using SetThreads = void (*)(int);
     if (void* f = dlsym(RTLD_DEFAULT, "openblas_set_num_threads")) reinterpret_cast<SetThreads>(f)(1);
-    using SetLevels = void (*)(int);
-    if (void* f = dlsym(RTLD_DEFAULT, "omp_set_max_active_levels")) reinterpret_cast<SetLevels>(f)(0);
   });
+  using SetLevels = void (*)(int);
+  static const SetLevels set_levels = reinterpret_cast<SetLevels>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"));
+  if (set_levels) set_levels(0);
 }
 
 // Shape-function gradients of a linear tet (4 x 3, 1/metres) and its rest volume (cubic metres).

@@ -1,5 +1,6 @@
 // Element stiffness vs finite differences of the energy, rigid modes, assembly, and the CHOLMOD solver
 // against Eigen's dense Cholesky.
+#include <dlfcn.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -626,6 +627,30 @@ TEST(StaticSolver, AFactorisationOnASecondThreadWhileTheFirstSolvesIsExact) {
     made->solve(b, y);
     EXPECT_LT(free_residual(K2, y, b), 1e-9) << "round " << round << " (" << solves << " solves during it)";
     EXPECT_LT((2.0 * y - x0).norm(), 1e-9 * x0.norm()) << "round " << round;
+  }
+}
+
+// CHOLMOD's OpenMP loops run on the thread that factorises, whatever thread that is. libgomp keeps
+// max-active-levels per thread: set once on the main thread, it left every background factorisation (a new thread
+// each time) with teams of 4 OpenMP threads on 2 cores (36,000 context switches at nice 19 in a 40-frame pinch,
+// their wall time twice their CPU time). The OpenMP runtime is CHOLMOD's own, found the way fem.cpp finds it.
+TEST(StaticSolver, AFactorisationOnANewThreadRunsOpenMpOnThatThreadAlone) {
+  using GetLevels = int (*)();
+  const auto max_active_levels = reinterpret_cast<GetLevels>(dlsym(RTLD_DEFAULT, "omp_get_max_active_levels"));
+  ASSERT_NE(max_active_levels, nullptr) << "CHOLMOD is linked without an OpenMP runtime";
+  const TetMesh mesh = small_mesh();
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
+  std::vector<int> fixed_nodes = mesh.node_set(kStartEnd);
+  const StaticSolver here(K, fixed_nodes);  // (the first factorisation, on this thread)
+  for (int round = 0; round < 2; ++round) {
+    auto there = std::async(std::launch::async, [&] {
+      const int before = max_active_levels();
+      const StaticSolver solver(K, fixed_nodes);
+      return std::make_pair(before, max_active_levels());
+    });
+    const auto [before, after] = there.get();
+    EXPECT_GT(before, 0) << "a new thread starts with nested OpenMP teams allowed (else this test shows nothing)";
+    EXPECT_EQ(after, 0) << "round " << round;
   }
 }
 
