@@ -173,7 +173,8 @@ ElementAssembly::ElementAssembly(const int* nodes, int n_elements, int k, int n_
   const int n = 3 * n_nodes;
   std::vector<int> column_start(n + 1, 0);
   for (int v = 0; v < n_nodes; ++v)
-    for (int j = 0; j < 3; ++j) column_start[3 * v + j + 1] = column_start[3 * v + j] + 3 * static_cast<int>(neighbours[v].size());
+    for (int j = 0; j < 3; ++j)
+      column_start[3 * v + j + 1] = column_start[3 * v + j] + 3 * static_cast<int>(neighbours[v].size());
   pattern_.resize(n, n);
   pattern_.resizeNonZeros(column_start[n]);
   std::copy(column_start.begin(), column_start.end(), pattern_.outerIndexPtr());
