@@ -68,9 +68,13 @@ Eigen::VectorXd contact_force(const std::vector<ContactRow>& rows, const Eigen::
 // ---------------------------------------------------------------------------------------------------------------
 // Coupling matrix A = H C H^T, column by column
 
-CouplingMatrix::CouplingMatrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows)
+CouplingMatrix::CouplingMatrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
+                               const std::vector<Eigen::Matrix3d>* node_frames)
     : compliance_(&compliance), rows_(&rows) {
   check_rows(rows, compliance.n_nodes_mesh());
+  if (node_frames && static_cast<int>(node_frames->size()) != compliance.n_nodes_mesh())
+    fail("CouplingMatrix: node_frames must have " + std::to_string(compliance.n_nodes_mesh()) + " rotations, got " +
+         std::to_string(node_frames->size()));
   const int m = static_cast<int>(rows.size());
   // Distinct touched nodes; each row's used entries as (slot among them, weight * n).
   std::vector<int> slot_of(compliance.n_nodes_mesh(), -1);
@@ -85,7 +89,8 @@ CouplingMatrix::CouplingMatrix(SurfaceCompliance& compliance, const std::vector<
         touched_set_index_.push_back(compliance.index_[v]);
       }
       entry_slot_.push_back(slot_of[v]);
-      entry_wn_.push_back(rows[r].weight[k] * rows[r].n);
+      entry_wn_.push_back(rows[r].weight[k] * (node_frames ? Eigen::Vector3d((*node_frames)[v].transpose() * rows[r].n)
+                                                          : rows[r].n));
     }
     entry_begin_[r + 1] = static_cast<int>(entry_slot_.size());
   }
@@ -168,8 +173,9 @@ Eigen::MatrixXd CouplingMatrix::dense() {
   return A;
 }
 
-Eigen::MatrixXd coupling_matrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows) {
-  return CouplingMatrix(compliance, rows).dense();
+Eigen::MatrixXd coupling_matrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
+                                const std::vector<Eigen::Matrix3d>* node_frames) {
+  return CouplingMatrix(compliance, rows, node_frames).dense();
 }
 
 }  // namespace lumen::physics

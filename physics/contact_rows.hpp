@@ -26,7 +26,10 @@ struct ContactRow {
 class CouplingMatrix {
  public:
   // Validates the rows and solves once for the columns of every touched node outside the compliance's set.
-  CouplingMatrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows);
+  // node_frames (n_nodes rotations, or null): A = (H Rn) C (H Rn)^T, the coupling of the warped compliance
+  // Rn C Rn^T (Rn block-diagonal, one rotation per node): each row's entry on node v is weight * R_v^T n.
+  CouplingMatrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
+                 const std::vector<Eigen::Matrix3d>* node_frames = nullptr);
   int size() const { return static_cast<int>(rows_->size()); }
   // A e_s: entry r is h_r . C h_s, metres per newton.
   const Eigen::VectorXd& column(int s);
@@ -52,7 +55,9 @@ class CouplingMatrix {
 Eigen::VectorXd row_values(const std::vector<ContactRow>& rows, const Eigen::VectorXd& u);
 // H^T lambda, a nodal force vector of length n_dofs, newtons.
 Eigen::VectorXd contact_force(const std::vector<ContactRow>& rows, const Eigen::VectorXd& lambda, int n_dofs);
-// A = H C H^T, rows x rows, metres per newton (computes missing compliance columns on demand).
-Eigen::MatrixXd coupling_matrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows);
+// A = H C H^T, rows x rows, metres per newton (computes missing compliance columns on demand); with node_frames,
+// H Rn C Rn^T H^T (CouplingMatrix).
+Eigen::MatrixXd coupling_matrix(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
+                                const std::vector<Eigen::Matrix3d>* node_frames = nullptr);
 
 }  // namespace lumen::physics

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <Eigen/Geometry>
 #include <random>
 #include <vector>
 
@@ -36,6 +37,33 @@ TEST(CouplingMatrix, ColumnsEqualDenseTwin) {
     EXPECT_EQ((dense - dense.transpose()).norm(), 0.0);
     EXPECT_LE((coupling_matrix(sc, rows) - dense).norm(), 1e-15 * twin.norm());
     EXPECT_THROW(A.column(31), std::invalid_argument);
+  }
+}
+
+// With per-node frames the coupling is that of the warped compliance, against the dense twin H Rn K^-1 Rn^T H^T
+// (Rn block-diagonal: a random rotation per node), set matrix solved or lazy; a frame list of the wrong size throws.
+TEST(CouplingMatrix, NodeFramesEqualTheWarpedDenseTwin) {
+  for (const long set_matrix_bytes : {256L << 20, 0L}) {
+    const Model& m = model();
+    SurfaceCompliance sc(*m.solver, m.inner, 64, 256L << 20, set_matrix_bytes);
+    std::mt19937 rng(23);
+    std::vector<ContactRow> rows;
+    for (int r = 0; r < 20; ++r) rows.push_back(random_vertex_face(rng, m, r % 3 == 0));
+    std::normal_distribution<double> normal(0.0, 1.0);
+    std::vector<Eigen::Matrix3d> frames(static_cast<size_t>(m.n()));
+    Eigen::MatrixXd Rn = Eigen::MatrixXd::Zero(3 * m.n(), 3 * m.n());
+    for (int v = 0; v < m.n(); ++v) {
+      const Eigen::Vector4d q(normal(rng), normal(rng), normal(rng), normal(rng));
+      frames[v] = Eigen::Quaterniond(q.normalized()).toRotationMatrix();
+      Rn.block<3, 3>(3 * v, 3 * v) = frames[v];
+    }
+    const Eigen::MatrixXd H = dense_H(rows, m.n());
+    const Eigen::MatrixXd twin = H * Rn * m.Kinv * Rn.transpose() * H.transpose();
+    EXPECT_LE((coupling_matrix(sc, rows, &frames) - twin).norm(), 1e-9 * twin.norm());
+    // (Not the unwarped coupling: the frames matter.)
+    EXPECT_GT((coupling_matrix(sc, rows) - twin).norm(), 1e-3 * twin.norm());
+    frames.pop_back();
+    EXPECT_THROW(CouplingMatrix(sc, rows, &frames), std::invalid_argument);
   }
 }
 

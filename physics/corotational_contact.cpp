@@ -1,0 +1,209 @@
+// Contacts inside the corotational quasi-static equilibrium: SQP with the warped rest stiffness as its Hessian.
+#include "physics/corotational_contact.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "physics/detail/dofs.hpp"
+#include "physics/detail/messages.hpp"
+#include "physics/lcp.hpp"
+#include "physics/lcp_iterative.hpp"
+
+namespace lumen::physics {
+namespace {
+
+constexpr double kSufficientDecrease = 1e-4;             // sufficient decrease of Pi, a fraction of the step's slope
+constexpr int kMaxHalvings = 12;           // line-search halvings before a step is given up
+constexpr double kLcpToleranceShare = 0.1;   // the LCP's tolerance, a share of the feasibility tolerance
+// A change of Pi this small relative to its size is round-off (near the solution Pi changes by about r . du / 2):
+// there the whole step is taken, as a converging SQP's is.
+constexpr double kPotentialRoundOff = 1e-11;
+
+void validate(const ContactEquilibriumOptions& o) {
+  const char* where = "solve_contact_equilibrium";
+  if (!(o.tolerance > 0.0) || !std::isfinite(o.tolerance)) detail::fail_must(where, "options.tolerance", "be > 0", o.tolerance);
+  if (o.max_steps < 1) detail::fail_must(where, "options.max_steps", "be >= 1", o.max_steps);
+  if (!(o.feasibility_tolerance > 0.0) || !std::isfinite(o.feasibility_tolerance))
+    detail::fail_must(where, "options.feasibility_tolerance", "be > 0", o.feasibility_tolerance);
+  if (o.lcp_sweeps < 0) detail::fail_must(where, "options.lcp_sweeps", "be >= 0", o.lcp_sweeps);
+}
+
+// v (3n) turned node by node: v_a <- R_a v_a, or R_a^T v_a.
+void turn(const std::vector<Eigen::Matrix3d>& Rn, bool transpose, Eigen::VectorXd& v) {
+  for (size_t a = 0; a < Rn.size(); ++a) {
+    const Eigen::Vector3d x = v.segment<3>(3 * static_cast<Eigen::Index>(a));
+    v.segment<3>(3 * static_cast<Eigen::Index>(a)) = transpose ? Eigen::Vector3d(Rn[a].transpose() * x) : Eigen::Vector3d(Rn[a] * x);
+  }
+}
+
+// The potential, residual and force scale at state.u (rotations and forces evaluated unless cached).
+struct Evaluation {
+  const CorotationalElements& el;
+  const Eigen::VectorXd& f;          // loads, 0 on the fixed DOFs
+  const std::vector<char>& fixed;
+  Eigen::VectorXd r;                 // f - f_int on the free DOFs, 0 on the fixed
+  double potential = 0.0;            // Pi(u), joules
+  double scale = 0.0;                // max(|f|, reactions), newtons
+
+  void at(CorotationalState& s) {
+    const int n = static_cast<int>(f.size());
+    const bool cached = s.u_eval.size() == n && s.f_int.size() == n &&
+                        static_cast<int>(s.rotations.size()) == el.n_tets() && s.u_eval == s.u;
+    if (!cached) {
+      s.n_inverted = el.rotations(s.u, s.rotations);
+      el.elastic_forces(s.u, s.rotations, s.f_int);
+      s.u_eval = s.u;
+    }
+    r.resize(n);
+    for (int d = 0; d < n; ++d) r[d] = fixed[d] ? 0.0 : f[d] - s.f_int[d];
+    potential = el.elastic_energy(s.u, s.rotations) - f.dot(s.u);
+    scale = std::max(f.norm(), detail::reaction_norm(s.f_int, fixed));
+  }
+};
+
+// One QP at u: lambda from the LCP on W, and the step du = B^-1 (r + H^T lambda) with B^-1 = Rn K^-1 Rn^T.
+class WarpedQp {
+ public:
+  WarpedQp(const StaticSolver& K, const std::vector<ContactRow>& rows, const Eigen::MatrixXd& W,
+           const std::vector<Eigen::Matrix3d>& Rn, const ContactEquilibriumOptions& options)
+      : K_(K), rows_(rows), W_(W), Rn_(Rn), options_(options) {
+    g_.resize(static_cast<Eigen::Index>(rows.size()));
+    for (size_t i = 0; i < rows.size(); ++i) g_[static_cast<Eigen::Index>(i)] = rows[i].g;
+  }
+  // B^-1 v (3n).
+  void compliance(Eigen::VectorXd v, Eigen::VectorXd& out) const {
+    turn(Rn_, true, v);
+    K_.solve(v, out);
+    turn(Rn_, false, out);
+  }
+  // The step at u with residual r; lambda: in the warm start, out the QP's multipliers; fc: H^T lambda.
+  void step(const Eigen::VectorXd& u, const Eigen::VectorXd& r, Eigen::VectorXd& lambda, Eigen::VectorXd& fc,
+            Eigen::VectorXd& du, ContactEquilibriumResult& result) const {
+    const int n = static_cast<int>(u.size());
+    compliance(r, du);
+    if (rows_.empty()) {
+      lambda.resize(0);
+      fc.setZero(n);
+      return;
+    }
+    const Eigen::VectorXd q = row_values(rows_, u + du) - g_;
+    LcpResult z;
+    const double tol = kLcpToleranceShare * options_.feasibility_tolerance;
+    if (options_.lcp_sweeps > 0) {
+      IterativeLcpOptions o;
+      o.max_sweeps = options_.lcp_sweeps;
+      o.tolerance = tol;
+      o.warm = lambda.size() == q.size() ? lambda : Eigen::VectorXd();
+      z = solve_lcp_nncg(W_, q, o);
+    } else {
+      std::vector<int> warm;
+      for (Eigen::Index i = 0; i < lambda.size() && lambda.size() == q.size(); ++i)
+        if (lambda[i] > 0.0) warm.push_back(static_cast<int>(i));
+      LcpOptions o;
+      o.tolerance = tol;
+      z = solve_lcp_active_set(W_, q, warm, o);
+      if (!z.converged) z = solve_lcp_dense(W_, q, o);
+    }
+    result.lcp_iterations += z.iterations;
+    result.lcp_converged = result.lcp_converged && z.converged;
+    lambda = z.z;
+    fc = contact_force(rows_, lambda, n);
+    Eigen::VectorXd dc;
+    compliance(fc, dc);
+    du += dc;
+  }
+  // Largest g - H u, metres.
+  double violation(const Eigen::VectorXd& u) const {
+    return rows_.empty() ? 0.0 : (g_ - row_values(rows_, u)).maxCoeff();
+  }
+
+ private:
+  const StaticSolver& K_;
+  const std::vector<ContactRow>& rows_;
+  const Eigen::MatrixXd& W_;
+  const std::vector<Eigen::Matrix3d>& Rn_;
+  const ContactEquilibriumOptions& options_;
+  Eigen::VectorXd g_;
+};
+
+}  // namespace
+
+ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& model, const Eigen::VectorXd& f_ext,
+                                                   const std::vector<ContactRow>& rows, SurfaceCompliance& compliance,
+                                                   const ContactEquilibriumOptions& options, CorotationalState& state,
+                                                   const Eigen::VectorXd& lambda_warm) {
+  const char* where = "solve_contact_equilibrium";
+  validate(options);
+  const CorotationalElements& el = model.elements();
+  const int n = model.n_dofs();
+  detail::check_vector(where, "f", f_ext, n);
+  detail::check_vector(where, "state.u", state.u, n);
+  if (&compliance.solver() != &model.solver())
+    throw std::invalid_argument(std::string(where) + ": compliance must be over the model's solver (its rest K)");
+  if (lambda_warm.size() != 0 && lambda_warm.size() != static_cast<Eigen::Index>(rows.size()))
+    detail::fail_must(where, "lambda_warm.size()", "be 0 or rows = " + std::to_string(rows.size()), lambda_warm.size());
+
+  // The free loads and the fixed mask (whole nodes: a node turned by Rn keeps its fixed components fixed).
+  std::vector<char> fixed(static_cast<size_t>(n));
+  Eigen::VectorXd f = f_ext;
+  for (int d = 0; d < n; ++d) {
+    fixed[d] = model.is_fixed_dof(d) ? 1 : 0;
+    if (fixed[d]) f[d] = 0.0;
+  }
+  Evaluation eval{el, f, fixed, {}, 0.0, 0.0};
+  eval.at(state);
+
+  // The fixed Hessian's frames (each node's rotation at the start) and the rows' coupling on it.
+  std::vector<Eigen::Matrix3d> Rn;
+  el.node_rotations(state.rotations, Rn);
+  const Eigen::MatrixXd W = rows.empty() ? Eigen::MatrixXd() : coupling_matrix(compliance, rows, &Rn);
+  const WarpedQp qp(model.solver(), rows, W, Rn, options);
+
+  ContactEquilibriumResult result;
+  Eigen::VectorXd lambda = lambda_warm, fc, du;
+  for (;;) {
+    // The QP at u, and the KKT residual with its multipliers.
+    qp.step(state.u, eval.r, lambda, fc, du, result);
+    const double scale = std::max(eval.scale, fc.norm());
+    const Eigen::VectorXd stationarity = eval.r + fc;
+    result.residual = scale > 0.0 ? detail::free_norm(stationarity, fixed) / scale : 0.0;
+    result.violation = qp.violation(state.u);
+    result.converged = result.residual <= options.tolerance && result.violation <= options.feasibility_tolerance;
+    if (result.converged || result.steps >= options.max_steps || !du.allFinite()) break;
+    ++result.steps;
+    const Eigen::VectorXd u0 = state.u;
+    // Off the rows: the whole step (it ends on them).
+    if (result.violation > options.feasibility_tolerance) {
+      state.u = u0 + du;
+      eval.at(state);
+      continue;
+    }
+    // On the rows: backtrack to Armijo's decrease of Pi along the descent direction du.
+    const double slope = eval.r.dot(du), start = eval.potential;
+    if (!(slope > 0.0)) break;  // no descent left at round-off: the iterate stays
+    double alpha = 1.0;
+    bool accepted = false;
+    for (int k = 0; k <= kMaxHalvings; ++k, alpha *= 0.5) {
+      state.u = u0 + alpha * du;
+      eval.at(state);
+      const bool decrease = eval.potential <= start - kSufficientDecrease * alpha * slope;
+      const bool round_off = alpha == 1.0 && std::abs(eval.potential - start) <= kPotentialRoundOff * std::abs(start);
+      if (std::isfinite(eval.potential) && (decrease || round_off)) {
+        accepted = true;
+        break;
+      }
+      ++result.backtracks;
+    }
+    if (!accepted) {
+      state.u = u0;
+      eval.at(state);
+      break;
+    }
+  }
+  result.lambda = lambda;
+  result.n_inverted = state.n_inverted;
+  return result;
+}
+
+}  // namespace lumen::physics

@@ -1,0 +1,63 @@
+#pragma once
+// Contacts inside the corotational quasi-static equilibrium (collision.coupling "solved").
+//
+// The frame's end u minimises the potential Pi(u) = E(u) - f . u (E the corotational elastic energy, whose gradient
+// is f_int) subject to the contact rows H u >= g. Sequential quadratic programming with a fixed Hessian
+// B = Rn K Rn^T: the rest stiffness turned by each node's rotation at the start (compliance warping, Saupin, Duriez
+// and Cotin 2008). Each step solves
+//   min 1/2 du^T B du - r^T du   subject to   H (u + du) >= g,   r = f - f_int(u) on the free DOFs,
+// as an LCP on W = H B^-1 H^T = (H Rn) C (H Rn)^T, C the rest compliance's cached columns (SurfaceCompliance), and
+// takes du = B^-1 (r + H^T lambda). From a feasible u, du = 0 is a feasible candidate, so r . du >= du^T B du / 2:
+// du descends Pi; and since the rows are linear, every point between u and u + du is feasible. A backtracking line
+// search on Pi therefore keeps each iterate feasible and lowers Pi at every step: the iteration cannot diverge.
+// From an infeasible start (the contact-free prediction) the first step is taken whole, which puts u on the rows.
+// At the fixed point du = 0, i.e. r + H^T lambda = 0 with lambda >= 0 complementary to H u - g: the equilibrium of
+// the corotational model itself with its contacts (the KKT conditions), which is what the residual measures.
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "physics/contact_rows.hpp"
+#include "physics/corotational.hpp"
+#include "physics/surface_compliance.hpp"
+
+namespace lumen::physics {
+
+// Bounds and tolerances of solve_contact_equilibrium (validated by it).
+struct ContactEquilibriumOptions {
+  // Converged when |r + H^T lambda| on the free DOFs <= tolerance * force scale (the force scale: the largest of
+  // |f| on the free DOFs, the support reactions and |H^T lambda|); > 0.
+  double tolerance = 1e-3;
+  int max_steps = 20;                  // QP steps (each: two back-substitutions, an LCP, a line search), >= 1
+  // A start counts as on the rows when no row is violated by more than this, metres (> 0); the LCP's own
+  // tolerance is a tenth of it.
+  double feasibility_tolerance = 1e-6;
+  // The LCP of each step: NNCG within this many sweeps, warm-started from the last multipliers, when > 0;
+  // otherwise the active-set method warm-started from the pushing rows (Lemke's pivoting where it fails).
+  int lcp_sweeps = 0;
+};
+
+// What solve_contact_equilibrium did.
+struct ContactEquilibriumResult {
+  int steps = 0;            // QP steps taken
+  int backtracks = 0;       // line-search halvings over the steps
+  int lcp_iterations = 0;   // pivots / rounds / sweeps over the LCPs
+  bool lcp_converged = true;  // every LCP reached its tolerance
+  double residual = 0.0;    // |r + H^T lambda| / force scale at the returned u (the KKT residual)
+  bool converged = false;   // residual <= tolerance
+  double violation = 0.0;   // largest g - H u over the rows at the returned u, metres (<= 0: none violated)
+  int n_inverted = 0;       // tets with det F <= 0 at the returned u
+  Eigen::VectorXd lambda;   // per row, newtons: the multipliers of the last QP (at the returned u)
+};
+
+// Runs the iteration above on state.u (in: the start, prescribed DOFs at their values; out: the last iterate, with
+// state's cached evaluation at it). f: the loads (3n, newtons; fixed DOFs ignored). compliance: a SurfaceCompliance
+// over model.solver() (its columns are C's). lambda_warm: per row, the multipliers to warm-start the first LCP
+// (empty: none). The model's fixed DOFs must be whole nodes (they are: CorotationalModel fixes nodes). Throws
+// std::invalid_argument for sizes or options out of range, or a compliance over another solver.
+ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& model, const Eigen::VectorXd& f,
+                                                   const std::vector<ContactRow>& rows, SurfaceCompliance& compliance,
+                                                   const ContactEquilibriumOptions& options, CorotationalState& state,
+                                                   const Eigen::VectorXd& lambda_warm = Eigen::VectorXd());
+
+}  // namespace lumen::physics

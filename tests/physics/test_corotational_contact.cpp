@@ -1,0 +1,207 @@
+// Contacts inside the corotational equilibrium (solve_contact_equilibrium): without rows it is the corotational
+// equilibrium of solve_corotational; with rows its end satisfies the KKT conditions, checked from forces evaluated
+// afresh, and matches the augmented-Lagrangian twin (solve_corotational with the rows carried, multipliers updated
+// to convergence); every line-searched iterate stays on the rows; its input checks.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "physics/corotational.hpp"
+#include "physics/corotational_contact.hpp"
+#include "physics/fem.hpp"
+#include "physics/mesh.hpp"
+#include "physics/surface_compliance.hpp"
+#include "support/fem.hpp"
+
+namespace lumen::physics {
+namespace {
+
+using lumen::test::kTissue;
+
+// An 8 x 4 x 1 tube held at both ends, pressed down on the top of its middle ring by `force` newtons, split over the
+// ring's nodes with y above the axis; rows: a floor under each of them at `floor` metres below rest (u_y >= -floor).
+struct FlooredPress {
+  TetMesh mesh;
+  std::vector<int> fixed, top;
+  Eigen::VectorXd f;
+  std::vector<ContactRow> rows;
+};
+
+FlooredPress floored_press(double force, double floor) {
+  HollowCylinderSpec s;
+  s.segments_around = 8, s.segments_along = 4, s.layers = 1, s.length = 0.04;
+  FlooredPress p;
+  p.mesh = make_hollow_cylinder(s);
+  p.fixed = p.mesh.node_set(kStartEnd);
+  p.fixed.insert(p.fixed.end(), p.mesh.node_set(kStopEnd).begin(), p.mesh.node_set(kStopEnd).end());
+  p.f = Eigen::VectorXd::Zero(3 * p.mesh.n_nodes());
+  for (int v = 0; v < p.mesh.n_nodes(); ++v)
+    if (std::abs(p.mesh.rest(v, 2) - 0.02) < 1e-9 && p.mesh.rest(v, 1) > 1e-4) p.top.push_back(v);
+  // (The highest node takes half the load, the others share the rest: some rows push, some do not.)
+  int highest = p.top[0];
+  for (int v : p.top) highest = p.mesh.rest(v, 1) > p.mesh.rest(highest, 1) ? v : highest;
+  for (int v : p.top) {
+    p.f[3 * v + 1] = -(v == highest ? 0.5 : 0.5 / (p.top.size() - 1)) * force;
+    ContactRow r;
+    r.node[0] = v, r.weight[0] = 1.0, r.n = Eigen::Vector3d::UnitY(), r.g = -floor;
+    p.rows.push_back(r);
+  }
+  return p;
+}
+
+CorotationalOptions tight() {
+  CorotationalOptions o;
+  o.tolerance = 1e-10;
+  o.max_iterations = 400;
+  o.anderson_depth = 5;
+  return o;
+}
+
+ContactEquilibriumOptions tight_contact() {
+  ContactEquilibriumOptions o;
+  o.tolerance = 1e-7;  // (the iteration stalls at round-off near 1e-8: the potential no longer decreases)
+  o.max_steps = 400;
+  o.feasibility_tolerance = 1e-10;
+  return o;
+}
+
+// |f - f_int(u) + H^T lambda| on the free DOFs / |f|, from the rotations and forces evaluated afresh at u.
+double kkt_residual(const CorotationalModel& model, const FlooredPress& p, const Eigen::VectorXd& u,
+                    const Eigen::VectorXd& lambda) {
+  std::vector<Eigen::Matrix3d> R;
+  Eigen::VectorXd f_int;
+  model.elements().rotations(u, R);
+  model.elements().elastic_forces(u, R, f_int);
+  Eigen::VectorXd r = p.f - f_int + contact_force(p.rows, lambda, model.n_dofs());
+  for (int d = 0; d < model.n_dofs(); ++d)
+    if (model.is_fixed_dof(d)) r[d] = 0.0;
+  return r.norm() / p.f.norm();
+}
+
+// Without rows, the iteration (B = K at rest, line-searched on the potential) ends at solve_corotational's
+// equilibrium, a deflection of several wall thicknesses.
+TEST(ContactEquilibrium, WithoutRowsItEndsAtTheCorotationalEquilibrium) {
+  const FlooredPress p = floored_press(0.05, 1.0);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
+  CorotationalState ref;
+  const CorotationalResult r = solve_corotational(model, p.f, ref, tight());
+  ASSERT_TRUE(r.converged);
+  SurfaceCompliance sc(model.solver(), p.top);
+  CorotationalState state;
+  state.u.setZero(model.n_dofs());
+  const ContactEquilibriumResult c = solve_contact_equilibrium(model, p.f, {}, sc, tight_contact(), state);
+  ASSERT_TRUE(c.converged) << c.residual << " after " << c.steps;
+  EXPECT_EQ(c.lambda.size(), 0);
+  EXPECT_LE((state.u - ref.u).norm(), 1e-6 * ref.u.norm());
+  // (Large deformation: the pressed ring moved by more than the wall's thickness, 2 mm in the default tube.)
+  EXPECT_GT(ref.u.cwiseAbs().maxCoeff(), 2e-3);
+}
+
+// With floors under the pressed ring, from the contact-free equilibrium (which passes through them): the end is
+// on the floors, satisfies the KKT conditions from freshly evaluated forces, and equals the augmented-Lagrangian
+// twin's.
+TEST(ContactEquilibrium, FloorsMeetTheKktConditionsAndTheAugmentedLagrangianTwin) {
+  const double floor = 1.5e-3;
+  const FlooredPress p = floored_press(0.05, floor);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
+  CorotationalState state;
+  ASSERT_TRUE(solve_corotational(model, p.f, state, tight()).converged);
+  const double free_min = row_values(p.rows, state.u).minCoeff();
+  ASSERT_LT(free_min, -2.0 * floor);  // the free motion goes well past the floors
+  SurfaceCompliance sc(model.solver(), p.top);
+  const ContactEquilibriumResult c = solve_contact_equilibrium(model, p.f, p.rows, sc, tight_contact(), state);
+  ASSERT_TRUE(c.converged) << c.residual << " after " << c.steps;
+  // KKT: equilibrium, lambda >= 0, rows met, complementarity.
+  EXPECT_LE(kkt_residual(model, p, state.u, c.lambda), 1e-6);
+  const Eigen::VectorXd h = row_values(p.rows, state.u);
+  int pushing = 0;
+  for (size_t r = 0; r < p.rows.size(); ++r) {
+    const Eigen::Index i = static_cast<Eigen::Index>(r);
+    EXPECT_GE(c.lambda[i], 0.0);
+    EXPECT_GE(h[i] - p.rows[r].g, -1e-9) << "row " << r;
+    EXPECT_LE(c.lambda[i] * std::abs(h[i] - p.rows[r].g), 1e-9 * p.f.norm() * floor) << "row " << r;
+    pushing += c.lambda[i] > 0.0;
+  }
+  EXPECT_GT(pushing, 0);
+  EXPECT_LT(pushing, static_cast<int>(p.rows.size()));  // (some rows do not push: a real complementarity)
+  // The twin: the rows carried into solve_corotational by the method of multipliers, to convergence.
+  AugmentedContacts carried;
+  carried.rows = p.rows;
+  carried.lambda = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(p.rows.size()));
+  carried.stiffness = 10.0 * model.stiffness().diagonal().maxCoeff();
+  CorotationalState twin;
+  for (int round = 0; round < 200; ++round) {
+    const CorotationalResult r = solve_corotational(model, p.f, twin, tight(), Eigen::VectorXd(), &carried);
+    ASSERT_FALSE(r.diverged);
+    const double change = (r.contact_lambda - carried.lambda).norm();
+    carried.lambda = r.contact_lambda;
+    if (change <= 1e-12 * p.f.norm()) break;
+  }
+  EXPECT_LE((state.u - twin.u).norm(), 1e-5 * twin.u.norm());
+  EXPECT_LE((c.lambda - carried.lambda).norm(), 1e-5 * p.f.norm());
+}
+
+// Started on the rows (the rest state), every iterate stays on them and the potential falls at every step: the
+// end's potential is below the start's, and with a step bound of 1, 2, 3 ... the returned iterates never violate a
+// row and their potentials never rise.
+TEST(ContactEquilibrium, IteratesStartedOnTheRowsStayOnThemAndDescend) {
+  const double floor = 1.5e-3;
+  const FlooredPress p = floored_press(0.05, floor);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
+  SurfaceCompliance sc(model.solver(), p.top);
+  double last = 0.0;  // Pi at rest
+  for (int steps = 1; steps <= 6; ++steps) {
+    ContactEquilibriumOptions o = tight_contact();
+    o.max_steps = steps;
+    CorotationalState state;
+    state.u.setZero(model.n_dofs());
+    const ContactEquilibriumResult c = solve_contact_equilibrium(model, p.f, p.rows, sc, o, state);
+    EXPECT_LE(c.violation, 1e-10) << steps << " steps";
+    const double pi = model.elements().elastic_energy(state.u, state.rotations) - p.f.dot(state.u);
+    EXPECT_LT(pi, last) << steps << " steps";
+    last = pi;
+  }
+}
+
+// Bad input names the field.
+TEST(ContactEquilibrium, RejectsBadInputNamingTheField) {
+  const FlooredPress p = floored_press(0.05, 1e-3);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
+  const CorotationalModel other(p.mesh, kTissue, p.fixed);
+  SurfaceCompliance sc(model.solver(), p.top), elsewhere(other.solver(), p.top);
+  auto message = [&](auto&& call) {
+    try {
+      call();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no throw");
+  };
+  CorotationalState state;
+  state.u.setZero(model.n_dofs());
+  ContactEquilibriumOptions o;
+  EXPECT_NE(message([&] { solve_contact_equilibrium(model, p.f, p.rows, elsewhere, o, state); }).find("compliance"),
+            std::string::npos);
+  EXPECT_NE(message([&] { solve_contact_equilibrium(model, p.f, p.rows, sc, o, state, Eigen::VectorXd::Ones(2)); })
+                .find("lambda_warm.size()"),
+            std::string::npos);
+  o.max_steps = 0;
+  EXPECT_NE(message([&] { solve_contact_equilibrium(model, p.f, p.rows, sc, o, state); }).find("options.max_steps"),
+            std::string::npos);
+  o = ContactEquilibriumOptions{};
+  o.feasibility_tolerance = -1.0;
+  EXPECT_NE(message([&] { solve_contact_equilibrium(model, p.f, p.rows, sc, o, state); })
+                .find("options.feasibility_tolerance"),
+            std::string::npos);
+  o = ContactEquilibriumOptions{};
+  EXPECT_NE(message([&] { solve_contact_equilibrium(model, Eigen::VectorXd::Zero(3), p.rows, sc, o, state); })
+                .find("f.size()"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace lumen::physics
