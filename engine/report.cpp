@@ -120,6 +120,9 @@ nlohmann::json frame_json(const FrameRecord& r) {
   j["contact_force_n"] = r.contact_force;
   j["contact_residual_m"] = r.contact_residual;
   j["lcp_iterations"] = r.lcp_iterations;
+  j["equilibrium_steps"] = r.equilibrium_steps;
+  j["equilibrium_backtracks"] = r.equilibrium_backtracks;
+  j["equilibrium_residual"] = r.equilibrium_residual;
   j["max_displacement_m"] = r.max_displacement;
   nlohmann::json re = nlohmann::json::array();
   for (const auto& f : r.reactions) re.push_back({f.x(), f.y(), f.z()});

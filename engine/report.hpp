@@ -76,6 +76,11 @@ struct FrameRecord {
   double contact_residual = 0.0;      // the last contact solve's residual (largest row violation or
                                       // complementarity gap), metres; 0 without contact
   int lcp_iterations = 0;             // the contact solves' pivots / active-set rounds / NNCG sweeps, summed
+  // collision.coupling "solved": QP steps and line-search halvings over the frame's response rounds, and the
+  // equilibrium's KKT residual at the end (|f - f_int + H^T lambda| / force scale; 0 without contact).
+  int equilibrium_steps = 0;
+  int equilibrium_backtracks = 0;
+  double equilibrium_residual = 0.0;
   double max_displacement = 0.0;      // metres, max node displacement from rest
   std::vector<Eigen::Vector3d> reactions;  // per probe, newtons
   // Per probe, the displacement from rest of its attachment point at the end of the frame (its nodes'

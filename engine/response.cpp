@@ -131,6 +131,10 @@ constexpr double kReferenceOverlapShare = 0.3;
 // is kept clear of that too, with as much again for rounding; the full twin then finds nothing it skips, short of a
 // test that reaches its work bound (reported whatever the distance; none in the twin tests).
 constexpr double kMarginSpare = 4.0 * collision::CcdOptions{}.tolerance;
+// Contacts solved in the equilibrium (coupling "solved"): the frame's first detection holds every pair within this
+// many gaps of the trial motion as a row (each still asks for the gap only). A round moves the whole tube to its
+// equilibrium, pushing pairs near the contact area together: found only by the re-checks, they cost a round each.
+constexpr double kSolvedDetectionGapFactor = 3.0;
 
 // One frame's response rounds: the active constraints and the last solve.
 struct ResponseRounds {
@@ -142,6 +146,10 @@ struct ResponseRounds {
   int lcp_iterations = 0;                           // pivots / rounds / sweeps over the solves
   std::map<FeatureKey, double> carried;             // last frame's multipliers (NNCG's warm start)
   std::map<FeatureKey, double> in_solve;            // coupling "carried": each carried row's force in the solve
+  int equilibrium_steps = 0;                        // coupling "solved": QP steps over the rounds
+  int equilibrium_backtracks = 0;                   // coupling "solved": line-search halvings over the rounds
+  double equilibrium_residual = 0.0;                // coupling "solved": the last round's KKT residual
+  int refactor_failures = 0;                        // coupling "solved": its Hessian's failed factorisations
 };
 
 // The paper's response (Sec. 3.4): hold every colliding vertex, and the probe points, at their time-of-contact
@@ -170,6 +178,63 @@ void solve_paper(const Model& model, State& state, const Points& x_free, const E
       rr.rows.push_back(r);
     }
   rr.solved = physics::solve_equality(*state.compliance, rr.rows, u_free, kEqualityTolerance, false);
+}
+
+// Contacts inside the corotational equilibrium (collision.coupling "solved"): the round's rows constrain the
+// integrator's own equilibrium (Integrator::solve_with_contacts: the potential minimised on the rows), from the last
+// round's end (the free motion in the first), each row warm-started with its contact's last multiplier. The
+// correction is whole-mesh; the residual is the rows' (the largest violation, or a pushing row's distance from its
+// value), metres, as the other contact solves report it.
+void solve_in_equilibrium(const Model& model, State& state, const Points& x1, const Eigen::VectorXd& u_free,
+                          ResponseRounds& rr) {
+  const CollisionSpec& cs = model.collision;
+  Eigen::VectorXd warm = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(rr.active.size()));
+  for (const auto& [key, h] : rr.active) {
+    const auto carried = rr.carried.find(key);
+    if (carried != rr.carried.end()) warm[static_cast<Eigen::Index>(rr.rows.size())] = carried->second;
+    rr.rows.push_back(contact_row(h.c, model.mesh.rest, state.x, x1, cs.gap));
+  }
+  // The start: the last round's end, or in the first round the last frame's end (on last frame's rows, and near
+  // this frame's, where the free motion may have passed far through the walls) with the frame's prescribed values.
+  Eigen::VectorXd u = u_free;
+  if (rr.solved.correction.size() == u_free.size()) {
+    u += rr.solved.correction;
+  } else if (state.sim.u.size() == u.size()) {
+    for (Eigen::Index d = 0; d < u.size(); ++d)
+      if (!model.integrator->is_fixed_dof(static_cast<int>(d))) u[d] = state.sim.u[d];
+  }
+  physics::ContactEquilibriumOptions o;
+  o.tolerance = model.equilibrium_tolerance;
+  o.max_steps = cs.equilibrium_steps;
+  o.feasibility_tolerance = kIterativeToleranceGapFraction * cs.gap;
+  o.lcp_sweeps = cs.lcp == LcpSolver::kNncg ? cs.lcp_sweeps : 0;
+  o.hessian = cs.equilibrium_hessian == EquilibriumHessian::kWarpedRest ? physics::ContactHessian::node_rotations
+                                                                       : physics::ContactHessian::as_given;
+  const physics::ContactEquilibriumResult r =
+      model.integrator->solve_with_contacts(rr.rows, *state.compliance, o, state.work, u, warm);
+  rr.equilibrium_steps += r.steps;
+  rr.equilibrium_backtracks += r.backtracks;
+  rr.equilibrium_residual = r.residual;
+  rr.lcp_iterations += r.lcp_iterations;
+  rr.refactor_failures += r.refactor_failures;
+  physics::ContactResult& solved = rr.solved;
+  solved.lambda = r.lambda;
+  solved.force = physics::contact_force(rr.rows, r.lambda, static_cast<int>(u.size()));
+  solved.correction = u - u_free;
+  solved.iterations = r.steps;
+  solved.converged = r.converged;
+  const Eigen::VectorXd h = physics::row_values(rr.rows, u);
+  solved.residual = 0.0;
+  for (Eigen::Index i = 0; i < h.size(); ++i) {
+    const double slack = h[i] - rr.rows[static_cast<size_t>(i)].g;
+    solved.residual = std::max(solved.residual, r.lambda[i] > 0.0 ? std::abs(slack) : -slack);
+  }
+  rr.pushing.clear();
+  Eigen::Index i = 0;
+  for (const auto& entry : rr.active) {
+    rr.carried[entry.first] = r.lambda[i];
+    if (r.lambda[i++] > 0.0) rr.pushing.insert(entry.first);
+  }
 }
 
 // Non-penetration with the gap, as an LCP on the walls' compliance: active-set method on columns of the coupling
@@ -445,18 +510,19 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
   clock = Clock::now();
   collision::CollisionStats stats;
   std::vector<HeldContact> found;
-  rec.full_detection = detect_all(model, state, x1, cs.gap, found, &stats, nullptr, true);
+  const double first_gap = model.contacts_in_solve ? kSolvedDetectionGapFactor * cs.gap : cs.gap;
+  rec.full_detection = detect_all(model, state, x1, first_gap, found, &stats, nullptr, true);
   if (predict && found.empty() && rr.active.empty()) {
     x1 = x_free;
     x1_predicted = false;
     collision::CollisionStats again;
-    rec.full_detection = detect_all(model, state, x1, cs.gap, found, &again, nullptr, true) || rec.full_detection;
+    rec.full_detection = detect_all(model, state, x1, first_gap, found, &again, nullptr, true) || rec.full_detection;
     stats.bv_overlaps += again.bv_overlaps;  // the frame's counters cover both detections, as its time does
     stats.feature_tests += again.feature_tests;
     stats.contacts = again.contacts;
   }
   rec.first_contacts = std::count_if(found.begin(), found.end(), [](const HeldContact& h) { return !h.is_tool(); });
-  const RecheckReference reference = reference_of(model, x1, cs.gap, found);
+  const RecheckReference reference = reference_of(model, x1, first_gap, found);
   const RecheckReference* restrict_to = reference.gap > 0.0 ? &reference : nullptr;
   rec.bv_overlaps = stats.bv_overlaps;
   rec.feature_tests = stats.feature_tests;
@@ -478,6 +544,8 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     rr.rows.clear();
     if (paper)
       solve_paper(model, state, x_free, u_free, rr);
+    else if (model.contacts_in_solve)
+      solve_in_equilibrium(model, state, x1, u_free, rr);
     else
       solve_constraint(model, state, x1, u_free, rr);
     // The correction is exact on the colliding walls (all the check reads); the rest of the mesh follows at the end.
@@ -502,6 +570,10 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     for (const auto& [key, lambda] : rr.in_solve) rec.contact_force += lambda;
     rec.contact_residual = rr.solved.residual;
     rec.lcp_iterations = rr.lcp_iterations;
+    rec.equilibrium_steps = rr.equilibrium_steps;
+    rec.equilibrium_backtracks = rr.equilibrium_backtracks;
+    rec.equilibrium_residual = rr.equilibrium_residual;
+    rec.preconditioner_failures += rr.refactor_failures;
     add_contact_to_probe_forces(model, state, rr);
     // Whole-mesh correction for the last multipliers (a sum of precomputed columns or one back-substitution); the
     // colliding walls keep the values the check saw (equal to round-off).
@@ -510,12 +582,17 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     clock = Clock::now();
     Eigen::VectorXd du;
     physics::SurfaceCompliance& sc = *state.compliance;
-    const bool by_view = sc.needs_solve(rr.solved.force) && sc.loads_only_view(rr.solved.force);
-    if (by_view)
+    // (Contacts solved in the equilibrium: the correction is whole-mesh already.)
+    const bool by_view =
+        !model.contacts_in_solve && sc.needs_solve(rr.solved.force) && sc.loads_only_view(rr.solved.force);
+    if (model.contacts_in_solve)
+      du = rr.solved.correction;
+    else if (by_view)
       sc.displacement_on_view(rr.solved.force, du);
     else
       sc.displacement(rr.solved.force, du);
-    for (int v : sc.nodes()) du.segment<3>(3 * v) = rr.solved.correction.segment<3>(3 * v);
+    if (!model.contacts_in_solve)
+      for (int v : sc.nodes()) du.segment<3>(3 * v) = rr.solved.correction.segment<3>(3 * v);
     rec.interior_deferred = by_view && state.defer_interior && resolved;
     if (rec.interior_deferred) {
       state.pending.du = du;

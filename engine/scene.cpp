@@ -29,7 +29,8 @@ constexpr const char* kResponseNames[] = {"paper", "constraint"};
 constexpr const char* kLcpSolverNames[] = {"active_set", "nncg"};
 constexpr const char* kRecheckNames[] = {"restricted", "full"};
 constexpr const char* kDetectionNames[] = {"restricted", "full"};
-constexpr const char* kCouplingNames[] = {"correct", "carried"};
+constexpr const char* kCouplingNames[] = {"correct", "carried", "solved"};
+constexpr const char* kEquilibriumHessianNames[] = {"lagged", "warped_rest"};
 constexpr const char* kTangentNames[] = {"warped", "projected", "exact"};
 constexpr const char* kMethodNames[] = {"pcg", "chord"};
 constexpr const char* kTwistEndNames[] = {"", "start", "stop"};
@@ -592,7 +593,8 @@ void read_render(const Reader& r, const json& m, const Scene& s, RenderSpec& spe
 
 void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
   r.only_keys(m, "collision", {"self", "kdop", "response", "gap", "max_iterations", "max_contact_rows", "surfaces", "lcp", "lcp_sweeps",
-                               "coupling", "recheck", "detection"});
+                               "coupling", "recheck", "detection", "equilibrium_steps",
+                               "equilibrium_hessian"});
   if (m.contains("surfaces")) {
     const json& list = m.at("surfaces");
     if (!list.is_array() || list.empty()) r.fail("collision.surfaces", "must be a non-empty array of wall names", &list);
@@ -623,6 +625,11 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
   if (m.contains("coupling"))
     spec.coupling = r.choice<ContactCoupling>(m.at("coupling"), "collision.coupling", kCouplingNames);
   if (m.contains("lcp_sweeps")) spec.lcp_sweeps = r.integer_in(m.at("lcp_sweeps"), "collision.lcp_sweeps", 2, 100000);
+  if (m.contains("equilibrium_steps"))
+    spec.equilibrium_steps = r.integer_in(m.at("equilibrium_steps"), "collision.equilibrium_steps", 1, 1000);
+  if (m.contains("equilibrium_hessian"))
+    spec.equilibrium_hessian =
+        r.choice<EquilibriumHessian>(m.at("equilibrium_hessian"), "collision.equilibrium_hessian", kEquilibriumHessianNames);
 }
 
 void read_solver(const Reader& r, const json& m, SolverSpec& spec) {
@@ -927,12 +934,13 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
       s.material.model == MaterialModel::kCorotational && s.solver.type == SolverType::kQuasiStatic;
   const std::string needs_corotational = std::string("needs material.model \"corotational\" and solver.type "
       "\"quasi_static\" (got \"") + name_of(s.material.model) + "\", \"" + name_of(s.solver.type) + "\")";
-  // Carried contacts enter the corotational quasi-static solve's equilibrium, with the constraint response.
-  if (s.collision.coupling == ContactCoupling::kCarried) {
+  // Carried or solved contacts enter the corotational quasi-static solve's equilibrium, with the constraint response.
+  if (s.collision.coupling != ContactCoupling::kCorrect) {
     const json* at = &root.at("collision").at("coupling");
-    if (!corotational_quasi_static) r.fail("collision.coupling", "\"carried\" " + needs_corotational, at);
+    const std::string quoted = std::string("\"") + name_of(s.collision.coupling) + "\" ";
+    if (!corotational_quasi_static) r.fail("collision.coupling", quoted + needs_corotational, at);
     if (s.collision.response != ResponseKind::kConstraint)
-      r.fail("collision.coupling", "\"carried\" needs collision.response \"constraint\" (got \"paper\")", at);
+      r.fail("collision.coupling", quoted + "needs collision.response \"constraint\" (got \"paper\")", at);
   }
   // The tangent is the corotational quasi-static solve's (the other integrators have no choice of operator).
   if (s.solver.tangent != Tangent::kWarped && !corotational_quasi_static)
@@ -965,7 +973,7 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
   // after the nonlinear solve (not carried into it).
   if (!s.instruments.empty() && s.collision.response != ResponseKind::kConstraint)
     r.fail("collision.response", "instruments need \"constraint\"", &root.at("collision").at("response"));
-  if (!s.instruments.empty() && s.collision.coupling == ContactCoupling::kCarried)
+  if (!s.instruments.empty() && s.collision.coupling != ContactCoupling::kCorrect)
     r.fail("collision.coupling", "instruments need \"correct\"", &root.at("collision").at("coupling"));
   // Displacement-driven probes (held points) are solved on the linear quasi-static model's probe compliance.
   int held = -1;

@@ -52,7 +52,8 @@ enum class ResponseKind { kPaper, kConstraint };      // "paper" | "constraint"
 enum class LcpSolver { kActiveSet, kNncg };           // "active_set" | "nncg"
 enum class Recheck { kRestricted, kFull };            // "restricted" | "full"
 enum class Detection { kRestricted, kFull };          // "restricted" | "full"
-enum class ContactCoupling { kCorrect, kCarried };    // "correct" | "carried"
+enum class ContactCoupling { kCorrect, kCarried, kSolved };  // "correct" | "carried" | "solved"
+enum class EquilibriumHessian { kLagged, kWarpedRest };       // "lagged" | "warped_rest"
 enum class Tangent { kWarped, kProjected, kExact };  // "warped" | "projected" | "exact"
 enum class SolveMethod { kPcg, kChord };              // "pcg" | "chord"
 enum class TwistEnd { kNone, kStart, kStop };         // (no twist) | "start" | "stop"
@@ -147,8 +148,15 @@ struct CollisionSpec {
   // How the contacts meet a corotational quasi-static solve (key "coupling"): "correct" (the contact-free
   // solution is corrected on the rest compliance) or "carried" (the last frame's contacts, re-linearised at the
   // frame's start, enter the nonlinear equilibrium by an augmented Lagrangian; the response then corrects what
-  // is left, and the sum of both multipliers is carried to the next frame).
+  // is left, and the sum of both multipliers is carried to the next frame) or "solved" (the contacts inside the
+  // corotational equilibrium: each response round minimises the corotational potential subject to its rows,
+  // physics::solve_contact_equilibrium, so the frame ends in equilibrium with its contacts on the model itself).
   ContactCoupling coupling = ContactCoupling::kCorrect;
+  // coupling "solved": the most QP steps of one response round (key "equilibrium_steps"), >= 1, and their fixed
+  // Hessian (key "equilibrium_hessian"): "lagged" (the warped stiffness of the lagged factorisation that
+  // preconditions the corotational solve) or "warped_rest" (the rest stiffness turned by each node's rotation).
+  int equilibrium_steps = 20;
+  EquilibriumHessian equilibrium_hessian = EquilibriumHessian::kLagged;
 };
 
 // How a frame is solved: quasi-statically (equilibrium with the frame's loads) or by one implicit dynamic step.

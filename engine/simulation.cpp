@@ -511,6 +511,10 @@ std::unique_ptr<Model> compile_model(const Scene& scene) {
   m->integrator = make_integrator(scene, *m, quadratic.get());
   if (m->collision_surface && scene.collision.coupling == ContactCoupling::kCarried)
     m->coupling_stiffness = coupling_stiffness(*m);
+  // (The scene checks "solved" names a corotational quasi-static solve, whose integrator solves its contacts.)
+  m->contacts_in_solve = m->collision_surface && scene.collision.coupling == ContactCoupling::kSolved &&
+                         m->integrator->solves_contacts();
+  m->equilibrium_tolerance = scene.solver.tolerance;
   const Points& rest = m->mesh.rest;
   m->max_displacement = kImplausibleDisplacementScale * (rest.colwise().maxCoeff() - rest.colwise().minCoeff()).norm();
   m->compile_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -831,7 +835,9 @@ void step_end(const Model& model, Inputs& inputs, State& state, FrameRecord& rec
   }
   // Carried contacts: the next solve starts where this frame ended (its loads include the contacts). A failed
   // solve's warm start goes back to the last good frame too, never to what failed.
-  const bool restart = (model.coupling_stiffness > 0.0 && !rec.numerical_failure) || !p.solved;
+  // Contacts solved in the equilibrium: likewise (the frame's end is the equilibrium with its contacts).
+  const bool in_equilibrium = model.coupling_stiffness > 0.0 || model.contacts_in_solve;
+  const bool restart = (in_equilibrium && !rec.numerical_failure) || !p.solved;
   if (restart && state.work.corotational.u.size() == state.sim.u.size()) state.work.corotational.u = state.sim.u;
   feed_back(inputs, state, state.t, rec);
   feed_back_instruments(model, inputs, state, state.t, rec);

@@ -144,6 +144,10 @@ struct Model {
   // collision.coupling "carried": the augmentation penalty of the contacts carried into the corotational solve,
   // kCouplingStiffnessScale times the mean diagonal of K over the colliding walls' free DOFs, N/m (0 otherwise).
   double coupling_stiffness = 0.0;
+  // collision.coupling "solved": each response round solves the contacts inside the integrator's equilibrium
+  // (Integrator::solve_with_contacts), to the solve's tolerance (solver.tolerance).
+  bool contacts_in_solve = false;
+  double equilibrium_tolerance = 0.0;
   double time_step = 0.025;                        // 1 / fps, seconds
   double budget_ms = 25.0;                         // 1000 / fps
   double compile_seconds = 0.0;                    // wall time to build the model

@@ -990,6 +990,10 @@ void validate_contacts(const char* where, const AugmentedContacts& c, int n_node
                           ("be a node id < " + std::to_string(n_nodes)).c_str(), c.rows[r].node[k]);
 }
 
+// Lowers the calling thread's priority to kBackgroundFactorisationNice (a scheduling hint: if refused, it runs at
+// the default).
+void at_background_priority() { setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kBackgroundFactorisationNice); }
+
 // A background factorisation that has finished becomes the preconditioner; one that failed is dropped, keeps the
 // current preconditioner and is counted (never silently).
 void adopt_finished_factorisation(CorotationalState& state, CorotationalResult& result) {
@@ -1032,8 +1036,7 @@ void start_factorisation(const CorotationalModel& model, const CorotationalOptio
   if (options.refactor_in_background) {
     state.pending_node_rotations = std::move(node_R);
     auto in_background = [factorise](std::vector<Eigen::Matrix3d> R, std::vector<TwistModes> modes) {
-      // The lowest priority on this thread only (a scheduling hint: if refused, it runs at the default).
-      setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kBackgroundFactorisationNice);
+      at_background_priority();  // (this thread only)
       return factorise(std::move(R), std::move(modes));
     };
     state.pending = std::async(std::launch::async, in_background, state.rotations, std::move(twist));
@@ -1160,6 +1163,22 @@ void chord_iterations(const CorotationalModel& model, const CorotationalOptions&
 }
 
 }  // namespace
+
+std::shared_ptr<const StaticSolver> factorise_warped(const CorotationalModel& model,
+                                                     const std::vector<Eigen::Matrix3d>& R, bool half_columns) {
+  auto solver = std::make_shared<StaticSolver>(model.solver().refactorised(model.elements().warped_stiffness(R)));
+  if (half_columns) solver->prepare_half_columns();
+  return solver;
+}
+
+std::future<std::shared_ptr<const StaticSolver>> factorise_warped_in_background(const CorotationalModel& model,
+                                                                                std::vector<Eigen::Matrix3d> R,
+                                                                                bool half_columns) {
+  return std::async(std::launch::async, [&model, half_columns](std::vector<Eigen::Matrix3d> rotations) {
+    at_background_priority();
+    return factorise_warped(model, rotations, half_columns);
+  }, std::move(R));
+}
 
 CorotationalResult solve_corotational(const CorotationalModel& model, const Eigen::VectorXd& f_ext,
                                       CorotationalState& state, const CorotationalOptions& options,

@@ -311,6 +311,16 @@ struct CorotationalState {
   std::vector<Eigen::Matrix3d> preconditioner_node_rotations, pending_node_rotations;
 };
 
+// K_w at the rotations R (per tet) factorised on the rest factorisation's symbolic analysis, with its half
+// columns' factorisation made too when half_columns (for a contact compliance over it). Reads the model only, so
+// it may run on another thread. Throws as StaticSolver's constructor.
+std::shared_ptr<const StaticSolver> factorise_warped(const CorotationalModel& model,
+                                                     const std::vector<Eigen::Matrix3d>& R, bool half_columns);
+// The same on a new thread at the lowest priority, as the lagged preconditioner's background factorisations.
+std::future<std::shared_ptr<const StaticSolver>> factorise_warped_in_background(const CorotationalModel& model,
+                                                                                std::vector<Eigen::Matrix3d> R,
+                                                                                bool half_columns);
+
 // Result of a quasi-static solve.
 struct CorotationalResult {
   int iterations = 0;      // outer iterations (linear solves)

@@ -29,7 +29,7 @@ void validate(const ContactEquilibriumOptions& o) {
   if (o.lcp_sweeps < 0) detail::fail_must(where, "options.lcp_sweeps", "be >= 0", o.lcp_sweeps);
 }
 
-// v (3n) turned node by node: v_a <- R_a v_a, or R_a^T v_a.
+// v (3n) turned node by node: v_a <- R_a v_a, or R_a^T v_a (no frames: unchanged).
 void turn(const std::vector<Eigen::Matrix3d>& Rn, bool transpose, Eigen::VectorXd& v) {
   for (size_t a = 0; a < Rn.size(); ++a) {
     const Eigen::Vector3d x = v.segment<3>(3 * static_cast<Eigen::Index>(a));
@@ -62,7 +62,8 @@ struct Evaluation {
   }
 };
 
-// One QP at u: lambda from the LCP on W, and the step du = B^-1 (r + H^T lambda) with B^-1 = Rn K^-1 Rn^T.
+// One QP at u: lambda from the LCP on W, and the step du = B^-1 (r + H^T lambda) with B^-1 = Rn A^-1 Rn^T (A the
+// given factorisation; Rn empty: B = A).
 class WarpedQp {
  public:
   WarpedQp(const StaticSolver& K, const std::vector<ContactRow>& rows, const Eigen::MatrixXd& W,
@@ -139,8 +140,8 @@ ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& mode
   const int n = model.n_dofs();
   detail::check_vector(where, "f", f_ext, n);
   detail::check_vector(where, "state.u", state.u, n);
-  if (&compliance.solver() != &model.solver())
-    throw std::invalid_argument(std::string(where) + ": compliance must be over the model's solver (its rest K)");
+  if (compliance.solver().n_dofs() != n)
+    detail::fail_must(where, "compliance.solver().n_dofs()", "be the model's " + std::to_string(n), compliance.solver().n_dofs());
   if (lambda_warm.size() != 0 && lambda_warm.size() != static_cast<Eigen::Index>(rows.size()))
     detail::fail_must(where, "lambda_warm.size()", "be 0 or rows = " + std::to_string(rows.size()), lambda_warm.size());
 
@@ -154,11 +155,11 @@ ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& mode
   Evaluation eval{el, f, fixed, {}, 0.0, 0.0};
   eval.at(state);
 
-  // The fixed Hessian's frames (each node's rotation at the start) and the rows' coupling on it.
+  // The fixed Hessian's frames (each node's rotation at the start, or none) and the rows' coupling on it.
   std::vector<Eigen::Matrix3d> Rn;
-  el.node_rotations(state.rotations, Rn);
-  const Eigen::MatrixXd W = rows.empty() ? Eigen::MatrixXd() : coupling_matrix(compliance, rows, &Rn);
-  const WarpedQp qp(model.solver(), rows, W, Rn, options);
+  if (options.hessian == ContactHessian::node_rotations) el.node_rotations(state.rotations, Rn);
+  const Eigen::MatrixXd W = rows.empty() ? Eigen::MatrixXd() : coupling_matrix(compliance, rows, Rn.empty() ? nullptr : &Rn);
+  const WarpedQp qp(compliance.solver(), rows, W, Rn, options);
 
   ContactEquilibriumResult result;
   Eigen::VectorXd lambda = lambda_warm, fc, du;

@@ -23,8 +23,16 @@
 
 namespace lumen::physics {
 
+// The fixed Hessian B of the QP steps, given as a factorised matrix with its compliance (SurfaceCompliance):
+//   as_given        B itself (e.g. K_w at the rotations of the lagged factorisation that preconditions the solve,
+//                   the stiffness-warping operator of the contact-free solves; Courtecuisse et al. 2010)
+//   node_rotations  Rn B Rn^T, Rn each node's rotation at the start (on the rest K: compliance warping, Saupin et
+//                   al. 2008, whose columns never change)
+enum class ContactHessian { as_given, node_rotations };
+
 // Bounds and tolerances of solve_contact_equilibrium (validated by it).
 struct ContactEquilibriumOptions {
+  ContactHessian hessian = ContactHessian::as_given;
   // Converged when |r + H^T lambda| on the free DOFs <= tolerance * force scale (the force scale: the largest of
   // |f| on the free DOFs, the support reactions and |H^T lambda|); > 0.
   double tolerance = 1e-3;
@@ -48,13 +56,16 @@ struct ContactEquilibriumResult {
   double violation = 0.0;   // largest g - H u over the rows at the returned u, metres (<= 0: none violated)
   int n_inverted = 0;       // tets with det F <= 0 at the returned u
   Eigen::VectorXd lambda;   // per row, newtons: the multipliers of the last QP (at the returned u)
+  int refactor_failures = 0;  // Integrator::solve_with_contacts: factorisations of its Hessian that failed (the
+                              // last one was kept)
 };
 
 // Runs the iteration above on state.u (in: the start, prescribed DOFs at their values; out: the last iterate, with
 // state's cached evaluation at it). f: the loads (3n, newtons; fixed DOFs ignored). compliance: a SurfaceCompliance
-// over model.solver() (its columns are C's). lambda_warm: per row, the multipliers to warm-start the first LCP
-// (empty: none). The model's fixed DOFs must be whole nodes (they are: CorotationalModel fixes nodes). Throws
-// std::invalid_argument for sizes or options out of range, or a compliance over another solver.
+// over the factorisation of B (symmetric positive definite on the model's free DOFs; the rest K or a lagged K_w).
+// lambda_warm: per row, the multipliers to warm-start the first LCP (empty: none). The model's fixed DOFs must be
+// whole nodes (they are: CorotationalModel fixes nodes). Throws std::invalid_argument for sizes or options out of
+// range, or a compliance of another size.
 ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& model, const Eigen::VectorXd& f,
                                                    const std::vector<ContactRow>& rows, SurfaceCompliance& compliance,
                                                    const ContactEquilibriumOptions& options, CorotationalState& state,

@@ -2,6 +2,8 @@
 #include "physics/integrator.hpp"
 
 #include <Eigen/Cholesky>
+#include <chrono>
+#include <future>
 #include <stdexcept>
 #include <string>
 
@@ -24,6 +26,12 @@ Eigen::VectorXd nodal_forces(const FrameLoads& loads, int n_dofs) {
 }
 
 void Integrator::commit(const Eigen::VectorXd& u1, SimState& state) const { state.u = u1; }
+
+ContactEquilibriumResult Integrator::solve_with_contacts(const std::vector<ContactRow>&, SurfaceCompliance&,
+                                                         const ContactEquilibriumOptions&, IntegratorWork&,
+                                                         Eigen::VectorXd&, const Eigen::VectorXd&) const {
+  throw std::logic_error("Integrator::solve_with_contacts: this integrator does not solve its contacts (solves_contacts())");
+}
 
 // ---------------------------------------------------------------------------------------------------------------
 // LinearQuasiStatic
@@ -126,7 +134,8 @@ CorotationalQuasiStatic::CorotationalQuasiStatic(const QuadraticMesh& mesh, cons
 Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::VectorXd& prescribed_c, const SimState&,
                                             IntegratorWork& work, Eigen::VectorXd& u1) const {
   // Nonlinear equilibrium from the nodal loads, warm-started from the last frame's free solution.
-  const Eigen::VectorXd f = nodal_forces(loads, model_.n_dofs());
+  work.frame_forces = nodal_forces(loads, model_.n_dofs());
+  const Eigen::VectorXd& f = work.frame_forces;
   const Eigen::VectorXd u_fixed = prescribed_.empty() ? Eigen::VectorXd() : combine_columns(prescribed_.basis, prescribed_c);
   const CorotationalResult r = solve_corotational(model_, f, work.corotational, options_, u_fixed, loads.contacts);
   u1 = work.corotational.u;
@@ -141,6 +150,70 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
   p.preconditioner_failures = r.refactor_failures;
   p.contact_lambda = r.contact_lambda;
   return p;
+}
+
+namespace {
+
+// A new contact Hessian and its compliance over the contact compliance's nodes (lazy: half columns per node).
+void adopt_contact_factor(IntegratorWork& work, std::shared_ptr<const StaticSolver> factor,
+                          const SurfaceCompliance& rest) {
+  work.contact_compliance.reset();
+  work.contact_factor = std::move(factor);
+  work.contact_compliance = std::make_shared<SurfaceCompliance>(*work.contact_factor, rest.nodes(),
+                                                                SurfaceCompliance::kBlockColumns, 0L, 0L);
+}
+
+}  // namespace
+
+ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std::vector<ContactRow>& rows,
+                                                                      SurfaceCompliance& compliance,
+                                                                      const ContactEquilibriumOptions& options,
+                                                                      IntegratorWork& work, Eigen::VectorXd& u,
+                                                                      const Eigen::VectorXd& lambda_warm) const {
+  if (work.frame_forces.size() != model_.n_dofs())
+    throw std::logic_error("CorotationalQuasiStatic::solve_with_contacts: no prediction before it (its loads are the frame's)");
+  const bool lagged = options.hessian == ContactHessian::as_given;
+  // A finished background factorisation becomes the Hessian (one that failed is dropped: the last one stays).
+  int failures = 0;
+  if (lagged && work.contact_pending.valid() &&
+      work.contact_pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
+    try {
+      adopt_contact_factor(work, work.contact_pending.get(), compliance);
+    } catch (const std::exception&) {
+      ++failures;  // not positive definite or out of memory: counted, and the last one stays
+    }
+  }
+  work.corotational.u = u;
+  // The first contact solve factorises K_w at its start, at once (the rest K is far from the tangent of a tube
+  // deflected several wall thicknesses: its steps needed four line-search halvings each and did not converge).
+  if (lagged && !work.contact_compliance && !work.contact_pending.valid()) {
+    try {
+      std::vector<Eigen::Matrix3d> R;
+      model_.elements().rotations(u, R);
+      adopt_contact_factor(work, factorise_warped(model_, R, true), compliance);
+    } catch (const std::exception&) {
+      ++failures;  // (the rest K then)
+    }
+  }
+  // The Hessian's compliance: the lagged factorisation's, or the rest one.
+  SurfaceCompliance& B = lagged && work.contact_compliance ? *work.contact_compliance : compliance;
+  ContactEquilibriumResult r =
+      solve_contact_equilibrium(model_, work.frame_forces, rows, B, options, work.corotational, lambda_warm);
+  u = work.corotational.u;
+  // The next Hessian: K_w at this end (its rotations are the state's cached evaluation at u).
+  if (lagged && !work.contact_pending.valid()) {
+    if (options_.refactor_in_background) {
+      work.contact_pending = factorise_warped_in_background(model_, work.corotational.rotations, true);
+    } else {
+      try {
+        adopt_contact_factor(work, factorise_warped(model_, work.corotational.rotations, true), compliance);
+      } catch (const std::exception&) {
+        ++failures;
+      }
+    }
+  }
+  r.refactor_failures = failures;
+  return r;
 }
 
 // ---------------------------------------------------------------------------------------------------------------

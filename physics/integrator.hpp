@@ -17,6 +17,7 @@
 
 #include "physics/compliance.hpp"
 #include "physics/corotational.hpp"
+#include "physics/corotational_contact.hpp"
 #include "physics/dynamics.hpp"
 #include "physics/fem.hpp"
 
@@ -72,6 +73,13 @@ struct Prediction {
 // Mutable data an integrator keeps between frames besides SimState (warm starts, lagged preconditioners).
 struct IntegratorWork {
   CorotationalState corotational;  // corotational quasi-static: the nonlinear solve's warm start and caches
+  Eigen::VectorXd frame_forces;    // corotational quasi-static: the last prediction's nodal loads, 3n, newtons
+  // corotational quasi-static, contacts solved on a lagged factorisation (ContactHessian::as_given): K_w at the end
+  // of the last contact solve, its compliance over the contact nodes (half columns cached per node until the next
+  // one is adopted), and the next one, in progress on a background thread (valid() while it runs).
+  std::shared_ptr<const StaticSolver> contact_factor;
+  std::shared_ptr<SurfaceCompliance> contact_compliance;
+  std::future<std::shared_ptr<const StaticSolver>> contact_pending;
   DynamicState step;               // backward Euler: the step's trial state (u, v)
 };
 
@@ -95,6 +103,15 @@ class Integrator {
   // Whether predict() reads the committed state (SimState: a warm start, a velocity). One that does not lets a
   // rendering session commit a frame's whole-mesh interior during the next frame (engine: State::pipeline_interior).
   virtual bool predicts_from_state() const { return true; }
+  // Whether solve_with_contacts is available: the contacts inside the integrator's own equilibrium.
+  virtual bool solves_contacts() const { return false; }
+  // The frame's end with contact rows H u >= g inside the equilibrium of the last prediction's loads, from u (in:
+  // the start, e.g. the prediction; out: the end), warm-started from lambda_warm (per row, or empty);
+  // compliance: over contact_solver(). Throws std::logic_error unless solves_contacts().
+  virtual ContactEquilibriumResult solve_with_contacts(const std::vector<ContactRow>& rows,
+                                                       SurfaceCompliance& compliance,
+                                                       const ContactEquilibriumOptions& options, IntegratorWork& work,
+                                                       Eigen::VectorXd& u, const Eigen::VectorXd& lambda_warm) const;
 };
 
 // Nodal force vector of the loads (3n, newtons): each point's force spread over its nodes by its weights.
@@ -144,6 +161,15 @@ class CorotationalQuasiStatic final : public Integrator {
                      IntegratorWork& work, Eigen::VectorXd& u1) const override;
   const StaticSolver& contact_solver() const override { return model_.solver(); }
   const CorotationalModel& model() const { return model_; }
+  // physics::solve_contact_equilibrium on the model, with the last prediction's loads; work.corotational ends at u
+  // (the next prediction's warm start unless the caller sets another). Hessian as_given: K_w factorised at the end
+  // of the last contact solve (at the first one's start, at once), refreshed after each solve at its end, on a
+  // background thread with options' refactor_in_background (adopted when ready) or at once; its compliance over
+  // compliance.nodes(). node_rotations: the rest K (compliance) turned per node.
+  bool solves_contacts() const override { return true; }
+  ContactEquilibriumResult solve_with_contacts(const std::vector<ContactRow>& rows, SurfaceCompliance& compliance,
+                                               const ContactEquilibriumOptions& options, IntegratorWork& work,
+                                               Eigen::VectorXd& u, const Eigen::VectorXd& lambda_warm) const override;
 
  private:
   CorotationalModel model_;

@@ -209,7 +209,7 @@ TEST(Scene, CouplingKey) {
   EXPECT_EQ(parse_scene(s.dump(), "dir/s.json").collision.coupling, lumen::engine::ContactCoupling::kCarried);
   EXPECT_EQ(parse_scene(good_scene().dump(), "dir/s.json").collision.coupling, lumen::engine::ContactCoupling::kCorrect);
   s["collision"]["coupling"] = "warped";
-  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.coupling: must be one of correct, carried (value \"warped\")");
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.coupling: must be one of correct, carried, solved (value \"warped\")");
   s["collision"]["coupling"] = "carried";
   s["material"]["model"] = "linear";
   EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.coupling: \"carried\" needs material.model \"corotational\" and "
@@ -218,6 +218,24 @@ TEST(Scene, CouplingKey) {
   s["collision"]["response"] = "paper";
   EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.coupling: \"carried\" needs collision.response \"constraint\" "
                          "(got \"paper\") (value \"carried\")");
+  // "solved": the same needs, its step bound and its Hessian.
+  s["collision"] = {{"self", true}, {"coupling", "solved"}, {"equilibrium_steps", 7}, {"equilibrium_hessian", "warped_rest"}};
+  const lumen::engine::Scene solved = parse_scene(s.dump(), "dir/s.json");
+  EXPECT_EQ(solved.collision.coupling, lumen::engine::ContactCoupling::kSolved);
+  EXPECT_EQ(solved.collision.equilibrium_steps, 7);
+  EXPECT_EQ(solved.collision.equilibrium_hessian, lumen::engine::EquilibriumHessian::kWarpedRest);
+  EXPECT_EQ(parse_scene(good_scene().dump(), "dir/s.json").collision.equilibrium_hessian,
+            lumen::engine::EquilibriumHessian::kLagged);
+  s["collision"]["equilibrium_steps"] = 0;
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.equilibrium_steps: out of range [1, 1000] (value 0)");
+  s["collision"]["equilibrium_steps"] = 7;
+  s["collision"]["equilibrium_hessian"] = "exact";
+  EXPECT_EQ(scene_parse_error(s),
+            "dir/s.json: collision.equilibrium_hessian: must be one of lagged, warped_rest (value \"exact\")");
+  s["collision"]["equilibrium_hessian"] = "lagged";
+  s["material"]["model"] = "linear";
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.coupling: \"solved\" needs material.model \"corotational\" and "
+                         "solver.type \"quasi_static\" (got \"linear\", \"quasi_static\") (value \"solved\")");
 }
 
 TEST(Scene, SolverMethodKey) {
