@@ -153,8 +153,8 @@ struct CollisionSpec {
   // physics::solve_contact_equilibrium, so the frame ends in equilibrium with its contacts on the model itself).
   ContactCoupling coupling = ContactCoupling::kCorrect;
   // coupling "solved": the most QP steps of one response round (key "equilibrium_steps"), >= 1, and their fixed
-  // Hessian (key "equilibrium_hessian"): "lagged" (the warped stiffness of the lagged factorisation that
-  // preconditions the corotational solve) or "warped_rest" (the rest stiffness turned by each node's rotation).
+  // Hessian (key "equilibrium_hessian"): "lagged" (the warped stiffness factorised at the end of the last contact
+  // solve, on the background thread) or "warped_rest" (the rest stiffness turned by each node's rotation).
   int equilibrium_steps = 20;
   EquilibriumHessian equilibrium_hessian = EquilibriumHessian::kLagged;
 };

@@ -1166,7 +1166,10 @@ void chord_iterations(const CorotationalModel& model, const CorotationalOptions&
 
 std::shared_ptr<const StaticSolver> factorise_warped(const CorotationalModel& model,
                                                      const std::vector<Eigen::Matrix3d>& R, bool half_columns) {
-  auto solver = std::make_shared<StaticSolver>(model.solver().refactorised(model.elements().warped_stiffness(R)));
+  Eigen::SparseMatrix<double> K = model.elements().warped_stiffness(R);
+  // (On the rest factorisation's analysis when the pattern is K's, as start_factorisation does.)
+  auto solver = model.solver().has_pattern(K) ? std::make_shared<StaticSolver>(model.solver().refactorised(std::move(K)))
+                                              : std::make_shared<StaticSolver>(K, model.fixed_nodes());
   if (half_columns) solver->prepare_half_columns();
   return solver;
 }

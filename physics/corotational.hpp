@@ -312,8 +312,9 @@ struct CorotationalState {
 };
 
 // K_w at the rotations R (per tet) factorised on the rest factorisation's symbolic analysis, with its half
-// columns' factorisation made too when half_columns (for a contact compliance over it). Reads the model only, so
-// it may run on another thread. Throws as StaticSolver's constructor.
+// columns' factorisation made too when half_columns (for a contact compliance over it: a METIS ordering and a
+// second factorisation each time). Reads the model only, so it may run on another thread; the background one
+// must end before the model does (its future's destructor waits). Throws as StaticSolver's constructor.
 std::shared_ptr<const StaticSolver> factorise_warped(const CorotationalModel& model,
                                                      const std::vector<Eigen::Matrix3d>& R, bool half_columns);
 // The same on a new thread at the lowest priority, as the lagged preconditioner's background factorisations.

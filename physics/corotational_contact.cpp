@@ -1,4 +1,4 @@
-// Contacts inside the corotational quasi-static equilibrium: SQP with the warped rest stiffness as its Hessian.
+// Contacts inside the corotational quasi-static equilibrium: SQP with a fixed Hessian, line-searched on the potential.
 #include "physics/corotational_contact.hpp"
 
 #include <algorithm>
@@ -13,16 +13,17 @@
 namespace lumen::physics {
 namespace {
 
-constexpr double kSufficientDecrease = 1e-4;             // sufficient decrease of Pi, a fraction of the step's slope
-constexpr int kMaxHalvings = 12;           // line-search halvings before a step is given up
-constexpr double kLcpToleranceShare = 0.1;   // the LCP's tolerance, a share of the feasibility tolerance
+constexpr double kSufficientDecrease = 1e-4;  // sufficient decrease of Pi, a fraction of the step's slope
+constexpr int kMaxHalvings = 12;               // line-search halvings before a step is given up
+constexpr double kLcpToleranceShare = 0.1;     // the LCP's tolerance, a share of the feasibility tolerance
 // A change of Pi this small relative to its size is round-off (near the solution Pi changes by about r . du / 2):
 // there the whole step is taken, as a converging SQP's is.
 constexpr double kPotentialRoundOff = 1e-11;
 
 void validate(const ContactEquilibriumOptions& o) {
   const char* where = "solve_contact_equilibrium";
-  if (!(o.tolerance > 0.0) || !std::isfinite(o.tolerance)) detail::fail_must(where, "options.tolerance", "be > 0", o.tolerance);
+  if (!(o.tolerance > 0.0) || !std::isfinite(o.tolerance))
+    detail::fail_must(where, "options.tolerance", "be > 0", o.tolerance);
   if (o.max_steps < 1) detail::fail_must(where, "options.max_steps", "be >= 1", o.max_steps);
   if (!(o.feasibility_tolerance > 0.0) || !std::isfinite(o.feasibility_tolerance))
     detail::fail_must(where, "options.feasibility_tolerance", "be > 0", o.feasibility_tolerance);
@@ -32,8 +33,9 @@ void validate(const ContactEquilibriumOptions& o) {
 // v (3n) turned node by node: v_a <- R_a v_a, or R_a^T v_a (no frames: unchanged).
 void turn(const std::vector<Eigen::Matrix3d>& Rn, bool transpose, Eigen::VectorXd& v) {
   for (size_t a = 0; a < Rn.size(); ++a) {
-    const Eigen::Vector3d x = v.segment<3>(3 * static_cast<Eigen::Index>(a));
-    v.segment<3>(3 * static_cast<Eigen::Index>(a)) = transpose ? Eigen::Vector3d(Rn[a].transpose() * x) : Eigen::Vector3d(Rn[a] * x);
+    auto block = v.segment<3>(3 * static_cast<Eigen::Index>(a));
+    const Eigen::Vector3d x = block;
+    block = transpose ? Eigen::Vector3d(Rn[a].transpose() * x) : Eigen::Vector3d(Rn[a] * x);
   }
 }
 
@@ -141,7 +143,8 @@ ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& mode
   detail::check_vector(where, "f", f_ext, n);
   detail::check_vector(where, "state.u", state.u, n);
   if (compliance.solver().n_dofs() != n)
-    detail::fail_must(where, "compliance.solver().n_dofs()", "be the model's " + std::to_string(n), compliance.solver().n_dofs());
+    detail::fail_must(where, "compliance.solver().n_dofs()", "be the model's " + std::to_string(n),
+                      compliance.solver().n_dofs());
   if (lambda_warm.size() != 0 && lambda_warm.size() != static_cast<Eigen::Index>(rows.size()))
     detail::fail_must(where, "lambda_warm.size()", "be 0 or rows = " + std::to_string(rows.size()), lambda_warm.size());
 
@@ -158,12 +161,15 @@ ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& mode
   // The fixed Hessian's frames (each node's rotation at the start, or none) and the rows' coupling on it.
   std::vector<Eigen::Matrix3d> Rn;
   if (options.hessian == ContactHessian::node_rotations) el.node_rotations(state.rotations, Rn);
-  const Eigen::MatrixXd W = rows.empty() ? Eigen::MatrixXd() : coupling_matrix(compliance, rows, Rn.empty() ? nullptr : &Rn);
+  const Eigen::MatrixXd W =
+      rows.empty() ? Eigen::MatrixXd() : coupling_matrix(compliance, rows, Rn.empty() ? nullptr : &Rn);
   const WarpedQp qp(compliance.solver(), rows, W, Rn, options);
 
   ContactEquilibriumResult result;
   Eigen::VectorXd lambda = lambda_warm, fc, du;
+  result.finite = std::isfinite(eval.potential) && eval.r.allFinite();
   for (;;) {
+    if (!result.finite) break;  // (only a start that is not finite: every accepted iterate is)
     // The QP at u, and the KKT residual with its multipliers.
     qp.step(state.u, eval.r, lambda, fc, du, result);
     const double scale = std::max(eval.scale, fc.norm());
@@ -178,7 +184,10 @@ ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& mode
     if (result.violation > options.feasibility_tolerance) {
       state.u = u0 + du;
       eval.at(state);
-      continue;
+      if (std::isfinite(eval.potential) && eval.r.allFinite()) continue;
+      state.u = u0;  // a step to a point that is not finite: back, and stop (not converged)
+      eval.at(state);
+      break;
     }
     // On the rows: backtrack to Armijo's decrease of Pi along the descent direction du.
     const double slope = eval.r.dot(du), start = eval.potential;
@@ -190,7 +199,7 @@ ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& mode
       eval.at(state);
       const bool decrease = eval.potential <= start - kSufficientDecrease * alpha * slope;
       const bool round_off = alpha == 1.0 && std::abs(eval.potential - start) <= kPotentialRoundOff * std::abs(start);
-      if (std::isfinite(eval.potential) && (decrease || round_off)) {
+      if (std::isfinite(eval.potential) && eval.r.allFinite() && (decrease || round_off)) {
         accepted = true;
         break;
       }

@@ -30,7 +30,8 @@ void Integrator::commit(const Eigen::VectorXd& u1, SimState& state) const { stat
 ContactEquilibriumResult Integrator::solve_with_contacts(const std::vector<ContactRow>&, SurfaceCompliance&,
                                                          const ContactEquilibriumOptions&, IntegratorWork&,
                                                          Eigen::VectorXd&, const Eigen::VectorXd&) const {
-  throw std::logic_error("Integrator::solve_with_contacts: this integrator does not solve its contacts (solves_contacts())");
+  throw std::logic_error(
+      "Integrator::solve_with_contacts: this integrator does not solve its contacts (solves_contacts())");
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -155,12 +156,13 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
 namespace {
 
 // A new contact Hessian and its compliance over the contact compliance's nodes (lazy: half columns per node).
+// (Made before the old ones go: if it throws, the last Hessian stays whole.)
 void adopt_contact_factor(IntegratorWork& work, std::shared_ptr<const StaticSolver> factor,
                           const SurfaceCompliance& rest) {
-  work.contact_compliance.reset();
+  auto compliance =
+      std::make_shared<SurfaceCompliance>(*factor, rest.nodes(), SurfaceCompliance::kBlockColumns, 0L, 0L);
+  work.contact_compliance = std::move(compliance);
   work.contact_factor = std::move(factor);
-  work.contact_compliance = std::make_shared<SurfaceCompliance>(*work.contact_factor, rest.nodes(),
-                                                                SurfaceCompliance::kBlockColumns, 0L, 0L);
 }
 
 }  // namespace
@@ -171,7 +173,8 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
                                                                       IntegratorWork& work, Eigen::VectorXd& u,
                                                                       const Eigen::VectorXd& lambda_warm) const {
   if (work.frame_forces.size() != model_.n_dofs())
-    throw std::logic_error("CorotationalQuasiStatic::solve_with_contacts: no prediction before it (its loads are the frame's)");
+    throw std::logic_error(
+        "CorotationalQuasiStatic::solve_with_contacts: no prediction before it (its loads are the frame's)");
   const bool lagged = options.hessian == ContactHessian::as_given;
   // A finished background factorisation becomes the Hessian (one that failed is dropped: the last one stays).
   int failures = 0;

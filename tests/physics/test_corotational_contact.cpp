@@ -103,9 +103,8 @@ TEST(ContactEquilibrium, WithoutRowsItEndsAtTheCorotationalEquilibrium) {
 
 // With floors under the pressed ring, from the contact-free equilibrium (which passes through them): the end is
 // on the floors, satisfies the KKT conditions from freshly evaluated forces, and equals the augmented-Lagrangian
-// twin's.
-// Three Hessians: the rest K, K turned per node (compliance warping), and K_w factorised at the free motion's
-// rotations (a lagged factorisation).
+// twin's; for three Hessians, the same point: the rest K, K turned per node (compliance warping), and K_w factorised
+// at the free motion's rotations (a lagged factorisation).
 TEST(ContactEquilibrium, FloorsMeetTheKktConditionsAndTheAugmentedLagrangianTwin) {
   const double floor = 1.5e-3;
   const FlooredPress p = floored_press(0.05, floor);
@@ -117,34 +116,34 @@ TEST(ContactEquilibrium, FloorsMeetTheKktConditionsAndTheAugmentedLagrangianTwin
   const StaticSolver lagged = model.solver().refactorised(model.elements().warped_stiffness(free.rotations));
   Eigen::VectorXd u_rest, lambda_rest;
   for (const int variant : {0, 1, 2}) {
-  SCOPED_TRACE("Hessian " + std::to_string(variant));
-  CorotationalState state = CorotationalState{};
-  state.u = free.u;
-  SurfaceCompliance sc(variant == 2 ? lagged : model.solver(), p.top);
-  ContactEquilibriumOptions o = tight_contact();
-  o.hessian = variant == 1 ? ContactHessian::node_rotations : ContactHessian::as_given;
-  const ContactEquilibriumResult c = solve_contact_equilibrium(model, p.f, p.rows, sc, o, state);
-  ASSERT_TRUE(c.converged) << c.residual << " after " << c.steps;
-  // KKT: equilibrium, lambda >= 0, rows met, complementarity.
-  EXPECT_LE(kkt_residual(model, p, state.u, c.lambda), 1e-6);
-  const Eigen::VectorXd h = row_values(p.rows, state.u);
-  int pushing = 0;
-  for (size_t r = 0; r < p.rows.size(); ++r) {
-    const Eigen::Index i = static_cast<Eigen::Index>(r);
-    EXPECT_GE(c.lambda[i], 0.0);
-    EXPECT_GE(h[i] - p.rows[r].g, -1e-9) << "row " << r;
-    EXPECT_LE(c.lambda[i] * std::abs(h[i] - p.rows[r].g), 1e-9 * p.f.norm() * floor) << "row " << r;
-    pushing += c.lambda[i] > 0.0;
-  }
-  EXPECT_GT(pushing, 0);
-  EXPECT_LT(pushing, static_cast<int>(p.rows.size()));  // (some rows do not push: a real complementarity)
-  if (variant == 0) {
-    u_rest = state.u, lambda_rest = c.lambda;
-    continue;
-  }
-  // (The same point whatever the Hessian: it sets the path, not the fixed point.)
-  EXPECT_LE((state.u - u_rest).norm(), 1e-5 * u_rest.norm());
-  EXPECT_LE((c.lambda - lambda_rest).norm(), 1e-5 * p.f.norm());
+    SCOPED_TRACE("Hessian " + std::to_string(variant));
+    CorotationalState state;
+    state.u = free.u;
+    SurfaceCompliance sc(variant == 2 ? lagged : model.solver(), p.top);
+    ContactEquilibriumOptions o = tight_contact();
+    o.hessian = variant == 1 ? ContactHessian::node_rotations : ContactHessian::as_given;
+    const ContactEquilibriumResult c = solve_contact_equilibrium(model, p.f, p.rows, sc, o, state);
+    ASSERT_TRUE(c.converged) << c.residual << " after " << c.steps;
+    // KKT: equilibrium, lambda >= 0, rows met, complementarity.
+    EXPECT_LE(kkt_residual(model, p, state.u, c.lambda), 1e-6);
+    const Eigen::VectorXd h = row_values(p.rows, state.u);
+    int pushing = 0;
+    for (size_t r = 0; r < p.rows.size(); ++r) {
+      const Eigen::Index i = static_cast<Eigen::Index>(r);
+      EXPECT_GE(c.lambda[i], 0.0);
+      EXPECT_GE(h[i] - p.rows[r].g, -1e-9) << "row " << r;
+      EXPECT_LE(c.lambda[i] * std::abs(h[i] - p.rows[r].g), 1e-9 * p.f.norm() * floor) << "row " << r;
+      pushing += c.lambda[i] > 0.0;
+    }
+    EXPECT_GT(pushing, 0);
+    EXPECT_LT(pushing, static_cast<int>(p.rows.size()));  // (some rows do not push: a real complementarity)
+    if (variant == 0) {
+      u_rest = state.u, lambda_rest = c.lambda;
+      continue;
+    }
+    // (The same point whatever the Hessian: it sets the path, not the fixed point.)
+    EXPECT_LE((state.u - u_rest).norm(), 1e-5 * u_rest.norm());
+    EXPECT_LE((c.lambda - lambda_rest).norm(), 1e-5 * p.f.norm());
   }
   // The twin: the rows carried into solve_corotational by the method of multipliers, to convergence.
   AugmentedContacts carried;
@@ -205,7 +204,8 @@ TEST(ContactEquilibrium, RejectsBadInputNamingTheField) {
   CorotationalState state;
   state.u.setZero(model.n_dofs());
   ContactEquilibriumOptions o;
-  EXPECT_NE(message([&] { solve_contact_equilibrium(model, p.f, p.rows, elsewhere, o, state); }).find("compliance.solver().n_dofs()"),
+  EXPECT_NE(message([&] { solve_contact_equilibrium(model, p.f, p.rows, elsewhere, o, state); })
+                .find("compliance.solver().n_dofs()"),
             std::string::npos);
   EXPECT_NE(message([&] { solve_contact_equilibrium(model, p.f, p.rows, sc, o, state, Eigen::VectorXd::Ones(2)); })
                 .find("lambda_warm.size()"),
