@@ -10,6 +10,7 @@
 #include "engine/grasp.hpp"
 #include "engine/instrument_contact.hpp"
 #include "engine/simulation.hpp"
+#include "physics/lcp.hpp"
 
 namespace lumen::engine {
 namespace {
@@ -223,12 +224,8 @@ void solve_in_equilibrium(const Model& model, State& state, const Points& x1, co
   solved.correction = u - u_free;
   solved.iterations = r.steps;
   solved.converged = r.converged;
-  const Eigen::VectorXd h = physics::row_values(rr.rows, u);
-  solved.residual = 0.0;
-  for (Eigen::Index i = 0; i < h.size(); ++i) {
-    const double slack = h[i] - rr.rows[static_cast<size_t>(i)].g;
-    solved.residual = std::max(solved.residual, r.lambda[i] > 0.0 ? std::abs(slack) : -slack);
-  }
+  solved.residual =
+      physics::lcp_residual(physics::row_values(rr.rows, u) - physics::row_targets(rr.rows), r.lambda);
   rr.pushing.clear();
   Eigen::Index i = 0;
   for (const auto& entry : rr.active) {
@@ -582,17 +579,17 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     clock = Clock::now();
     Eigen::VectorXd du;
     physics::SurfaceCompliance& sc = *state.compliance;
-    // (Contacts solved in the equilibrium: the correction is whole-mesh already.)
-    const bool by_view =
-        !model.contacts_in_solve && sc.needs_solve(rr.solved.force) && sc.loads_only_view(rr.solved.force);
-    if (model.contacts_in_solve)
-      du = rr.solved.correction;
-    else if (by_view)
-      sc.displacement_on_view(rr.solved.force, du);
-    else
-      sc.displacement(rr.solved.force, du);
-    if (!model.contacts_in_solve)
+    bool by_view = false;
+    if (model.contacts_in_solve) {
+      du = rr.solved.correction;  // (contacts solved in the equilibrium: whole-mesh already)
+    } else {
+      by_view = sc.needs_solve(rr.solved.force) && sc.loads_only_view(rr.solved.force);
+      if (by_view)
+        sc.displacement_on_view(rr.solved.force, du);
+      else
+        sc.displacement(rr.solved.force, du);
       for (int v : sc.nodes()) du.segment<3>(3 * v) = rr.solved.correction.segment<3>(3 * v);
+    }
     rec.interior_deferred = by_view && state.defer_interior && resolved;
     if (rec.interior_deferred) {
       state.pending.du = du;

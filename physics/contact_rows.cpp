@@ -52,6 +52,12 @@ Eigen::VectorXd row_values(const std::vector<ContactRow>& rows, const Eigen::Vec
   return h;
 }
 
+Eigen::VectorXd row_targets(const std::vector<ContactRow>& rows) {
+  Eigen::VectorXd g(static_cast<Eigen::Index>(rows.size()));
+  for (size_t r = 0; r < rows.size(); ++r) g[static_cast<Eigen::Index>(r)] = rows[r].g;
+  return g;
+}
+
 Eigen::VectorXd contact_force(const std::vector<ContactRow>& rows, const Eigen::VectorXd& lambda, int n_dofs) {
   if (n_dofs < 0 || n_dofs % 3 != 0) fail("contact_force: n_dofs must be 3n, got " + std::to_string(n_dofs));
   if (lambda.size() != static_cast<Eigen::Index>(rows.size()))

@@ -53,6 +53,8 @@ class CouplingMatrix {
 
 // H u for the rows, metres (u: 3n).
 Eigen::VectorXd row_values(const std::vector<ContactRow>& rows, const Eigen::VectorXd& u);
+// g for the rows: each row's required value, metres.
+Eigen::VectorXd row_targets(const std::vector<ContactRow>& rows);
 // H^T lambda, a nodal force vector of length n_dofs, newtons.
 Eigen::VectorXd contact_force(const std::vector<ContactRow>& rows, const Eigen::VectorXd& lambda, int n_dofs);
 // A = H C H^T, rows x rows, metres per newton (computes missing compliance columns on demand); with node_frames,

@@ -52,8 +52,7 @@ ContactResult solve_equality(SurfaceCompliance& compliance, const std::vector<Co
   const int m = static_cast<int>(rows.size());
   ContactResult out;
   out.iterations = 1;
-  Eigen::VectorXd g(m);
-  for (int r = 0; r < m; ++r) g[r] = rows[r].g;
+  const Eigen::VectorXd g = row_targets(rows);
   // A lambda = g - H u_free: Cholesky on the rows with a non-zero diagonal (the others touch only fixed DOFs:
   // no force moves them, lambda = 0 is their minimum-norm value), else minimum-norm least squares on all.
   const Eigen::MatrixXd A = coupling_matrix(compliance, rows);
@@ -86,9 +85,7 @@ ContactResult solve_equality(SurfaceCompliance& compliance, const std::vector<Co
 ContactResult solve_lcp(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows,
                         const Eigen::VectorXd& u_free, const LcpOptions& options) {
   check_u_free(compliance, u_free, "solve_lcp");
-  const int m = static_cast<int>(rows.size());
-  Eigen::VectorXd g(m);
-  for (int r = 0; r < m; ++r) g[r] = rows[r].g;
+  const Eigen::VectorXd g = row_targets(rows);
   // w = A lambda + (H u_free - g) >= 0, lambda >= 0, complementary.
   const Eigen::MatrixXd A = coupling_matrix(compliance, rows);
   const LcpResult lcp = solve_lcp_dense(A, row_values(rows, u_free) - g, options);
@@ -184,12 +181,6 @@ void finish_contacts(SurfaceCompliance& compliance, const std::vector<ContactRow
     h = row_values(rows, u_free + out.correction);
   }
   out.residual = lcp_residual(h - g, out.lambda);  // (g - H u)^+, |H u - g| where lambda > 0
-}
-
-Eigen::VectorXd row_targets(const std::vector<ContactRow>& rows) {
-  Eigen::VectorXd g(static_cast<Eigen::Index>(rows.size()));
-  for (size_t r = 0; r < rows.size(); ++r) g[static_cast<Eigen::Index>(r)] = rows[r].g;
-  return g;
 }
 
 }  // namespace

@@ -814,13 +814,7 @@ class CorotationalResidual {
 
   double evaluate() {
     const int n = static_cast<int>(f_.size());
-    const bool cached = state_.u_eval.size() == n && static_cast<int>(state_.rotations.size()) == el_.n_tets() &&
-                        state_.f_int.size() == n && state_.u_eval == state_.u;
-    if (!cached) {
-      state_.n_inverted = el_.rotations(state_.u, state_.rotations);
-      el_.elastic_forces(state_.u, state_.rotations, state_.f_int);
-      state_.u_eval = state_.u;
-    }
+    evaluate_at_u(el_, state_);
     for (int d = 0; d < n; ++d) r_[d] = fixed_[d] ? 0.0 : f_[d] - state_.f_int[d];
     scale_ = std::max(f_.norm(), detail::reaction_norm(state_.f_int, fixed_));
     if (contacts_) add_contact_forces();
@@ -1163,6 +1157,16 @@ void chord_iterations(const CorotationalModel& model, const CorotationalOptions&
 }
 
 }  // namespace
+
+void evaluate_at_u(const CorotationalElements& el, CorotationalState& state) {
+  const int n = el.n_dofs();
+  const bool cached = state.u_eval.size() == n && static_cast<int>(state.rotations.size()) == el.n_tets() &&
+                      state.f_int.size() == n && state.u_eval == state.u;
+  if (cached) return;
+  state.n_inverted = el.rotations(state.u, state.rotations);
+  el.elastic_forces(state.u, state.rotations, state.f_int);
+  state.u_eval = state.u;
+}
 
 std::shared_ptr<const StaticSolver> factorise_warped(const CorotationalModel& model,
                                                      const std::vector<Eigen::Matrix3d>& R, bool half_columns) {

@@ -311,6 +311,10 @@ struct CorotationalState {
   std::vector<Eigen::Matrix3d> preconditioner_node_rotations, pending_node_rotations;
 };
 
+// The rotations and elastic forces at state.u into the state's cached evaluation (rotations, f_int, u_eval,
+// n_inverted), unless it is already at state.u.
+void evaluate_at_u(const CorotationalElements& el, CorotationalState& state);
+
 // K_w at the rotations R (per tet) factorised on the rest factorisation's symbolic analysis, with its half
 // columns' factorisation made too when half_columns (for a contact compliance over it: a METIS ordering and a
 // second factorisation each time). Reads the model only, so it may run on another thread; the background one

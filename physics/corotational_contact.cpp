@@ -50,13 +50,7 @@ struct Evaluation {
 
   void at(CorotationalState& s) {
     const int n = static_cast<int>(f.size());
-    const bool cached = s.u_eval.size() == n && s.f_int.size() == n &&
-                        static_cast<int>(s.rotations.size()) == el.n_tets() && s.u_eval == s.u;
-    if (!cached) {
-      s.n_inverted = el.rotations(s.u, s.rotations);
-      el.elastic_forces(s.u, s.rotations, s.f_int);
-      s.u_eval = s.u;
-    }
+    evaluate_at_u(el, s);
     r.resize(n);
     for (int d = 0; d < n; ++d) r[d] = fixed[d] ? 0.0 : f[d] - s.f_int[d];
     potential = el.elastic_energy(s.u, s.rotations) - f.dot(s.u);
@@ -70,10 +64,7 @@ class WarpedQp {
  public:
   WarpedQp(const StaticSolver& K, const std::vector<ContactRow>& rows, const Eigen::MatrixXd& W,
            const std::vector<Eigen::Matrix3d>& Rn, const ContactEquilibriumOptions& options)
-      : K_(K), rows_(rows), W_(W), Rn_(Rn), options_(options) {
-    g_.resize(static_cast<Eigen::Index>(rows.size()));
-    for (size_t i = 0; i < rows.size(); ++i) g_[static_cast<Eigen::Index>(i)] = rows[i].g;
-  }
+      : K_(K), rows_(rows), W_(W), Rn_(Rn), options_(options), g_(row_targets(rows)) {}
   // B^-1 v (3n).
   void compliance(Eigen::VectorXd v, Eigen::VectorXd& out) const {
     turn(Rn_, true, v);

@@ -16,6 +16,7 @@
 #include "physics/mesh.hpp"
 #include "physics/surface_compliance.hpp"
 #include "support/fem.hpp"
+#include "support/files.hpp"
 
 namespace lumen::physics {
 namespace {
@@ -32,12 +33,9 @@ struct FlooredPress {
 };
 
 FlooredPress floored_press(double force, double floor) {
-  HollowCylinderSpec s;
-  s.segments_around = 8, s.segments_along = 4, s.layers = 1, s.length = 0.04;
   FlooredPress p;
-  p.mesh = make_hollow_cylinder(s);
-  p.fixed = p.mesh.node_set(kStartEnd);
-  p.fixed.insert(p.fixed.end(), p.mesh.node_set(kStopEnd).begin(), p.mesh.node_set(kStopEnd).end());
+  p.mesh = lumen::test::small_tube();
+  p.fixed = lumen::test::both_ends(p.mesh);
   p.f = Eigen::VectorXd::Zero(3 * p.mesh.n_nodes());
   for (int v = 0; v < p.mesh.n_nodes(); ++v)
     if (std::abs(p.mesh.rest(v, 2) - 0.02) < 1e-9 && p.mesh.rest(v, 1) > 1e-4) p.top.push_back(v);
@@ -188,19 +186,10 @@ TEST(ContactEquilibrium, IteratesStartedOnTheRowsStayOnThemAndDescend) {
 TEST(ContactEquilibrium, RejectsBadInputNamingTheField) {
   const FlooredPress p = floored_press(0.05, 1e-3);
   const CorotationalModel model(p.mesh, kTissue, p.fixed);
-  HollowCylinderSpec smaller;
-  smaller.segments_around = 6, smaller.segments_along = 3, smaller.layers = 1, smaller.length = 0.04;
-  const TetMesh other_mesh = make_hollow_cylinder(smaller);
+  const TetMesh other_mesh = lumen::test::small_tube(6, 3);
   const CorotationalModel other(other_mesh, kTissue, other_mesh.node_set(kStartEnd));
   SurfaceCompliance sc(model.solver(), p.top), elsewhere(other.solver(), {0, 1});
-  auto message = [&](auto&& call) {
-    try {
-      call();
-    } catch (const std::invalid_argument& e) {
-      return std::string(e.what());
-    }
-    return std::string("no throw");
-  };
+  auto message = [](auto&& call) { return lumen::test::message_of<std::invalid_argument>(call); };
   CorotationalState state;
   state.u.setZero(model.n_dofs());
   ContactEquilibriumOptions o;

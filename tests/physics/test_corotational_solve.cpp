@@ -30,12 +30,9 @@ struct Pressed {
 
 // An 8 x 4 x 1 tube held at both ends, pressed down at the top of its middle ring by `force` newtons.
 Pressed pressed_tube(double force) {
-  HollowCylinderSpec s;
-  s.segments_around = 8, s.segments_along = 4, s.layers = 1, s.length = 0.04;
   Pressed p;
-  p.mesh = make_hollow_cylinder(s);
-  p.fixed = p.mesh.node_set(kStartEnd);
-  p.fixed.insert(p.fixed.end(), p.mesh.node_set(kStopEnd).begin(), p.mesh.node_set(kStopEnd).end());
+  p.mesh = lumen::test::small_tube();
+  p.fixed = lumen::test::both_ends(p.mesh);
   double best = -1.0;
   for (int v = 0; v < p.mesh.n_nodes(); ++v)
     if (std::abs(p.mesh.rest(v, 2) - 0.02) < 1e-9 && p.mesh.rest(v, 1) > best) best = p.mesh.rest(v, 1), p.node = v;
