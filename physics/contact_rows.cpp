@@ -1,6 +1,7 @@
 // Contact rows: H u, H^T lambda, and the coupling A = H C H^T column by column.
 #include "physics/contact_rows.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -172,7 +173,24 @@ const Eigen::VectorXd& CouplingMatrix::column(int s) {
 Eigen::MatrixXd CouplingMatrix::dense() {
   const int m = size();
   Eigen::MatrixXd A(m, m);
-  for (int s = 0; s < m; ++s) A.col(s) = column(s);
+  // Every touched node in a lazy set, no column yet: A = H_t C_t H_t^T with C_t the touched nodes' block of C from
+  // one dense product of their half columns (the columns' sparse gathers cost about as many products, scattered).
+  const SurfaceCompliance& sc = *compliance_;
+  const bool all_half = sc.lazy_ && std::all_of(touched_set_index_.begin(), touched_set_index_.end(),
+                                                [](int a) { return a >= 0; });
+  if (all_half && n_computed_ == 0) {
+    const Eigen::MatrixXd C = compliance_->half_gram(touched_set_index_);  // 3t x 3t
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(m, C.rows());                  // rows x 3t: each entry's w n
+    for (int r = 0; r < m; ++r)
+      for (int e = entry_begin_[r]; e < entry_begin_[r + 1]; ++e)
+        H.block<1, 3>(r, 3 * entry_slot_[e]) += entry_wn_[e].transpose();
+    const Eigen::MatrixXd HC = H * C;
+    A.noalias() = HC * H.transpose();
+    for (int s = 0; s < m; ++s) columns_[s] = A.col(s);
+    n_computed_ = m;
+  } else {
+    for (int s = 0; s < m; ++s) A.col(s) = column(s);
+  }
   // Symmetrise (C is symmetric up to round-off).
   const Eigen::MatrixXd At = A.transpose();
   A = 0.5 * (A + At);

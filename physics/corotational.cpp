@@ -984,10 +984,6 @@ void validate_contacts(const char* where, const AugmentedContacts& c, int n_node
                           ("be a node id < " + std::to_string(n_nodes)).c_str(), c.rows[r].node[k]);
 }
 
-// Lowers the calling thread's priority to kBackgroundFactorisationNice (a scheduling hint: if refused, it runs at
-// the default).
-void at_background_priority() { setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kBackgroundFactorisationNice); }
-
 // A background factorisation that has finished becomes the preconditioner; one that failed is dropped, keeps the
 // current preconditioner and is counted (never silently).
 void adopt_finished_factorisation(CorotationalState& state, CorotationalResult& result) {
@@ -1158,6 +1154,8 @@ void chord_iterations(const CorotationalModel& model, const CorotationalOptions&
 
 }  // namespace
 
+void at_background_priority() { setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kBackgroundFactorisationNice); }
+
 void evaluate_at_u(const CorotationalElements& el, CorotationalState& state) {
   const int n = el.n_dofs();
   const bool cached = state.u_eval.size() == n && static_cast<int>(state.rotations.size()) == el.n_tets() &&
@@ -1176,15 +1174,6 @@ std::shared_ptr<const StaticSolver> factorise_warped(const CorotationalModel& mo
                                               : std::make_shared<StaticSolver>(K, model.fixed_nodes());
   if (half_columns) solver->prepare_half_columns();
   return solver;
-}
-
-std::future<std::shared_ptr<const StaticSolver>> factorise_warped_in_background(const CorotationalModel& model,
-                                                                                std::vector<Eigen::Matrix3d> R,
-                                                                                bool half_columns) {
-  return std::async(std::launch::async, [&model, half_columns](std::vector<Eigen::Matrix3d> rotations) {
-    at_background_priority();
-    return factorise_warped(model, rotations, half_columns);
-  }, std::move(R));
 }
 
 CorotationalResult solve_corotational(const CorotationalModel& model, const Eigen::VectorXd& f_ext,

@@ -318,13 +318,13 @@ void evaluate_at_u(const CorotationalElements& el, CorotationalState& state);
 // K_w at the rotations R (per tet) factorised on the rest factorisation's symbolic analysis, with its half
 // columns' factorisation made too when half_columns (for a contact compliance over it: a METIS ordering and a
 // second factorisation each time). Reads the model only, so it may run on another thread; the background one
-// must end before the model does (its future's destructor waits). Throws as StaticSolver's constructor.
+// must end before the model does (a background thread's future's destructor waits). Throws as StaticSolver's
+// constructor.
 std::shared_ptr<const StaticSolver> factorise_warped(const CorotationalModel& model,
                                                      const std::vector<Eigen::Matrix3d>& R, bool half_columns);
-// The same on a new thread at the lowest priority, as the lagged preconditioner's background factorisations.
-std::future<std::shared_ptr<const StaticSolver>> factorise_warped_in_background(const CorotationalModel& model,
-                                                                                std::vector<Eigen::Matrix3d> R,
-                                                                                bool half_columns);
+// Lowers the calling thread's priority to the background factorisations' (a scheduling hint: if refused, the thread
+// runs at the default).
+void at_background_priority();
 
 // Result of a quasi-static solve.
 struct CorotationalResult {

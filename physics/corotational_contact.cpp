@@ -161,14 +161,16 @@ ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& mode
   result.finite = std::isfinite(eval.potential) && eval.r.allFinite();
   for (;;) {
     if (!result.finite) break;  // (only a start that is not finite: every accepted iterate is)
-    // The QP at u, and the KKT residual with its multipliers.
-    qp.step(state.u, eval.r, lambda, fc, du, result);
+    // The QP at u, and the KKT residual with its multipliers. At the step bound no QP is solved (its step would
+    // not be taken): the residual is the last QP's multipliers' at u, the pair (u, lambda) returned.
+    const bool at_bound = result.steps >= options.max_steps;
+    if (!at_bound) qp.step(state.u, eval.r, lambda, fc, du, result);
     const double scale = std::max(eval.scale, fc.norm());
     const Eigen::VectorXd stationarity = eval.r + fc;
     result.residual = scale > 0.0 ? detail::free_norm(stationarity, fixed) / scale : 0.0;
     result.violation = qp.violation(state.u);
     result.converged = result.residual <= options.tolerance && result.violation <= options.feasibility_tolerance;
-    if (result.converged || result.steps >= options.max_steps || !du.allFinite()) break;
+    if (at_bound || result.converged || !du.allFinite()) break;
     ++result.steps;
     const Eigen::VectorXd u0 = state.u;
     // Off the rows: the whole step (it ends on them).

@@ -56,7 +56,8 @@ struct ContactEquilibriumResult {
   double violation = 0.0;   // largest g - H u over the rows at the returned u, metres (<= 0: none violated)
   int n_inverted = 0;       // tets with det F <= 0 at the returned u
   bool finite = true;       // false: the start's forces were not finite (nothing was done)
-  Eigen::VectorXd lambda;   // per row, newtons: the multipliers of the last QP (at the returned u)
+  Eigen::VectorXd lambda;   // per row, newtons: the multipliers of the last QP (at the returned u, or at the one
+                            // before it when the step bound stopped the iteration)
   int refactor_failures = 0;  // Integrator::solve_with_contacts: factorisations of its Hessian that failed (the
                               // last one was kept)
 };

@@ -2,6 +2,7 @@
 #include "physics/integrator.hpp"
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <chrono>
 #include <future>
 #include <stdexcept>
@@ -155,14 +156,38 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
 
 namespace {
 
-// A new contact Hessian and its compliance over the contact compliance's nodes (lazy: half columns per node).
-// (Made before the old ones go: if it throws, the last Hessian stays whole.)
-void adopt_contact_factor(IntegratorWork& work, std::shared_ptr<const StaticSolver> factor,
-                          const SurfaceCompliance& rest) {
-  auto compliance =
-      std::make_shared<SurfaceCompliance>(*factor, rest.nodes(), SurfaceCompliance::kBlockColumns, 0L, 0L);
-  work.contact_compliance = std::move(compliance);
-  work.contact_factor = std::move(factor);
+// K_w at the rotations R factorised, with its compliance over the nodes (lazy: half columns per node) and the half
+// columns of the prefetched nodes solved for.
+ContactHessianFactor contact_hessian(const CorotationalModel& model, const std::vector<Eigen::Matrix3d>& R,
+                                     const std::vector<int>& nodes, const std::vector<int>& prefetch) {
+  ContactHessianFactor h;
+  h.factor = factorise_warped(model, R, true);
+  h.compliance = std::make_shared<SurfaceCompliance>(*h.factor, nodes, SurfaceCompliance::kBlockColumns, 0L, 0L);
+  h.compliance->ensure_columns(prefetch);
+  return h;
+}
+
+// The same on a new thread at the background factorisations' priority.
+std::future<ContactHessianFactor> contact_hessian_in_background(const CorotationalModel& model,
+                                                                std::vector<Eigen::Matrix3d> R,
+                                                                std::vector<int> nodes, std::vector<int> prefetch) {
+  return std::async(std::launch::async,
+                    [&model](std::vector<Eigen::Matrix3d> rotations, std::vector<int> set, std::vector<int> ahead) {
+                      at_background_priority();
+                      return contact_hessian(model, rotations, set, ahead);
+                    },
+                    std::move(R), std::move(nodes), std::move(prefetch));
+}
+
+// The distinct nodes of the rows.
+std::vector<int> row_nodes(const std::vector<ContactRow>& rows) {
+  std::vector<int> nodes;
+  for (const ContactRow& r : rows)
+    for (int k = 0; k < 4; ++k)
+      if (r.node[k] >= 0) nodes.push_back(r.node[k]);
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  return nodes;
 }
 
 }  // namespace
@@ -181,7 +206,7 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   if (lagged && work.contact_pending.valid() &&
       work.contact_pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
     try {
-      adopt_contact_factor(work, work.contact_pending.get(), compliance);
+      work.contact_hessian = work.contact_pending.get();
     } catch (const std::exception&) {
       ++failures;  // not positive definite or out of memory: counted, and the last one stays
     }
@@ -189,27 +214,30 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   work.corotational.u = u;
   // The first contact solve factorises K_w at its start, at once (the rest K is far from the tangent of a tube
   // deflected several wall thicknesses: its steps needed four line-search halvings each and did not converge).
-  if (lagged && !work.contact_compliance && !work.contact_pending.valid()) {
+  if (lagged && !work.contact_hessian.compliance && !work.contact_pending.valid()) {
     try {
       std::vector<Eigen::Matrix3d> R;
       model_.elements().rotations(u, R);
-      adopt_contact_factor(work, factorise_warped(model_, R, true), compliance);
+      work.contact_hessian = contact_hessian(model_, R, compliance.nodes(), {});
     } catch (const std::exception&) {
       ++failures;  // (the rest K then)
     }
   }
   // The Hessian's compliance: the lagged factorisation's, or the rest one.
-  SurfaceCompliance& B = lagged && work.contact_compliance ? *work.contact_compliance : compliance;
+  SurfaceCompliance& B = lagged && work.contact_hessian.compliance ? *work.contact_hessian.compliance : compliance;
   ContactEquilibriumResult r =
       solve_contact_equilibrium(model_, work.frame_forces, rows, B, options, work.corotational, lambda_warm);
   u = work.corotational.u;
-  // The next Hessian: K_w at this end (its rotations are the state's cached evaluation at u).
+  // The next Hessian: K_w at this end (its rotations are the state's cached evaluation at u), with the half columns
+  // of these rows' nodes (the next frame's rows are mostly on them).
   if (lagged && !work.contact_pending.valid()) {
     if (options_.refactor_in_background) {
-      work.contact_pending = factorise_warped_in_background(model_, work.corotational.rotations, true);
+      work.contact_pending =
+          contact_hessian_in_background(model_, work.corotational.rotations, compliance.nodes(), row_nodes(rows));
     } else {
       try {
-        adopt_contact_factor(work, factorise_warped(model_, work.corotational.rotations, true), compliance);
+        work.contact_hessian =
+            contact_hessian(model_, work.corotational.rotations, compliance.nodes(), row_nodes(rows));
       } catch (const std::exception&) {
         ++failures;
       }

@@ -70,16 +70,23 @@ struct Prediction {
   Eigen::VectorXd contact_lambda;   // with FrameLoads::contacts: each carried row's force in the solve, newtons
 };
 
+// A factorised contact Hessian and its compliance over the contact nodes (lazy: half columns per node), which
+// refers to the factorisation.
+struct ContactHessianFactor {
+  std::shared_ptr<const StaticSolver> factor;
+  std::shared_ptr<SurfaceCompliance> compliance;
+};
+
 // Mutable data an integrator keeps between frames besides SimState (warm starts, lagged preconditioners).
 struct IntegratorWork {
   CorotationalState corotational;  // corotational quasi-static: the nonlinear solve's warm start and caches
   Eigen::VectorXd frame_forces;    // corotational quasi-static: the last prediction's nodal loads, 3n, newtons
   // corotational quasi-static, contacts solved on a lagged factorisation (ContactHessian::as_given): K_w at the end
-  // of the last contact solve, its compliance over the contact nodes (half columns cached per node until the next
-  // one is adopted), and the next one, in progress on a background thread (valid() while it runs).
-  std::shared_ptr<const StaticSolver> contact_factor;
-  std::shared_ptr<SurfaceCompliance> contact_compliance;
-  std::future<std::shared_ptr<const StaticSolver>> contact_pending;
+  // of the last contact solve with its compliance over the contact nodes (half columns cached per node until the
+  // next one is adopted), and the next one, in progress on a background thread (valid() while it runs), which also
+  // solves for the half columns of the last solve's row nodes.
+  ContactHessianFactor contact_hessian;
+  std::future<ContactHessianFactor> contact_pending;
   DynamicState step;               // backward Euler: the step's trial state (u, v)
 };
 

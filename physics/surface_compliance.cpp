@@ -1,6 +1,7 @@
 // Surface compliance: K^-1 restricted to a node set, cached outside columns, whole-mesh and on-set responses.
 #include "physics/surface_compliance.hpp"
 
+#include <cassert>
 #include <algorithm>
 #include <stdexcept>
 #include <string>
@@ -144,6 +145,30 @@ Eigen::Matrix3d SurfaceCompliance::half_block(int a, int b) {
     clear_half(b, half_z_);
   }
   return block;
+}
+
+Eigen::MatrixXd SurfaceCompliance::half_gram(const std::vector<int>& set_positions) {
+  assert(lazy_);
+  const int k = static_cast<int>(set_positions.size());
+  for (int a : set_positions)
+    if (!half_solved_[a]) solve_half_columns(a);
+  // The union of the half columns' rows, numbered in order of first use; Y (rows x 3k) on them.
+  std::vector<int> row_of(half_z_.size(), -1);
+  int rows = 0;
+  for (int a : set_positions)
+    for (int i : half_[a].index)
+      if (row_of[i] < 0) row_of[i] = rows++;
+  Eigen::MatrixXd Y = Eigen::MatrixXd::Zero(rows, 3 * k);
+  for (int t = 0; t < k; ++t) {
+    const HalfColumns& h = half_[set_positions[t]];
+    for (int c = 0; c < 3; ++c)
+      for (int e = h.start[c]; e < h.start[c + 1]; ++e) Y(row_of[h.index[e]], 3 * t + c) = h.value[e];
+  }
+  // C = Y^T Y (its lower triangle by a rank update, then mirrored).
+  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(3 * k, 3 * k);
+  C.selfadjointView<Eigen::Lower>().rankUpdate(Y.transpose());
+  C.triangularView<Eigen::StrictlyUpper>() = C.transpose();
+  return C;
 }
 
 namespace {

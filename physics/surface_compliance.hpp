@@ -111,6 +111,9 @@ class SurfaceCompliance {
   void scatter_half(int a, const Eigen::Vector3d& w, std::vector<double>& z) const;
   Eigen::Vector3d gather_half(int a, const std::vector<double>& z) const;
   Eigen::Matrix3d half_block(int a, int b);
+  // C on the listed set nodes of a lazy set (positions in nodes_), 3k x 3k, m/N: Y^T Y over the union of their half
+  // columns' rows, one dense symmetric product (half columns not at hand are solved for first).
+  Eigen::MatrixXd half_gram(const std::vector<int>& set_positions);
   void clear_half(int a, std::vector<double>& z) const;  // z = 0 on Y_a's pattern
   friend class CouplingMatrix;
   const StaticSolver* solver_;

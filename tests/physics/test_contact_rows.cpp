@@ -12,6 +12,19 @@
 namespace lumen::physics {
 namespace {
 
+// A random rotation per node into frames (n), and Rn, the block-diagonal matrix of them (3n x 3n).
+Eigen::MatrixXd random_node_frames(std::mt19937& rng, int n, std::vector<Eigen::Matrix3d>& frames) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  frames.resize(static_cast<size_t>(n));
+  Eigen::MatrixXd Rn = Eigen::MatrixXd::Zero(3 * n, 3 * n);
+  for (int v = 0; v < n; ++v) {
+    const Eigen::Vector4d q(normal(rng), normal(rng), normal(rng), normal(rng));
+    frames[v] = Eigen::Quaterniond(q.normalized()).toRotationMatrix();
+    Rn.block<3, 3>(3 * v, 3 * v) = frames[v];
+  }
+  return Rn;
+}
+
 // The coupling matrix column by column equals the dense twin H K^-1 H^T, rows inside and outside the set.
 // Once with the set's matrix solved at construction, once with its columns solved per node on first use (lazy).
 TEST(CouplingMatrix, ColumnsEqualDenseTwin) {
@@ -49,14 +62,8 @@ TEST(CouplingMatrix, NodeFramesEqualTheWarpedDenseTwin) {
     std::mt19937 rng(23);
     std::vector<ContactRow> rows;
     for (int r = 0; r < 20; ++r) rows.push_back(random_vertex_face(rng, m, r % 3 == 0));
-    std::normal_distribution<double> normal(0.0, 1.0);
-    std::vector<Eigen::Matrix3d> frames(static_cast<size_t>(m.n()));
-    Eigen::MatrixXd Rn = Eigen::MatrixXd::Zero(3 * m.n(), 3 * m.n());
-    for (int v = 0; v < m.n(); ++v) {
-      const Eigen::Vector4d q(normal(rng), normal(rng), normal(rng), normal(rng));
-      frames[v] = Eigen::Quaterniond(q.normalized()).toRotationMatrix();
-      Rn.block<3, 3>(3 * v, 3 * v) = frames[v];
-    }
+    std::vector<Eigen::Matrix3d> frames;
+    const Eigen::MatrixXd Rn = random_node_frames(rng, m.n(), frames);
     const Eigen::MatrixXd H = dense_H(rows, m.n());
     const Eigen::MatrixXd twin = H * Rn * m.Kinv * Rn.transpose() * H.transpose();
     EXPECT_LE((coupling_matrix(sc, rows, &frames) - twin).norm(), 1e-9 * twin.norm());
@@ -64,6 +71,34 @@ TEST(CouplingMatrix, NodeFramesEqualTheWarpedDenseTwin) {
     EXPECT_GT((coupling_matrix(sc, rows) - twin).norm(), 1e-3 * twin.norm());
     frames.pop_back();
     EXPECT_THROW(CouplingMatrix(sc, rows, &frames), std::invalid_argument);
+  }
+}
+
+// Every row on the lazy set's nodes: dense() forms A from one product of the touched nodes' half columns. It equals
+// the dense twin and the column-by-column coupling (the path the active-set solvers take), with and without per-node
+// frames, and leaves every column at hand.
+TEST(CouplingMatrix, DenseFromHalfColumnsEqualsColumnsAndTwin) {
+  const Model& m = model();
+  SurfaceCompliance sc(*m.solver, m.inner, 64, 256L << 20, 0L);
+  ASSERT_TRUE(sc.lazy());
+  std::mt19937 rng(31);
+  std::vector<ContactRow> rows;
+  for (int r = 0; r < 40; ++r) rows.push_back(random_vertex_face(rng, m, false));
+  std::vector<Eigen::Matrix3d> frames;
+  const Eigen::MatrixXd Rn = random_node_frames(rng, m.n(), frames);
+  const Eigen::MatrixXd H = dense_H(rows, m.n());
+  for (const bool warped : {false, true}) {
+    const std::vector<Eigen::Matrix3d>* f = warped ? &frames : nullptr;
+    const Eigen::MatrixXd C = warped ? Eigen::MatrixXd(Rn * m.Kinv * Rn.transpose()) : m.Kinv;
+    const Eigen::MatrixXd twin = H * C * H.transpose();
+    CouplingMatrix by_product(sc, rows, f), by_columns(sc, rows, f);
+    const Eigen::MatrixXd A = by_product.dense();
+    EXPECT_EQ(by_product.columns_computed(), 40);
+    EXPECT_LE((A - twin).norm(), 1e-9 * twin.norm()) << "warped " << warped;
+    Eigen::MatrixXd columns(40, 40);
+    for (int s = 0; s < 40; ++s) columns.col(s) = by_columns.column(s);
+    EXPECT_LE((A - columns).norm(), 1e-12 * twin.norm()) << "warped " << warped;
+    for (int s : {0, 17, 39}) EXPECT_LE((by_product.column(s) - columns.col(s)).norm(), 1e-12 * twin.norm());
   }
 }
 

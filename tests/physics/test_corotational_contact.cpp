@@ -179,6 +179,19 @@ TEST(ContactEquilibrium, IteratesStartedOnTheRowsStayOnThemAndDescend) {
     const double pi = model.elements().elastic_energy(state.u, state.rotations) - p.f.dot(state.u);
     EXPECT_LT(pi, last) << steps << " steps";
     last = pi;
+    // The residual reported is the returned pair's (at the bound: the last QP's multipliers at the last iterate),
+    // from forces evaluated afresh, over the solver's force scale (loads, reactions, contact forces).
+    std::vector<Eigen::Matrix3d> R;
+    Eigen::VectorXd f_int;
+    model.elements().rotations(state.u, R);
+    model.elements().elastic_forces(state.u, R, f_int);
+    double reactions = 0.0;
+    for (int d = 0; d < model.n_dofs(); ++d)
+      if (model.is_fixed_dof(d)) reactions += f_int[d] * f_int[d];
+    const double scale = std::max({p.f.norm(), std::sqrt(reactions),
+                                   contact_force(p.rows, c.lambda, model.n_dofs()).norm()});
+    EXPECT_NEAR(kkt_residual(model, p, state.u, c.lambda) * p.f.norm() / scale, c.residual, 1e-9)
+        << steps << " steps";
   }
 }
 
