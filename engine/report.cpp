@@ -120,6 +120,7 @@ nlohmann::json frame_json(const FrameRecord& r) {
   j["contact_force_n"] = r.contact_force;
   j["contact_residual_m"] = r.contact_residual;
   j["lcp_iterations"] = r.lcp_iterations;
+  j["lcp_converged"] = r.lcp_converged;
   j["equilibrium_steps"] = r.equilibrium_steps;
   j["equilibrium_backtracks"] = r.equilibrium_backtracks;
   j["equilibrium_residual"] = r.equilibrium_residual;

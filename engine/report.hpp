@@ -76,6 +76,8 @@ struct FrameRecord {
   double contact_residual = 0.0;      // the last contact solve's residual (largest row violation or
                                       // complementarity gap), metres; 0 without contact
   int lcp_iterations = 0;             // the contact solves' pivots / active-set rounds / NNCG sweeps, summed
+  bool lcp_converged = true;          // every contact solve's LCP reached its tolerance (NNCG may stop at its
+                                      // sweep budget short of it); true without contact
   // collision.coupling "solved": QP steps and line-search halvings over the frame's response rounds, and the
   // equilibrium's KKT residual at the end (|f - f_int + H^T lambda| / force scale; 0 without contact).
   int equilibrium_steps = 0;

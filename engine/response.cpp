@@ -145,6 +145,7 @@ struct ResponseRounds {
   physics::ContactResult solved;                    // the last solve
   int iterations = 0;
   int lcp_iterations = 0;                           // pivots / rounds / sweeps over the solves
+  bool lcp_converged = true;                        // every LCP of the rounds reached its tolerance
   std::map<FeatureKey, double> carried;             // last frame's multipliers (NNCG's warm start)
   std::map<FeatureKey, double> in_solve;            // coupling "carried": each carried row's force in the solve
   int equilibrium_steps = 0;                        // coupling "solved": QP steps over the rounds
@@ -217,6 +218,7 @@ void solve_in_equilibrium(const Model& model, State& state, const Points& x1, co
   rr.equilibrium_backtracks += r.backtracks;
   rr.equilibrium_residual = r.residual;
   rr.lcp_iterations += r.lcp_iterations;
+  rr.lcp_converged = rr.lcp_converged && r.lcp_converged;
   rr.refactor_failures += r.refactor_failures;
   physics::ContactResult& solved = rr.solved;
   solved.lambda = r.lambda;
@@ -263,6 +265,7 @@ void solve_constraint(const Model& model, State& state, const Points& x1, const 
     rr.solved = physics::solve_contacts(*state.compliance, rr.rows, u_free, warm, {}, false, held);
   }
   rr.lcp_iterations += rr.solved.iterations;
+  rr.lcp_converged = rr.lcp_converged && rr.solved.converged;
   rr.pushing.clear();
   int r = 0;
   for (const auto& entry : rr.active)
@@ -567,6 +570,7 @@ void collide_and_respond(const Model& model, State& state, Eigen::VectorXd& u, F
     for (const auto& [key, lambda] : rr.in_solve) rec.contact_force += lambda;
     rec.contact_residual = rr.solved.residual;
     rec.lcp_iterations = rr.lcp_iterations;
+    rec.lcp_converged = rr.lcp_converged;
     rec.equilibrium_steps = rr.equilibrium_steps;
     rec.equilibrium_backtracks = rr.equilibrium_backtracks;
     rec.equilibrium_residual = rr.equilibrium_residual;

@@ -156,6 +156,9 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
 
 namespace {
 
+// A contact solve's start this near the last one's end (relative to its largest entry) is taken as that end.
+constexpr double kSameStartRoundOff = 1e-12;
+
 // K_w at the rotations R factorised, with its compliance over the nodes (lazy: half columns per node) and the half
 // columns of the prefetched nodes solved for.
 ContactHessianFactor contact_hessian(const CorotationalModel& model, const std::vector<Eigen::Matrix3d>& R,
@@ -211,6 +214,17 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
       ++failures;  // not positive definite or out of memory: counted, and the last one stays
     }
   }
+  // A start at the last contact solve's end to round-off (the committed state is the prediction plus the
+  // correction) starts at that end exactly, with its evaluation.
+  const CorotationalEvaluation& end = work.contact_end;
+  if (end.u.size() == u.size() &&
+      (u - end.u).lpNorm<Eigen::Infinity>() <= kSameStartRoundOff * end.u.lpNorm<Eigen::Infinity>()) {
+    u = end.u;
+    work.corotational.rotations = end.rotations;
+    work.corotational.f_int = end.f_int;
+    work.corotational.n_inverted = end.n_inverted;
+    work.corotational.u_eval = end.u;
+  }
   work.corotational.u = u;
   // The first contact solve factorises K_w at its start, at once (the rest K is far from the tangent of a tube
   // deflected several wall thicknesses: its steps needed four line-search halvings each and did not converge).
@@ -228,6 +242,9 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   ContactEquilibriumResult r =
       solve_contact_equilibrium(model_, work.frame_forces, rows, B, options, work.corotational, lambda_warm);
   u = work.corotational.u;
+  const CorotationalState& s = work.corotational;
+  if (s.u_eval.size() == s.u.size() && s.u_eval == s.u)
+    work.contact_end = CorotationalEvaluation{s.u, s.rotations, s.f_int, s.n_inverted};
   // The next Hessian: K_w at this end (its rotations are the state's cached evaluation at u), with the half columns
   // of these rows' nodes (the next frame's rows are mostly on them).
   if (lagged && !work.contact_pending.valid()) {
