@@ -15,7 +15,9 @@ namespace {
 
 constexpr double kSufficientDecrease = 1e-4;  // sufficient decrease of Pi, a fraction of the step's slope
 constexpr int kMaxHalvings = 12;               // line-search halvings before a step is given up
-constexpr double kLcpToleranceShare = 0.1;     // the LCP's tolerance, a share of the feasibility tolerance
+constexpr double kLcpToleranceShare = 0.1;
+// Off the rows, the exact penalty's weight: this many times the largest multiplier (above 1: the QP step descends).
+constexpr double kMeritMultiplierFactor = 2.0;     // the LCP's tolerance, a share of the feasibility tolerance
 // A change of Pi this small relative to its size is round-off (near the solution Pi changes by about r . du / 2):
 // there the whole step is taken, as a converging SQP's is.
 constexpr double kPotentialRoundOff = 1e-11;
@@ -111,6 +113,10 @@ class WarpedQp {
   double violation(const Eigen::VectorXd& u) const {
     return rows_.empty() ? 0.0 : (g_ - row_values(rows_, u)).maxCoeff();
   }
+  // Sum of max(0, g - H u) over the rows, metres.
+  double total_violation(const Eigen::VectorXd& u) const {
+    return rows_.empty() ? 0.0 : (g_ - row_values(rows_, u)).cwiseMax(0.0).sum();
+  }
 
  private:
   const StaticSolver& K_;
@@ -173,8 +179,26 @@ ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& mode
     if (at_bound || result.converged || !du.allFinite()) break;
     ++result.steps;
     const Eigen::VectorXd u0 = state.u;
-    // Off the rows: the whole step (it ends on them).
+    // Off the rows: backtrack on the exact penalty phi = Pi + mu sum max(0, g - H u), mu above every multiplier,
+    // along which du descends (its slope -r . du - mu V(u)); a step that finds no decrease is taken whole (it ends
+    // on the rows).
     if (result.violation > options.feasibility_tolerance) {
+      const double mu = kMeritMultiplierFactor * (lambda.size() > 0 ? std::max(lambda.maxCoeff(), 0.0) : 0.0);
+      const double start = eval.potential + mu * qp.total_violation(u0);
+      const double slope = eval.r.dot(du) + mu * qp.total_violation(u0);  // -(phi's slope)
+      bool accepted = false;
+      double alpha = 1.0;
+      for (int k = 0; k <= kMaxHalvings && slope > 0.0; ++k, alpha *= 0.5) {
+        state.u = u0 + alpha * du;
+        eval.at(state);
+        const double phi = eval.potential + mu * qp.total_violation(state.u);
+        if (std::isfinite(phi) && eval.r.allFinite() && phi <= start - kSufficientDecrease * alpha * slope) {
+          accepted = true;
+          break;
+        }
+        ++result.backtracks;
+      }
+      if (accepted) continue;
       state.u = u0 + du;
       eval.at(state);
       if (std::isfinite(eval.potential) && eval.r.allFinite()) continue;

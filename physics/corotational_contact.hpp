@@ -10,7 +10,9 @@
 // takes du = B^-1 (r + H^T lambda). From a feasible u, du = 0 is a feasible candidate, so r . du >= du^T B du / 2:
 // du descends Pi; and since the rows are linear, every point between u and u + du is feasible. A backtracking line
 // search on Pi therefore keeps each iterate feasible and lowers Pi at every step: the iteration cannot diverge.
-// From an infeasible start (the contact-free prediction) the first step is taken whole, which puts u on the rows.
+// From an infeasible start (new rows) the line search is on the exact penalty Pi + mu sum max(0, g - H u) instead,
+// mu twice the largest multiplier, along which du descends too (Han's merit function); a step that finds no
+// decrease there is taken whole, which puts u on the rows.
 // At the fixed point du = 0, i.e. r + H^T lambda = 0 with lambda >= 0 complementary to H u - g: the equilibrium of
 // the corotational model itself with its contacts (the KKT conditions), which is what the residual measures.
 #include <vector>
