@@ -15,9 +15,9 @@ namespace {
 
 constexpr double kSufficientDecrease = 1e-4;  // sufficient decrease of Pi, a fraction of the step's slope
 constexpr int kMaxHalvings = 12;               // line-search halvings before a step is given up
-constexpr double kLcpToleranceShare = 0.1;
+constexpr double kLcpToleranceShare = 0.1;     // the LCP's tolerance, a share of the feasibility tolerance
 // Off the rows, the exact penalty's weight: this many times the largest multiplier (above 1: the QP step descends).
-constexpr double kMeritMultiplierFactor = 2.0;     // the LCP's tolerance, a share of the feasibility tolerance
+constexpr double kMeritMultiplierFactor = 2.0;
 // A change of Pi this small relative to its size is round-off (near the solution Pi changes by about r . du / 2):
 // there the whole step is taken, as a converging SQP's is.
 constexpr double kPotentialRoundOff = 1e-11;
@@ -184,8 +184,8 @@ ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& mode
     // on the rows).
     if (result.violation > options.feasibility_tolerance) {
       const double mu = kMeritMultiplierFactor * (lambda.size() > 0 ? std::max(lambda.maxCoeff(), 0.0) : 0.0);
-      const double start = eval.potential + mu * qp.total_violation(u0);
-      const double slope = eval.r.dot(du) + mu * qp.total_violation(u0);  // -(phi's slope)
+      const double penalty = mu * qp.total_violation(u0);
+      const double start = eval.potential + penalty, slope = eval.r.dot(du) + penalty;  // slope: -(phi's slope)
       bool accepted = false;
       double alpha = 1.0;
       for (int k = 0; k <= kMaxHalvings && slope > 0.0; ++k, alpha *= 0.5) {
