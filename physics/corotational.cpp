@@ -1169,9 +1169,16 @@ void evaluate_at_u(const CorotationalElements& el, CorotationalState& state) {
 std::shared_ptr<const StaticSolver> factorise_warped(const CorotationalModel& model,
                                                      const std::vector<Eigen::Matrix3d>& R, bool half_columns) {
   Eigen::SparseMatrix<double> K = model.elements().warped_stiffness(R);
-  // (On the rest factorisation's analysis when the pattern is K's, as start_factorisation does.)
-  auto solver = model.solver().has_pattern(K) ? std::make_shared<StaticSolver>(model.solver().refactorised(std::move(K)))
-                                              : std::make_shared<StaticSolver>(K, model.fixed_nodes());
+  // (On the rest factorisation's analysis when the pattern is K's, as start_factorisation does; with half columns on
+  // its nested-dissection analysis when made, one factorisation serving both.)
+  const StaticSolver& rest = model.solver();
+  std::shared_ptr<StaticSolver> solver;
+  if (!rest.has_pattern(K))
+    solver = std::make_shared<StaticSolver>(K, model.fixed_nodes());
+  else if (half_columns && rest.has_nested_analysis())
+    solver = std::make_shared<StaticSolver>(rest.refactorised_nested(std::move(K)));
+  else
+    solver = std::make_shared<StaticSolver>(rest.refactorised(std::move(K)));
   if (half_columns) solver->prepare_half_columns();
   return solver;
 }

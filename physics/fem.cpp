@@ -254,6 +254,8 @@ struct StaticSolver::Impl {
   mutable cholmod_dense* half_x = nullptr;
   mutable cholmod_dense* half_y = nullptr;
   mutable cholmod_dense* half_e = nullptr;
+  // The nested-dissection ordering's symbolic analysis (supernodal), kept for refactorised_nested (null: not made).
+  mutable cholmod_factor* nested = nullptr;
   // Whether a solve is running (the workspace and the CHOLMOD common above are one per factorisation).
   mutable std::atomic<bool> busy{false};
 
@@ -263,6 +265,7 @@ struct StaticSolver::Impl {
     cholmod_free_dense(&Y, &common);
     cholmod_free_dense(&E, &common);
     cholmod_free_factor(&half_L, &common);
+    cholmod_free_factor(&nested, &common);
     cholmod_free_dense(&half_b, &common);
     cholmod_free_sparse(&half_bset, &common);
     cholmod_free_sparse(&half_xset, &common);
@@ -399,14 +402,21 @@ struct StaticSolver::Impl {
   // set last, says they are).
   void prepare_half() {
     if (half_L) return;
-    const int nf = n_free();
-    if (!half_b) half_b = cholmod_zeros(nf, 1, CHOLMOD_REAL, &common);
-    if (!half_bset) half_bset = cholmod_allocate_sparse(nf, 1, 1, 1, 1, 0, CHOLMOD_PATTERN, &common);
-    if (!half_b || !half_bset)
-      throw std::runtime_error("StaticSolver::half_column: CHOLMOD allocation failed (status " +
-                               std::to_string(common.status) + ")");
-    static_cast<int*>(half_bset->p)[0] = 0;
-    static_cast<int*>(half_bset->p)[1] = 1;
+    prepare_half_workspace();
+    analyse_nested();
+    cholmod_factor* F = copy_factor(nested);
+    try {
+      factorise_numeric(lower_matrix(), F);
+    } catch (...) {
+      cholmod_free_factor(&F, &common);
+      throw;
+    }
+    set_half(F);
+  }
+
+  // The nested-dissection ordering (METIS) and its supernodal symbolic analysis, unless made already.
+  void analyse_nested() {
+    if (nested) return;
     cholmod_sparse* A = lower_matrix();
     const int nmethods = common.nmethods, ordering = common.method[0].ordering;
     common.nmethods = 1;
@@ -415,12 +425,35 @@ struct StaticSolver::Impl {
     cholmod_factor* F = cholmod_analyze(A, &common);
     common.nmethods = nmethods;
     common.method[0].ordering = ordering;
-    try {
-      factorise_numeric(A, F);
-    } catch (...) {
-      cholmod_free_factor(&F, &common);
-      throw;
-    }
+    cholmod_free_sparse(&A, &common);
+    if (!F)
+      throw std::runtime_error("StaticSolver: CHOLMOD's nested-dissection analysis failed (status " +
+                               std::to_string(common.status) + ")");
+    nested = F;
+  }
+
+  // A copy of F (CHOLMOD's), or std::runtime_error.
+  cholmod_factor* copy_factor(const cholmod_factor* F) {
+    cholmod_factor* C = cholmod_copy_factor(const_cast<cholmod_factor*>(F), &common);
+    if (!C) throw std::runtime_error("StaticSolver: CHOLMOD factor copy failed (status " + std::to_string(common.status) + ")");
+    return C;
+  }
+
+  // The partial solves' one-entry right-hand side (dense and its pattern).
+  void prepare_half_workspace() {
+    const int nf = n_free();
+    if (!half_b) half_b = cholmod_zeros(nf, 1, CHOLMOD_REAL, &common);
+    if (!half_bset) half_bset = cholmod_allocate_sparse(nf, 1, 1, 1, 1, 0, CHOLMOD_PATTERN, &common);
+    if (!half_b || !half_bset)
+      throw std::runtime_error("StaticSolver::half_column: CHOLMOD allocation failed (status " +
+                               std::to_string(common.status) + ")");
+    static_cast<int*>(half_bset->p)[0] = 0;
+    static_cast<int*>(half_bset->p)[1] = 1;
+  }
+
+  // F (numeric, nested dissection) becomes half_L, with each free index's column in it (position).
+  void set_half(cholmod_factor* F) {
+    const int nf = n_free();
     position.resize(nf);
     const int* perm = static_cast<const int*>(F->Perm);
     for (int j = 0; j < nf; ++j) position[perm[j]] = j;
@@ -461,6 +494,27 @@ struct StaticSolver::Impl {
   // The same for K_in with the pattern of from.K, on from's fixed DOFs and symbolic analysis (its factor copied,
   // then refactorised with K_in's values): no ordering, no supernode analysis.
   void refactorise(const Impl& from, Eigen::SparseMatrix<double> K_in) {
+    cholmod_sparse* A = take_pattern(from, std::move(K_in));
+    L = cholmod_copy_factor(from.L, &common);
+    factorise_numeric(A, L);
+    lnz = from.lnz;
+    if (from.single) single = std::make_unique<detail::SupernodalSingle>(supernodes());
+  }
+
+  // The same on from's nested-dissection analysis (from.nested made): L is factorised once on it, and half_L is a
+  // copy of it (the first partial solve turns half_L simplicial, in place, which would slow L's solves).
+  void refactorise_nested(const Impl& from, Eigen::SparseMatrix<double> K_in) {
+    cholmod_sparse* A = take_pattern(from, std::move(K_in));
+    L = copy_factor(from.nested);
+    factorise_numeric(A, L);
+    lnz = static_cast<long>(L->xsize);
+    prepare_half_workspace();
+    set_half(copy_factor(L));
+  }
+
+  // K_in (the pattern of from.K) as this matrix, with from's free DOFs and lower-triangle pattern; returns its lower
+  // triangle for CHOLMOD (factorise_numeric frees it).
+  cholmod_sparse* take_pattern(const Impl& from, Eigen::SparseMatrix<double> K_in) {
     K = std::move(K_in);
     K.makeCompressed();
     n = from.n;
@@ -469,13 +523,9 @@ struct StaticSolver::Impl {
     lower_p = from.lower_p;
     lower_i = from.lower_i;
     place_of = from.place_of;
-    cholmod_sparse* A = lower_matrix();
     common.supernodal = CHOLMOD_SUPERNODAL;
     common.print = 0;
-    L = cholmod_copy_factor(from.L, &common);
-    factorise_numeric(A, L);
-    lnz = from.lnz;
-    if (from.single) single = std::make_unique<detail::SupernodalSingle>(supernodes());
+    return lower_matrix();
   }
 };
 
@@ -531,16 +581,37 @@ StaticSolver::StaticSolver(const Eigen::SparseMatrix<double>& K, const std::vect
 StaticSolver::StaticSolver(std::shared_ptr<Impl> impl, double inverse_scale)
     : impl_(std::move(impl)), inverse_scale_(inverse_scale) {}
 
+namespace {
+
+// Throws std::invalid_argument naming `where` unless K (compressed) stores the solver's entries.
+void require_pattern(const char* where, const StaticSolver& solver, const Eigen::SparseMatrix<double>& K) {
+  if (solver.has_pattern(K)) return;
+  throw std::invalid_argument(std::string(where) + ": K must store the entries of the factorised matrix (" +
+                              std::to_string(solver.matrix().nonZeros()) + " in a " + std::to_string(solver.n_dofs()) +
+                              " x " + std::to_string(solver.n_dofs()) + " pattern), got " +
+                              std::to_string(K.nonZeros()) + " in a " + std::to_string(K.rows()) + " x " +
+                              std::to_string(K.cols()));
+}
+
+}  // namespace
+
 StaticSolver StaticSolver::refactorised(Eigen::SparseMatrix<double> K) const {
   K.makeCompressed();
-  if (!has_pattern(K)) {
-    throw std::invalid_argument("StaticSolver::refactorised: K must store the entries of the factorised matrix (" +
-                                std::to_string(impl_->K.nonZeros()) + " in a " + std::to_string(impl_->n) + " x " +
-                                std::to_string(impl_->n) + " pattern), got " + std::to_string(K.nonZeros()) +
-                                " in a " + std::to_string(K.rows()) + " x " + std::to_string(K.cols()));
-  }
+  require_pattern("StaticSolver::refactorised", *this, K);
   auto impl = std::make_shared<Impl>();
   impl->refactorise(*impl_, std::move(K));
+  return StaticSolver(std::move(impl), 1.0);
+}
+
+bool StaticSolver::has_nested_analysis() const { return impl_->nested != nullptr; }
+
+StaticSolver StaticSolver::refactorised_nested(Eigen::SparseMatrix<double> K) const {
+  K.makeCompressed();
+  require_pattern("StaticSolver::refactorised_nested", *this, K);
+  if (!impl_->nested)
+    throw std::logic_error("StaticSolver::refactorised_nested: prepare_nested_analysis() has not run on this solver");
+  auto impl = std::make_shared<Impl>();
+  impl->refactorise_nested(*impl_, std::move(K));
   return StaticSolver(std::move(impl), 1.0);
 }
 
@@ -678,6 +749,11 @@ void StaticSolver::solve(const Eigen::VectorXd& f, Eigen::VectorXd& u) const {
                              ")");
   }
   m.scatter(static_cast<const double*>(m.X->x), inverse_scale_, u);
+}
+
+void StaticSolver::prepare_nested_analysis() const {
+  const SolveGuard guard(impl_->busy, "StaticSolver::prepare_nested_analysis");
+  impl_->analyse_nested();
 }
 
 void StaticSolver::prepare_half_columns() const {

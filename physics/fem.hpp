@@ -162,6 +162,17 @@ class StaticSolver {
   // std::invalid_argument for another pattern, and as the constructor for a matrix that is not positive definite
   // or not finite. Reads this solver only, so it may run on another thread while this one solves.
   StaticSolver refactorised(Eigen::SparseMatrix<double> K) const;
+  // half_column's nested-dissection ordering and symbolic analysis, made now (under the solve guard) unless made
+  // already (by this, prepare_half_columns or a first half_column), for refactorised_nested. About 10 ms on the paper
+  // mesh.
+  void prepare_nested_analysis() const;
+  bool has_nested_analysis() const;
+  // The solver of another matrix with the same stored entries, as refactorised(), but factorised on this solver's
+  // nested-dissection analysis (prepare_nested_analysis must have run: else std::logic_error) with its half_column
+  // factorisation a copy of that factor: one ordering-free factorisation for solve() and half_column() both, where
+  // refactorised() then prepare_half_columns() make a second ordering and a second factorisation. No
+  // single-precision copy. Reads this solver only, as refactorised().
+  StaticSolver refactorised_nested(Eigen::SparseMatrix<double> K) const;
   // Whether K (3n x 3n) stores exactly the entries of the factorised matrix (values aside).
   bool has_pattern(const Eigen::SparseMatrix<double>& K) const;
 

@@ -226,6 +226,8 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
     work.corotational.u_eval = end.u;
   }
   work.corotational.u = u;
+  // The rest solver's nested-dissection analysis, once, on this thread: the contact Hessians are factorised on it.
+  if (lagged && !model_.solver().has_nested_analysis()) model_.solver().prepare_nested_analysis();
   // The first contact solve factorises K_w at its start, at once (the rest K is far from the tangent of a tube
   // deflected several wall thicknesses: its steps needed four line-search halvings each and did not converge).
   if (lagged && !work.contact_hessian.compliance && !work.contact_pending.valid()) {

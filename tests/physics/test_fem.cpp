@@ -468,6 +468,57 @@ TEST(StaticSolver, RefactorisedOnTheSameAnalysisEqualsAFreshFactorisation) {
   EXPECT_EQ(message(nan), "StaticSolver: K(3, 3) must be finite, got nan");
 }
 
+// A matrix of the same pattern refactorised on the first one's nested-dissection analysis: its solves equal the
+// dense Cholesky of it (independent twin), its half columns multiply to that inverse (Y^T Y = K2^-1 over the free
+// DOFs), and a half column taken before a solve leaves the solve right (CHOLMOD turns the partial solves' factor
+// simplicial in place, so it is a copy). Without the analysis it is refused.
+TEST(StaticSolver, RefactorisedNestedSolvesAndGivesHalfColumnsOfTheNewMatrix) {
+  HollowCylinderSpec spec;
+  spec.segments_around = 8, spec.segments_along = 12, spec.layers = 1, spec.length = 0.08;
+  const TetMesh mesh = make_hollow_cylinder(spec);
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
+  const std::vector<int>& fixed_nodes = mesh.node_set(kStartEnd);
+  const StaticSolver solver(K, fixed_nodes);
+  const int n = mesh.n_nodes();
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<double> scale(0.5, 2.0);
+  Eigen::VectorXd D(3 * n);
+  for (int i = 0; i < 3 * n; ++i) D[i] = scale(rng);
+  const Eigen::SparseMatrix<double> K2 = D.asDiagonal() * K * D.asDiagonal();
+  EXPECT_FALSE(solver.has_nested_analysis());
+  EXPECT_EQ(test::message_of<std::logic_error>([&] { solver.refactorised_nested(K2); }),
+            "StaticSolver::refactorised_nested: prepare_nested_analysis() has not run on this solver");
+  solver.prepare_nested_analysis();
+  ASSERT_TRUE(solver.has_nested_analysis());
+  const StaticSolver nested = solver.refactorised_nested(K2);
+  // The twin: K2's dense inverse over the free DOFs.
+  const std::vector<char> fixed = whole_node_mask(fixed_nodes, n);
+  std::vector<int> free;
+  const Eigen::MatrixXd K2f = restrict(Eigen::MatrixXd(K2), fixed, free);
+  const Eigen::MatrixXd inverse = K2f.llt().solve(Eigen::MatrixXd::Identity(K2f.rows(), K2f.cols()));
+  const int nf = static_cast<int>(free.size());
+  ASSERT_EQ(nested.n_free_dofs(), nf);
+  // Half columns first (the partial solves' factor goes simplicial), then a solve on the factor they came from.
+  Eigen::MatrixXd Y = Eigen::MatrixXd::Zero(nf, nf);
+  std::vector<int> index;
+  std::vector<double> value;
+  for (int k = 0; k < nf; ++k) {
+    nested.half_column(free[k], index, value);
+    for (size_t e = 0; e < index.size(); ++e) Y(index[e], k) = value[e];
+  }
+  EXPECT_LE((Y.transpose() * Y - inverse).norm(), 1e-10 * inverse.norm());
+  const Eigen::VectorXd f = random_load(3 * n, rng);
+  const Eigen::VectorXd uf = inverse * gather(f, free);
+  Eigen::VectorXd u;
+  nested.solve(f, u);
+  for (int k = 0; k < nf; ++k) EXPECT_NEAR(u[free[k]], uf[k], 1e-10 * uf.cwiseAbs().maxCoeff());
+  // The first solver still solves K.
+  Eigen::VectorXd u_first;
+  solver.solve(f, u_first);
+  const Eigen::VectorXd u_first_twin = restrict(Eigen::MatrixXd(K), fixed, free).llt().solve(gather(f, free));
+  for (int k = 0; k < nf; ++k) EXPECT_NEAR(u_first[free[k]], u_first_twin[k], 1e-10 * u_first_twin.cwiseAbs().maxCoeff());
+}
+
 // The single-precision copy of the factor (the corotational solves' preconditioner): K^-1 f to float's precision
 // against the dense Cholesky, a symmetric operator to double round-off (its solves are double arithmetic on the
 // rounded factor, which CG needs), commuting with scaling K, shared by scaled views, made again by refactorised();
