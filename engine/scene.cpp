@@ -594,7 +594,7 @@ void read_render(const Reader& r, const json& m, const Scene& s, RenderSpec& spe
 void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
   r.only_keys(m, "collision", {"self", "kdop", "response", "gap", "max_iterations", "max_contact_rows", "surfaces", "lcp", "lcp_sweeps",
                                "coupling", "recheck", "detection", "equilibrium_steps",
-                               "equilibrium_hessian"});
+                               "equilibrium_hessian", "prediction_back_substitutions"});
   if (m.contains("surfaces")) {
     const json& list = m.at("surfaces");
     if (!list.is_array() || list.empty()) r.fail("collision.surfaces", "must be a non-empty array of wall names", &list);
@@ -630,6 +630,14 @@ void read_collision(const Reader& r, const json& m, CollisionSpec& spec) {
   if (m.contains("equilibrium_hessian"))
     spec.equilibrium_hessian =
         r.choice<EquilibriumHessian>(m.at("equilibrium_hessian"), "collision.equilibrium_hessian", kEquilibriumHessianNames);
+  if (m.contains("prediction_back_substitutions")) {
+    spec.prediction_back_substitutions =
+        r.integer_in(m.at("prediction_back_substitutions"), "collision.prediction_back_substitutions", 0, 1000000);
+    if (spec.prediction_back_substitutions == 1)
+      r.fail("collision.prediction_back_substitutions",
+             "must be 0 (solver.max_back_substitutions) or >= 2 (a PCG step takes two)",
+             &m.at("prediction_back_substitutions"));
+  }
 }
 
 void read_solver(const Reader& r, const json& m, SolverSpec& spec) {
@@ -934,6 +942,18 @@ void check_combinations(const Reader& r, const json& root, const Scene& s) {
       s.material.model == MaterialModel::kCorotational && s.solver.type == SolverType::kQuasiStatic;
   const std::string needs_corotational = std::string("needs material.model \"corotational\" and solver.type "
       "\"quasi_static\" (got \"") + name_of(s.material.model) + "\", \"" + name_of(s.solver.type) + "\")";
+  // The prediction's bound after a contact frame is the solved coupling's, on the lagged Hessian, with PCG steps.
+  if (s.collision.prediction_back_substitutions != 0) {
+    const json* at = &root.at("collision").at("prediction_back_substitutions");
+    if (s.collision.coupling != ContactCoupling::kSolved || s.collision.equilibrium_hessian != EquilibriumHessian::kLagged)
+      r.fail("collision.prediction_back_substitutions",
+             std::string("needs collision.coupling \"solved\" with equilibrium_hessian \"lagged\" (got \"") +
+                 name_of(s.collision.coupling) + "\", \"" + name_of(s.collision.equilibrium_hessian) + "\")",
+             at);
+    if (s.solver.method != SolveMethod::kPcg)
+      r.fail("collision.prediction_back_substitutions",
+             std::string("needs solver.method \"pcg\" (got \"") + name_of(s.solver.method) + "\")", at);
+  }
   // Carried or solved contacts enter the corotational quasi-static solve's equilibrium, with the constraint response.
   if (s.collision.coupling != ContactCoupling::kCorrect) {
     const json* at = &root.at("collision").at("coupling");
@@ -1016,6 +1036,7 @@ const char* name_of(Detection v) { return kDetectionNames[static_cast<int>(v)]; 
 const char* name_of(ContactCoupling v) { return kCouplingNames[static_cast<int>(v)]; }
 const char* name_of(Tangent v) { return kTangentNames[static_cast<int>(v)]; }
 const char* name_of(SolveMethod v) { return kMethodNames[static_cast<int>(v)]; }
+const char* name_of(EquilibriumHessian v) { return kEquilibriumHessianNames[static_cast<int>(v)]; }
 const char* name_of(TwistEnd v) { return kTwistEndNames[static_cast<int>(v)]; }
 const char* name_of(MeshType v) { return kMeshTypeNames[static_cast<int>(v)]; }
 const char* name_of(render::CameraPreset v) { return kCameraNames[static_cast<int>(v)]; }

@@ -71,6 +71,7 @@ const char* name_of(Detection v);
 const char* name_of(ContactCoupling v);
 const char* name_of(Tangent v);
 const char* name_of(SolveMethod v);
+const char* name_of(EquilibriumHessian v);
 const char* name_of(TwistEnd v);
 const char* name_of(MeshType v);
 const char* name_of(render::CameraPreset v);
@@ -157,6 +158,10 @@ struct CollisionSpec {
   // solve, on the background thread) or "warped_rest" (the rest stiffness turned by each node's rotation).
   int equilibrium_steps = 20;
   EquilibriumHessian equilibrium_hessian = EquilibriumHessian::kLagged;
+  // coupling "solved" on the lagged Hessian: the work bound (back-substitutions) of the free prediction of a frame
+  // after a contact frame, which only gives the detection its trial motion (the rounds start from the last end);
+  // 0 = solver.max_back_substitutions, else >= 2 (key "prediction_back_substitutions").
+  int prediction_back_substitutions = 0;
 };
 
 // How a frame is solved: quasi-statically (equilibrium with the frame's loads) or by one implicit dynamic step.

@@ -406,6 +406,7 @@ physics::CorotationalOptions corotational_options(const Scene& scene) {
   // carried history made the twist's median frame 34 % slower, docs/bench_anderson_carry.csv.)
   o.carry_anderson_history = !o.rotate_preconditioner;
   o.max_back_substitutions = scene.solver.max_back_substitutions;
+  o.contact_back_substitutions = scene.collision.prediction_back_substitutions;
   constexpr physics::CorotationalTangent kTangents[] = {physics::CorotationalTangent::warped,
                                                         physics::CorotationalTangent::projected,
                                                         physics::CorotationalTangent::exact};

@@ -796,6 +796,12 @@ void validate_options(const CorotationalOptions& o) {
   // (Measured: chord steps cut off by a bound, their Anderson history lost with each solve, stall or diverge.)
   if (o.max_back_substitutions != 0 && o.method == CorotationalMethod::chord)
     detail::fail_must(where, "max_back_substitutions", "be 0 with method chord", o.max_back_substitutions);
+  const int contact_bound = o.contact_back_substitutions;
+  if (contact_bound < 0 || (contact_bound > 0 && contact_bound < kPcgStepBackSubstitutions))
+    detail::fail_must(where, "contact_back_substitutions",
+                      "be 0 (max_back_substitutions) or >= " + std::to_string(kPcgStepBackSubstitutions), contact_bound);
+  if (contact_bound != 0 && o.method == CorotationalMethod::chord)
+    detail::fail_must(where, "contact_back_substitutions", "be 0 with method chord", contact_bound);
   if (o.anderson_depth < 0) detail::fail_must(where, "anderson_depth", "be >= 0", o.anderson_depth);
   if (o.refactor_cg_iterations < 0) detail::fail_must(where, "refactor_cg_iterations", "be >= 0", o.refactor_cg_iterations);
   if (o.method == CorotationalMethod::chord && o.tangent != CorotationalTangent::warped)

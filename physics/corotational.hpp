@@ -257,6 +257,10 @@ struct CorotationalOptions {
   // all its linear steps; the solve stops before a step that could pass it, not converged, and the next solve
   // goes on from its iterate. 0 = no bound, else >= 2 (a PCG step takes at least two); PCG steps only.
   int max_back_substitutions = 0;
+  // The work bound of a free prediction that follows a contact solve on the lagged Hessian
+  // (CorotationalQuasiStatic::solve_with_contacts), whose contacts are solved in the equilibrium from the last end:
+  // the prediction only gives the detection its trial motion. 0 = max_back_substitutions, else >= 2; PCG only.
+  int contact_back_substitutions = 0;
   // Precondition with Rn K^-1 Rn^T (per-node average rotations) instead of K^-1; for a lagged factorisation,
   // Rn the nodes' rotations since it was factorised.
   bool rotate_preconditioner = false;

@@ -139,7 +139,15 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
   work.frame_forces = nodal_forces(loads, model_.n_dofs());
   const Eigen::VectorXd& f = work.frame_forces;
   const Eigen::VectorXd u_fixed = prescribed_.empty() ? Eigen::VectorXd() : combine_columns(prescribed_.basis, prescribed_c);
-  const CorotationalResult r = solve_corotational(model_, f, work.corotational, options_, u_fixed, loads.contacts);
+  CorotationalOptions options = options_;
+  if (work.after_contact_solve) {
+    // (Measured on the 8x pinch: the free solve's own factorisations beside the Hessian's left it 2-6 contact frames
+    // old, and its bounded QP steps short; docs/bench_contact_prediction.csv.)
+    options.refactor_cg_iterations = 0;
+    if (options.contact_back_substitutions > 0) options.max_back_substitutions = options.contact_back_substitutions;
+  }
+  work.after_contact_solve = false;
+  const CorotationalResult r = solve_corotational(model_, f, work.corotational, options, u_fixed, loads.contacts);
   u1 = work.corotational.u;
   Prediction p;
   p.iterations = r.iterations;
@@ -182,6 +190,19 @@ std::future<ContactHessianFactor> contact_hessian_in_background(const Corotation
                     std::move(R), std::move(nodes), std::move(prefetch));
 }
 
+}  // namespace
+
+// A new contact Hessian's factor (K_w at recent rotations) also preconditions the free predictions, which start no
+// factorisation of their own after a contact solve; not with per-node rotated preconditioning, whose factor must
+// come with the rotations it was made at.
+void CorotationalQuasiStatic::share_with_prediction(IntegratorWork& work) const {
+  if (options_.rotate_preconditioner || !work.contact_hessian.factor) return;
+  work.corotational.preconditioner = work.contact_hessian.factor;
+  work.corotational.chord_steps_since_refresh = 0;
+}
+
+namespace {
+
 // The distinct nodes of the rows.
 std::vector<int> row_nodes(const std::vector<ContactRow>& rows) {
   std::vector<int> nodes;
@@ -210,6 +231,7 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
       work.contact_pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
     try {
       work.contact_hessian = work.contact_pending.get();
+      share_with_prediction(work);
     } catch (const std::exception&) {
       ++failures;  // not positive definite or out of memory: counted, and the last one stays
     }
@@ -235,6 +257,7 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
       std::vector<Eigen::Matrix3d> R;
       model_.elements().rotations(u, R);
       work.contact_hessian = contact_hessian(model_, R, compliance.nodes(), {});
+      share_with_prediction(work);
     } catch (const std::exception&) {
       ++failures;  // (the rest K then)
     }
@@ -257,11 +280,13 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
       try {
         work.contact_hessian =
             contact_hessian(model_, work.corotational.rotations, compliance.nodes(), row_nodes(rows));
+        share_with_prediction(work);
       } catch (const std::exception&) {
         ++failures;
       }
     }
   }
+  work.after_contact_solve = lagged;
   r.refactor_failures = failures;
   return r;
 }

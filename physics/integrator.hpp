@@ -96,6 +96,10 @@ struct IntegratorWork {
   // solves for the half columns of the last solve's row nodes.
   ContactHessianFactor contact_hessian;
   std::future<ContactHessianFactor> contact_pending;
+  // corotational quasi-static: the last frame solved its contacts on the lagged Hessian (solve_with_contacts); its
+  // prediction then takes that Hessian's factor as preconditioner, starts no factorisation of its own (the second
+  // core factorises the next Hessian) and has the contact work bound. Read and cleared by predict.
+  bool after_contact_solve = false;
   // corotational quasi-static, contacts solved in the equilibrium: the last contact solve's end with its evaluation
   // (the prediction between two contact solves evaluates the solve's state elsewhere).
   CorotationalEvaluation contact_end;
@@ -191,6 +195,7 @@ class CorotationalQuasiStatic final : public Integrator {
                                                Eigen::VectorXd& u, const Eigen::VectorXd& lambda_warm) const override;
 
  private:
+  void share_with_prediction(IntegratorWork& work) const;
   CorotationalModel model_;
   CorotationalOptions options_;
   PrescribedMotion prescribed_;

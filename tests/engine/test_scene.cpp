@@ -233,6 +233,23 @@ TEST(Scene, CouplingKey) {
   EXPECT_EQ(scene_parse_error(s),
             "dir/s.json: collision.equilibrium_hessian: must be one of lagged, warped_rest (value \"exact\")");
   s["collision"]["equilibrium_hessian"] = "lagged";
+  // The prediction's bound after a contact frame: 0 or >= 2, on the lagged Hessian of "solved", with PCG steps.
+  EXPECT_EQ(parse_scene(s.dump(), "dir/s.json").collision.prediction_back_substitutions, 0);
+  s["collision"]["prediction_back_substitutions"] = 3;
+  EXPECT_EQ(parse_scene(s.dump(), "dir/s.json").collision.prediction_back_substitutions, 3);
+  s["collision"]["prediction_back_substitutions"] = 1;
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.prediction_back_substitutions: must be 0 "
+                                  "(solver.max_back_substitutions) or >= 2 (a PCG step takes two) (value 1)");
+  s["collision"]["prediction_back_substitutions"] = 2;
+  s["collision"]["equilibrium_hessian"] = "warped_rest";
+  EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.prediction_back_substitutions: needs collision.coupling "
+                                  "\"solved\" with equilibrium_hessian \"lagged\" (got \"solved\", \"warped_rest\") (value 2)");
+  s["collision"]["equilibrium_hessian"] = "lagged";
+  s["solver"] = {{"method", "chord"}};
+  EXPECT_EQ(scene_parse_error(s),
+            "dir/s.json: collision.prediction_back_substitutions: needs solver.method \"pcg\" (got \"chord\") (value 2)");
+  s.erase("solver");
+  s["collision"].erase("prediction_back_substitutions");
   s["material"]["model"] = "linear";
   EXPECT_EQ(scene_parse_error(s), "dir/s.json: collision.coupling: \"solved\" needs material.model \"corotational\" and "
                          "solver.type \"quasi_static\" (got \"linear\", \"quasi_static\") (value \"solved\")");
