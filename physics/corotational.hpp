@@ -323,9 +323,9 @@ void evaluate_at_u(const CorotationalElements& el, CorotationalState& state);
 // columns' factorisation made too when half_columns (for a contact compliance over it). With half columns, once the
 // rest solver has its nested-dissection analysis (StaticSolver::prepare_nested_analysis), K_w is factorised once on
 // that analysis for both (refactorised_nested; 26 against 62-72 ms on the paper mesh, measured inside the 8x pinch);
-// without it, a METIS ordering and a second factorisation each time. Reads the model only, so it may run on another thread; the background one
-// must end before the model does (a background thread's future's destructor waits). Throws as StaticSolver's
-// constructor.
+// without it, a METIS ordering and a second factorisation each time. Reads the model only, so it may run on another
+// thread; the background one must end before the model does (a background thread's future's destructor waits).
+// Throws as StaticSolver's constructor.
 std::shared_ptr<const StaticSolver> factorise_warped(const CorotationalModel& model,
                                                      const std::vector<Eigen::Matrix3d>& R, bool half_columns);
 // Lowers the calling thread's priority to the background factorisations' (a scheduling hint: if refused, the thread

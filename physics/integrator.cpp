@@ -139,13 +139,15 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
   work.frame_forces = nodal_forces(loads, model_.n_dofs());
   const Eigen::VectorXd& f = work.frame_forces;
   const Eigen::VectorXd u_fixed = prescribed_.empty() ? Eigen::VectorXd() : combine_columns(prescribed_.basis, prescribed_c);
+  // After a contact frame: no factorisation of its own where the contact Hessians' factors precondition it
+  // (share_with_prediction; measured on the 8x pinch: its factorisations beside the Hessian's left that 2-6 contact
+  // frames old, and its bounded QP steps short, docs/bench_contact_prediction.csv; when it only waited for the shared
+  // factor to be its preconditioner, its own last one replaced it, and its factorisations came back: halvings 187
+  // against 42-49 in one run), and the contact work bound.
   CorotationalOptions options = options_;
-  if (work.after_contact_solve) {
-    // (Measured on the 8x pinch: the free solve's own factorisations beside the Hessian's left it 2-6 contact frames
-    // old, and its bounded QP steps short; docs/bench_contact_prediction.csv.)
-    options.refactor_cg_iterations = 0;
-    if (options.contact_back_substitutions > 0) options.max_back_substitutions = options.contact_back_substitutions;
-  }
+  if (work.after_contact_solve && shares_contact_hessian()) options.refactor_cg_iterations = 0;
+  if (work.after_contact_solve && options.contact_back_substitutions > 0)
+    options.max_back_substitutions = options.contact_back_substitutions;
   work.after_contact_solve = false;
   const CorotationalResult r = solve_corotational(model_, f, work.corotational, options, u_fixed, loads.contacts);
   u1 = work.corotational.u;
@@ -196,7 +198,7 @@ std::future<ContactHessianFactor> contact_hessian_in_background(const Corotation
 // factorisation of their own after a contact solve; not with per-node rotated preconditioning, whose factor must
 // come with the rotations it was made at.
 void CorotationalQuasiStatic::share_with_prediction(IntegratorWork& work) const {
-  if (options_.rotate_preconditioner || !work.contact_hessian.factor) return;
+  if (!shares_contact_hessian() || !work.contact_hessian.factor) return;
   work.corotational.preconditioner = work.contact_hessian.factor;
   work.corotational.chord_steps_since_refresh = 0;
 }

@@ -97,8 +97,9 @@ struct IntegratorWork {
   ContactHessianFactor contact_hessian;
   std::future<ContactHessianFactor> contact_pending;
   // corotational quasi-static: the last frame solved its contacts on the lagged Hessian (solve_with_contacts); its
-  // prediction then takes that Hessian's factor as preconditioner, starts no factorisation of its own (the second
-  // core factorises the next Hessian) and has the contact work bound. Read and cleared by predict.
+  // prediction then has the contact work bound and, while that Hessian's factor preconditions it
+  // (share_with_prediction), starts no factorisation of its own (the second core factorises the next Hessian). Read
+  // and cleared by predict.
   bool after_contact_solve = false;
   // corotational quasi-static, contacts solved in the equilibrium: the last contact solve's end with its evaluation
   // (the prediction between two contact solves evaluates the solve's state elsewhere).
@@ -196,6 +197,7 @@ class CorotationalQuasiStatic final : public Integrator {
 
  private:
   void share_with_prediction(IntegratorWork& work) const;
+  bool shares_contact_hessian() const { return !options_.rotate_preconditioner; }
   CorotationalModel model_;
   CorotationalOptions options_;
   PrescribedMotion prescribed_;
