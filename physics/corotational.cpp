@@ -1046,20 +1046,6 @@ void start_factorisation(const CorotationalModel& model, const CorotationalOptio
   }
 }
 
-// The displacement and its cached evaluation (rotations, elastic forces), to go back to a step's start
-// without evaluating again.
-struct CachedEvaluation {
-  Eigen::VectorXd u, u_eval, f_int;
-  std::vector<Eigen::Matrix3d> rotations;
-  int n_inverted = 0;
-  void take(const CorotationalState& s) {
-    u = s.u, u_eval = s.u_eval, f_int = s.f_int, rotations = s.rotations, n_inverted = s.n_inverted;
-  }
-  void restore(CorotationalState& s) const {
-    s.u = u, s.u_eval = u_eval, s.f_int = f_int, s.rotations = rotations, s.n_inverted = n_inverted;
-  }
-};
-
 // Moves state.u by du or by its Anderson mix, whichever lowers the residual (the plain step when the mix does
 // not, and the history restarts); residual: the new one.
 void take_step(CorotationalState& state, CorotationalResidual& residual_at, AndersonMixing& anderson,

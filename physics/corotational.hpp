@@ -315,6 +315,20 @@ struct CorotationalState {
   std::vector<Eigen::Matrix3d> preconditioner_node_rotations, pending_node_rotations;
 };
 
+// A state's displacement and its cached evaluation (rotations, elastic forces), to go back to it without evaluating
+// again: a step's start, or the last contact solve's end (IntegratorWork::contact_end).
+struct CachedEvaluation {
+  Eigen::VectorXd u, u_eval, f_int;        // 3n each (u empty: none taken)
+  std::vector<Eigen::Matrix3d> rotations;  // per tet, at u_eval
+  int n_inverted = 0;                      // tets with det F <= 0 at u_eval
+  void take(const CorotationalState& s) {
+    u = s.u, u_eval = s.u_eval, f_int = s.f_int, rotations = s.rotations, n_inverted = s.n_inverted;
+  }
+  void restore(CorotationalState& s) const {
+    s.u = u, s.u_eval = u_eval, s.f_int = f_int, s.rotations = rotations, s.n_inverted = n_inverted;
+  }
+};
+
 // The rotations and elastic forces at state.u into the state's cached evaluation (rotations, f_int, u_eval,
 // n_inverted), unless it is already at state.u.
 void evaluate_at_u(const CorotationalElements& el, CorotationalState& state);

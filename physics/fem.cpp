@@ -254,8 +254,10 @@ struct StaticSolver::Impl {
   mutable cholmod_dense* half_x = nullptr;
   mutable cholmod_dense* half_y = nullptr;
   mutable cholmod_dense* half_e = nullptr;
-  // The nested-dissection ordering's symbolic analysis (supernodal), kept for refactorised_nested (null: not made).
+  // The nested-dissection ordering's symbolic analysis (supernodal), kept for refactorised_nested (null: not made),
+  // and its factor's nonzeros.
   mutable cholmod_factor* nested = nullptr;
+  long nested_lnz = 0;
   // Whether a solve is running (the workspace and the CHOLMOD common above are one per factorisation).
   mutable std::atomic<bool> busy{false};
 
@@ -430,6 +432,7 @@ struct StaticSolver::Impl {
       throw std::runtime_error("StaticSolver: CHOLMOD's nested-dissection analysis failed (status " +
                                std::to_string(common.status) + ")");
     nested = F;
+    nested_lnz = static_cast<long>(common.lnz);
   }
 
   // A copy of F (CHOLMOD's), or std::runtime_error.
@@ -507,7 +510,7 @@ struct StaticSolver::Impl {
     cholmod_sparse* A = take_pattern(from, std::move(K_in));
     L = copy_factor(from.nested);
     factorise_numeric(A, L);
-    lnz = static_cast<long>(L->xsize);
+    lnz = from.nested_lnz;
     prepare_half_workspace();
     set_half(copy_factor(L));
   }

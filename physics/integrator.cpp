@@ -240,14 +240,11 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   }
   // A start at the last contact solve's end to round-off (the committed state is the prediction plus the
   // correction) starts at that end exactly, with its evaluation.
-  const CorotationalEvaluation& end = work.contact_end;
+  const CachedEvaluation& end = work.contact_end;
   if (end.u.size() == u.size() &&
       (u - end.u).lpNorm<Eigen::Infinity>() <= kSameStartRoundOff * end.u.lpNorm<Eigen::Infinity>()) {
+    end.restore(work.corotational);
     u = end.u;
-    work.corotational.rotations = end.rotations;
-    work.corotational.f_int = end.f_int;
-    work.corotational.n_inverted = end.n_inverted;
-    work.corotational.u_eval = end.u;
   }
   work.corotational.u = u;
   // The rest solver's nested-dissection analysis, once, on this thread: the contact Hessians are factorised on it.
@@ -270,8 +267,7 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
       solve_contact_equilibrium(model_, work.frame_forces, rows, B, options, work.corotational, lambda_warm);
   u = work.corotational.u;
   const CorotationalState& s = work.corotational;
-  if (s.u_eval.size() == s.u.size() && s.u_eval == s.u)
-    work.contact_end = CorotationalEvaluation{s.u, s.rotations, s.f_int, s.n_inverted};
+  if (s.u_eval.size() == s.u.size() && s.u_eval == s.u) work.contact_end.take(s);
   // The next Hessian: K_w at this end (its rotations are the state's cached evaluation at u), with the half columns
   // of these rows' nodes (the next frame's rows are mostly on them).
   if (lagged && !work.contact_pending.valid()) {

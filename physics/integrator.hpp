@@ -77,15 +77,6 @@ struct ContactHessianFactor {
   std::shared_ptr<SurfaceCompliance> compliance;
 };
 
-// An evaluation of the corotational model kept apart from a solve's state: a displacement with its rotations and
-// elastic forces.
-struct CorotationalEvaluation {
-  Eigen::VectorXd u;                       // 3n, metres (empty: none)
-  std::vector<Eigen::Matrix3d> rotations;  // per tet, at u
-  Eigen::VectorXd f_int;                   // 3n, newtons, at u
-  int n_inverted = 0;                      // tets with det F <= 0 at u
-};
-
 // Mutable data an integrator keeps between frames besides SimState (warm starts, lagged preconditioners).
 struct IntegratorWork {
   CorotationalState corotational;  // corotational quasi-static: the nonlinear solve's warm start and caches
@@ -102,8 +93,9 @@ struct IntegratorWork {
   // and cleared by predict.
   bool after_contact_solve = false;
   // corotational quasi-static, contacts solved in the equilibrium: the last contact solve's end with its evaluation
-  // (the prediction between two contact solves evaluates the solve's state elsewhere).
-  CorotationalEvaluation contact_end;
+  // (taken only when evaluated at that end; the prediction between two contact solves evaluates the solve's state
+  // elsewhere).
+  CachedEvaluation contact_end;
   DynamicState step;               // backward Euler: the step's trial state (u, v)
 };
 

@@ -163,6 +163,14 @@ Eigen::VectorXd random_load(int n_dofs, std::mt19937& rng) {
   for (int i = 0; i < n_dofs; ++i) f[i] = d(rng);
   return f;
 }
+// D K D, D a random positive diagonal (entries in [0.5, 2]): the same stored entries, other values, still positive
+// definite.
+Eigen::SparseMatrix<double> rescaled(const Eigen::SparseMatrix<double>& K, std::mt19937& rng) {
+  std::uniform_real_distribution<double> scale(0.5, 2.0);
+  Eigen::VectorXd D(K.rows());
+  for (Eigen::Index i = 0; i < K.rows(); ++i) D[i] = scale(rng);
+  return D.asDiagonal() * K * D.asDiagonal();
+}
 Eigen::VectorXd gather(const Eigen::VectorXd& f, const std::vector<int>& free) {
   Eigen::VectorXd ff(free.size());
   for (size_t i = 0; i < free.size(); ++i) ff[i] = f[free[i]];
@@ -410,12 +418,8 @@ TEST(StaticSolver, RefactorisedOnTheSameAnalysisEqualsAFreshFactorisation) {
   const std::vector<int>& fixed_nodes = mesh.node_set(kStartEnd);
   const StaticSolver solver(K, fixed_nodes);
   const int n = mesh.n_nodes();
-  // K2 = D K D, D a positive diagonal: the same stored entries, other values, still positive definite.
   std::mt19937 rng(23);
-  std::uniform_real_distribution<double> scale(0.5, 2.0);
-  Eigen::VectorXd D(3 * n);
-  for (int i = 0; i < 3 * n; ++i) D[i] = scale(rng);
-  const Eigen::SparseMatrix<double> K2 = D.asDiagonal() * K * D.asDiagonal();
+  const Eigen::SparseMatrix<double> K2 = rescaled(K, rng);
   ASSERT_TRUE(solver.has_pattern(K2));
   const StaticSolver refactorised = solver.refactorised(K2);
   const StaticSolver fresh(K2, fixed_nodes);
@@ -481,10 +485,7 @@ TEST(StaticSolver, RefactorisedNestedSolvesAndGivesHalfColumnsOfTheNewMatrix) {
   const StaticSolver solver(K, fixed_nodes);
   const int n = mesh.n_nodes();
   std::mt19937 rng(29);
-  std::uniform_real_distribution<double> scale(0.5, 2.0);
-  Eigen::VectorXd D(3 * n);
-  for (int i = 0; i < 3 * n; ++i) D[i] = scale(rng);
-  const Eigen::SparseMatrix<double> K2 = D.asDiagonal() * K * D.asDiagonal();
+  const Eigen::SparseMatrix<double> K2 = rescaled(K, rng);
   EXPECT_FALSE(solver.has_nested_analysis());
   EXPECT_EQ(test::message_of<std::logic_error>([&] { solver.refactorised_nested(K2); }),
             "StaticSolver::refactorised_nested: prepare_nested_analysis() has not run on this solver");
@@ -566,10 +567,7 @@ TEST(StaticSolver, SinglePrecisionCopySolvesToFloatPrecisionAndSymmetrically) {
   fifty.solve_approximately(f, w);
   EXPECT_LE((50.0 * w - u).norm(), 1e-12 * u.norm());
   // A refactorisation makes its own copy, of its own matrix.
-  std::uniform_real_distribution<double> scale(0.5, 2.0);
-  Eigen::VectorXd D(3 * n);
-  for (int i = 0; i < 3 * n; ++i) D[i] = scale(rng);
-  const Eigen::SparseMatrix<double> K2 = D.asDiagonal() * K * D.asDiagonal();
+  const Eigen::SparseMatrix<double> K2 = rescaled(K, rng);
   const StaticSolver refactorised = solver.refactorised(K2);
   ASSERT_TRUE(refactorised.has_single_precision());
   const Eigen::LLT<Eigen::MatrixXd> llt2(restrict(Eigen::MatrixXd(K2), fixed, free));
