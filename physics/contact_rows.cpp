@@ -180,13 +180,22 @@ Eigen::MatrixXd CouplingMatrix::dense() {
                                                 [](int a) { return a >= 0; });
   if (all_half && n_computed_ == 0) {
     const Eigen::MatrixXd C = compliance_->half_gram(touched_set_index_);  // 3t x 3t
-    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(m, C.rows());                  // rows x 3t: each entry's w n
-    for (int r = 0; r < m; ++r)
-      for (int e = entry_begin_[r]; e < entry_begin_[r + 1]; ++e)
-        H.block<1, 3>(r, 3 * entry_slot_[e]) += entry_wn_[e].transpose();
-    const Eigen::MatrixXd HC = H * C;
-    A.noalias() = HC * H.transpose();
-    for (int s = 0; s < m; ++s) columns_[s] = A.col(s);
+    // C H_t^T (3t x rows), column s the sum over row s's entries of C's columns of the entry's node times w n; then
+    // A_rs = row r's entries against it (H_t has at most 12 nonzeros a row: both products sparse).
+    Eigen::MatrixXd CHt = Eigen::MatrixXd::Zero(C.rows(), m);
+    for (int s = 0; s < m; ++s)
+      for (int e = entry_begin_[s]; e < entry_begin_[s + 1]; ++e)
+        CHt.col(s).noalias() += C.middleCols<3>(3 * entry_slot_[e]) * entry_wn_[e];
+    for (int s = 0; s < m; ++s) {
+      const double* y = CHt.col(s).data();
+      for (int r = 0; r < m; ++r) {
+        double acc = 0.0;
+        for (int e = entry_begin_[r]; e < entry_begin_[r + 1]; ++e)
+          acc += entry_wn_[e].dot(Eigen::Map<const Eigen::Vector3d>(y + 3 * entry_slot_[e]));
+        A(r, s) = acc;
+      }
+      columns_[s] = A.col(s);
+    }
     n_computed_ = m;
   } else {
     for (int s = 0; s < m; ++s) A.col(s) = column(s);

@@ -1,6 +1,7 @@
 // Surface compliance: K^-1 restricted to a node set, cached outside columns, whole-mesh and on-set responses.
 #include "physics/surface_compliance.hpp"
 
+
 #include <cassert>
 #include <algorithm>
 #include <stdexcept>
@@ -14,10 +15,11 @@ using detail::fail;
 
 SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns,
                                      long max_mesh_column_bytes, long max_set_matrix_bytes,
-                                     const std::vector<int>& view_nodes, long max_view_bytes)
-    : solver_(&solver), nodes_(nodes) {
+                                     const std::vector<int>& view_nodes, long max_view_bytes, int max_gram_nodes)
+    : solver_(&solver), nodes_(nodes), max_gram_nodes_(max_gram_nodes) {
   const int n = solver.n_dofs(), n_mesh = n / 3, s = static_cast<int>(nodes_.size());
   if (block_columns < 1) fail("SurfaceCompliance: block_columns must be >= 1, got " + std::to_string(block_columns));
+  if (max_gram_nodes < 1) fail("SurfaceCompliance: max_gram_nodes must be >= 1, got " + std::to_string(max_gram_nodes));
   if (max_mesh_column_bytes < 0)
     fail("SurfaceCompliance: max_mesh_column_bytes must be >= 0, got " + std::to_string(max_mesh_column_bytes));
   // Node ids: in range and distinct.
@@ -49,6 +51,7 @@ SurfaceCompliance::SurfaceCompliance(const StaticSolver& solver, const std::vect
   if (lazy_) {
     half_.resize(s);
     half_solved_.assign(s, 0);
+    gram_slot_.assign(s, -1);
     half_z_.assign(solver.n_free_dofs(), 0.0);
     solver.prepare_half_columns();  // (now, not at the first contact)
     return;
@@ -101,6 +104,11 @@ Eigen::Ref<const Eigen::MatrixXd> SurfaceCompliance::set_block(int a) const {
   return C_.middleCols(3 * a, 3);
 }
 
+void SurfaceCompliance::solve_half_columns(const std::vector<int>& positions) {
+  for (int a : positions)
+    if (!half_solved_[a]) solve_half_columns(a);
+}
+
 void SurfaceCompliance::solve_half_columns(int a) {
   HalfColumns& h = half_[a];
   h.index.clear();
@@ -150,25 +158,59 @@ Eigen::Matrix3d SurfaceCompliance::half_block(int a, int b) {
 Eigen::MatrixXd SurfaceCompliance::half_gram(const std::vector<int>& set_positions) {
   assert(lazy_);
   const int k = static_cast<int>(set_positions.size());
-  for (int a : set_positions)
-    if (!half_solved_[a]) solve_half_columns(a);
-  // The union of the half columns' rows, numbered in order of first use; Y (rows x 3k) on them.
+  solve_half_columns(set_positions);
+  // The nodes without blocks in the kept gram join it (with the kept ones while it stays within its bound).
+  std::vector<int> fresh, kept;
+  for (int a : set_positions) (gram_slot_[a] < 0 ? fresh : kept).push_back(a);
+  if (!fresh.empty()) {
+    if (gram_nodes_.size() + fresh.size() <= static_cast<size_t>(max_gram_nodes_)) kept = gram_nodes_;
+    extend_gram(kept, fresh);
+  }
+  // C on the listed nodes: their blocks of the kept gram.
+  Eigen::MatrixXd C(3 * k, 3 * k);
+  for (int j = 0; j < k; ++j)
+    for (int i = 0; i < k; ++i)
+      C.block<3, 3>(3 * i, 3 * j) = gram_.block<3, 3>(3 * gram_slot_[set_positions[i]], 3 * gram_slot_[set_positions[j]]);
+  return C;
+}
+
+void SurfaceCompliance::extend_gram(const std::vector<int>& kept, const std::vector<int>& fresh) {
+  // The new gram's nodes: the kept ones (each with a slot in the old gram), then the fresh ones.
+  std::vector<int> all = kept;
+  all.insert(all.end(), fresh.begin(), fresh.end());
+  const int g = static_cast<int>(all.size()), nk = static_cast<int>(kept.size()), nf = static_cast<int>(fresh.size());
+  Eigen::MatrixXd G(3 * g, 3 * g);
+  for (int j = 0; j < nk; ++j)
+    for (int i = 0; i < nk; ++i)
+      G.block<3, 3>(3 * i, 3 * j) = gram_.block<3, 3>(3 * gram_slot_[kept[i]], 3 * gram_slot_[kept[j]]);
+  // The fresh rows Y_F^T Y over the union of the fresh half columns' rows (only there is Y_F nonzero), numbered in
+  // order of first use: Y (rows x 3g) on them.
   std::vector<int> row_of(half_z_.size(), -1);
   int rows = 0;
-  for (int a : set_positions)
+  for (int a : fresh)
     for (int i : half_[a].index)
       if (row_of[i] < 0) row_of[i] = rows++;
-  Eigen::MatrixXd Y = Eigen::MatrixXd::Zero(rows, 3 * k);
-  for (int t = 0; t < k; ++t) {
-    const HalfColumns& h = half_[set_positions[t]];
+  Eigen::MatrixXd Y = Eigen::MatrixXd::Zero(rows, 3 * g);
+  for (int t = 0; t < g; ++t) {
+    const HalfColumns& h = half_[all[t]];
     for (int c = 0; c < 3; ++c)
-      for (int e = h.start[c]; e < h.start[c + 1]; ++e) Y(row_of[h.index[e]], 3 * t + c) = h.value[e];
+      for (int e = h.start[c]; e < h.start[c + 1]; ++e)
+        if (row_of[h.index[e]] >= 0) Y(row_of[h.index[e]], 3 * t + c) = h.value[e];
   }
-  // C = Y^T Y (its lower triangle by a rank update, then mirrored).
-  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(3 * k, 3 * k);
-  C.selfadjointView<Eigen::Lower>().rankUpdate(Y.transpose());
-  C.triangularView<Eigen::StrictlyUpper>() = C.transpose();
-  return C;
+  if (nk == 0) {
+    // All fresh: the lower triangle by a rank update, then mirrored.
+    G.setZero();
+    G.selfadjointView<Eigen::Lower>().rankUpdate(Y.transpose());
+    G.triangularView<Eigen::StrictlyUpper>() = G.transpose();
+  } else {
+    const Eigen::MatrixXd B = Y.rightCols(3 * nf).transpose() * Y;  // 3f x 3g: the fresh rows
+    G.bottomRows(3 * nf) = B;
+    G.topRightCorner(3 * nk, 3 * nf) = B.leftCols(3 * nk).transpose();
+  }
+  for (int a : gram_nodes_) gram_slot_[a] = -1;
+  for (int t = 0; t < g; ++t) gram_slot_[all[t]] = t;
+  gram_nodes_ = std::move(all);
+  gram_ = std::move(G);
 }
 
 namespace {
@@ -251,14 +293,16 @@ int SurfaceCompliance::index_of(int node) const {
 void SurfaceCompliance::ensure_columns(const std::vector<int>& nodes) {
   // Nodes whose columns are not at hand, each once: outside the set and not cached, or in a lazy set not solved.
   std::vector<int> missing;
-  // (A lazy set's nodes get their half columns at once, each a partial forward solve.)
+  // (A lazy set's nodes get their half columns at once.)
+  std::vector<int> half;
   for (int v : nodes) {
     check_node(v, "node");
     const int a = index_[v];
-    if (a >= 0 && lazy_ && !half_solved_[a]) solve_half_columns(a);
+    if (a >= 0 && lazy_) half.push_back(a);
     if (a < 0 && extra_index_[v] < 0 && std::find(missing.begin(), missing.end(), v) == missing.end())
       missing.push_back(v);
   }
+  if (!half.empty()) solve_half_columns(half);
   if (missing.empty()) return;
   // One multi-column solve for the nodes outside the set: their whole-mesh columns.
   const int n = solver_->n_dofs(), nm = static_cast<int>(missing.size());

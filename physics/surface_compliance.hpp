@@ -36,9 +36,14 @@ class SurfaceCompliance {
   // View nodes in the set, or repeated, count once.
   static constexpr int kBlockColumns = 64;
   static constexpr long kMeshColumnBytes = 256L << 20, kSetMatrixBytes = 1L << 30, kViewBytes = 512L << 20;
+  // A lazy set keeps the blocks of C among the nodes of its recent couplings (the gram of their half columns), so that
+  // the next coupling on mostly the same nodes computes only its new nodes' blocks: at most max_gram_nodes (>= 1)
+  // nodes' (512: (3 x 512)^2 doubles, 19 MB); past it only the last coupling's nodes are kept.
+  static constexpr int kGramNodes = 512;
   SurfaceCompliance(const StaticSolver& solver, const std::vector<int>& nodes, int block_columns = kBlockColumns,
                     long max_mesh_column_bytes = kMeshColumnBytes, long max_set_matrix_bytes = kSetMatrixBytes,
-                    const std::vector<int>& view_nodes = {}, long max_view_bytes = kViewBytes);
+                    const std::vector<int>& view_nodes = {}, long max_view_bytes = kViewBytes,
+                    int max_gram_nodes = kGramNodes);
 
   const StaticSolver& solver() const { return *solver_; }
   int n_nodes_mesh() const { return solver_->n_dofs() / 3; }
@@ -107,13 +112,17 @@ class SurfaceCompliance {
     std::vector<double> value;
   };
   void solve_half_columns(int a);  // half_[a] of set node a (position in nodes_)
+  void solve_half_columns(const std::vector<int>& positions);  // the same for each listed node without them
   // z (n_free) += Y_a w; y = Y_a^T z (3); C_ab = Y_a^T Y_b (3 x 3).
   void scatter_half(int a, const Eigen::Vector3d& w, std::vector<double>& z) const;
   Eigen::Vector3d gather_half(int a, const std::vector<double>& z) const;
   Eigen::Matrix3d half_block(int a, int b);
-  // C on the listed set nodes of a lazy set (positions in nodes_), 3k x 3k, m/N: Y^T Y over the union of their half
-  // columns' rows, one dense symmetric product (half columns not at hand are solved for first).
+  // C on the listed distinct set nodes of a lazy set (positions in nodes_), 3k x 3k, m/N: blocks of the kept gram,
+  // to which nodes without them are added first (their half columns solved for if not at hand).
   Eigen::MatrixXd half_gram(const std::vector<int>& set_positions);
+  // The kept gram becomes that of kept (nodes with slots in it) then fresh (without): the kept blocks copied, the
+  // fresh rows Y_F^T Y from one dense product over the fresh half columns' rows (all fresh: Y^T Y, a rank update).
+  void extend_gram(const std::vector<int>& kept, const std::vector<int>& fresh);
   void clear_half(int a, std::vector<double>& z) const;  // z = 0 on Y_a's pattern
   friend class CouplingMatrix;
   const StaticSolver* solver_;
@@ -124,6 +133,10 @@ class SurfaceCompliance {
   std::vector<HalfColumns> half_;            // lazy: per set node, its half columns (sqrt(m/N))
   std::vector<char> half_solved_;            // lazy: per set node, 1 when half_ holds them
   std::vector<double> half_z_;               // lazy: workspace over the factor's rows (n_free), kept 0 between uses
+  int max_gram_nodes_;
+  std::vector<int> gram_nodes_;              // lazy: set positions with blocks in gram_, in its order
+  std::vector<int> gram_slot_;               // lazy: per set node, its position in gram_nodes_, or -1
+  Eigen::MatrixXd gram_;                     // lazy: 3g x 3g, C among gram_nodes_, m/N
   Eigen::VectorXd last_f_, last_du_;         // lazy: the last back-substitution's forces and whole-mesh result
   Eigen::MatrixXd Kc_;                       // 3n x 3s whole-mesh columns of the set DOFs, m/N (or empty)
   std::vector<int> view_nodes_;              // nodes outside the set whose rows are kept (sorted)

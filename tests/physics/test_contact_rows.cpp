@@ -102,5 +102,33 @@ TEST(CouplingMatrix, DenseFromHalfColumnsEqualsColumnsAndTwin) {
   }
 }
 
+// A lazy set keeps the blocks of its recent couplings and computes only those of new nodes: a sequence of overlapping row sets each equals the dense twin and the column-by-column coupling (which
+// uses no kept block), with the default bound and with one so small that the kept blocks are dropped on the way.
+TEST(CouplingMatrix, DenseOnKeptBlocksOfEarlierCouplingsEqualsTheTwin) {
+  const Model& m = model();
+  for (const int bound : {SurfaceCompliance::kGramNodes, 24}) {
+    SurfaceCompliance sc(*m.solver, m.inner, 64, 256L << 20, 0L, {}, 0L, bound);
+    ASSERT_TRUE(sc.lazy());
+    std::mt19937 rng(47);
+    std::vector<ContactRow> rows;
+    for (int r = 0; r < 12; ++r) rows.push_back(random_vertex_face(rng, m, false));
+    for (int k = 0; k < 5; ++k) {
+      // Each set keeps most of the last one's rows and adds new ones.
+      rows.erase(rows.begin(), rows.begin() + 3);
+      for (int r = 0; r < 3 + 2 * k; ++r) rows.push_back(random_vertex_face(rng, m, false));
+      const Eigen::MatrixXd H = dense_H(rows, m.n());
+      const Eigen::MatrixXd twin = H * m.Kinv * H.transpose();
+      CouplingMatrix by_product(sc, rows), by_columns(sc, rows);
+      const Eigen::MatrixXd A = by_product.dense();
+      const int size = static_cast<int>(rows.size());
+      Eigen::MatrixXd columns(size, size);
+      for (int s = 0; s < size; ++s) columns.col(s) = by_columns.column(s);
+      EXPECT_LE((A - twin).norm(), 1e-9 * twin.norm()) << "bound " << bound << ", set " << k;
+      EXPECT_LE((A - columns).norm(), 1e-12 * twin.norm()) << "bound " << bound << ", set " << k;
+    }
+  }
+  EXPECT_THROW(SurfaceCompliance(*m.solver, m.inner, 64, 256L << 20, 0L, {}, 0L, 0), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace lumen::physics
