@@ -156,18 +156,18 @@ const Eigen::VectorXd& CouplingMatrix::column(int s) {
     for (int e = entry_begin_[s]; e < entry_begin_[s + 1]; ++e)
       if (touched_set_index_[entry_slot_[e]] >= 0) sc.clear_half(touched_set_index_[entry_slot_[e]], sc.half_z_);
   }
-  // A_rs = sum over row r's entries of (w n_r) . y_slot.
+  // A_rs = h_r . y.
   col.resize(m);
-  for (int r = 0; r < m; ++r) {
-    double acc = 0.0;
-    for (int e = entry_begin_[r]; e < entry_begin_[r + 1]; ++e) {
-      const int t = entry_slot_[e];
-      acc += entry_wn_[e][0] * y_(t, 0) + entry_wn_[e][1] * y_(t, 1) + entry_wn_[e][2] * y_(t, 2);
-    }
-    col[r] = acc;
-  }
+  for (int r = 0; r < m; ++r) col[r] = row_times(r, y_.data());
   ++n_computed_;
   return col;
+}
+
+double CouplingMatrix::row_times(int r, const double* y) const {
+  double acc = 0.0;
+  for (int e = entry_begin_[r]; e < entry_begin_[r + 1]; ++e)
+    acc += entry_wn_[e].dot(Eigen::Map<const Eigen::Vector3d>(y + 3 * entry_slot_[e]));
+  return acc;
 }
 
 Eigen::MatrixXd CouplingMatrix::dense() {
@@ -187,13 +187,7 @@ Eigen::MatrixXd CouplingMatrix::dense() {
       for (int e = entry_begin_[s]; e < entry_begin_[s + 1]; ++e)
         CHt.col(s).noalias() += C.middleCols<3>(3 * entry_slot_[e]) * entry_wn_[e];
     for (int s = 0; s < m; ++s) {
-      const double* y = CHt.col(s).data();
-      for (int r = 0; r < m; ++r) {
-        double acc = 0.0;
-        for (int e = entry_begin_[r]; e < entry_begin_[r + 1]; ++e)
-          acc += entry_wn_[e].dot(Eigen::Map<const Eigen::Vector3d>(y + 3 * entry_slot_[e]));
-        A(r, s) = acc;
-      }
+      for (int r = 0; r < m; ++r) A(r, s) = row_times(r, CHt.col(s).data());
       columns_[s] = A.col(s);
     }
     n_computed_ = m;

@@ -49,6 +49,8 @@ class CouplingMatrix {
   std::vector<Eigen::VectorXd> columns_;      // cached columns (empty until computed)
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> y_;  // workspace: C h_s on the touched nodes
   int n_computed_ = 0;
+  // h_r . y for y holding a 3-vector per touched node, in touched_ order (3t entries): row r's entries against it.
+  double row_times(int r, const double* y) const;
 };
 
 // H u for the rows, metres (u: 3n).

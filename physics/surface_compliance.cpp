@@ -157,7 +157,6 @@ Eigen::Matrix3d SurfaceCompliance::half_block(int a, int b) {
 
 Eigen::MatrixXd SurfaceCompliance::half_gram(const std::vector<int>& set_positions) {
   assert(lazy_);
-  const int k = static_cast<int>(set_positions.size());
   solve_half_columns(set_positions);
   // The nodes without blocks in the kept gram join it (with the kept ones while it stays within its bound).
   std::vector<int> fresh, kept;
@@ -166,11 +165,15 @@ Eigen::MatrixXd SurfaceCompliance::half_gram(const std::vector<int>& set_positio
     if (gram_nodes_.size() + fresh.size() <= static_cast<size_t>(max_gram_nodes_)) kept = gram_nodes_;
     extend_gram(kept, fresh);
   }
-  // C on the listed nodes: their blocks of the kept gram.
+  return kept_blocks(set_positions);
+}
+
+Eigen::MatrixXd SurfaceCompliance::kept_blocks(const std::vector<int>& positions) const {
+  const int k = static_cast<int>(positions.size());
   Eigen::MatrixXd C(3 * k, 3 * k);
   for (int j = 0; j < k; ++j)
     for (int i = 0; i < k; ++i)
-      C.block<3, 3>(3 * i, 3 * j) = gram_.block<3, 3>(3 * gram_slot_[set_positions[i]], 3 * gram_slot_[set_positions[j]]);
+      C.block<3, 3>(3 * i, 3 * j) = gram_.block<3, 3>(3 * gram_slot_[positions[i]], 3 * gram_slot_[positions[j]]);
   return C;
 }
 
@@ -180,9 +183,7 @@ void SurfaceCompliance::extend_gram(const std::vector<int>& kept, const std::vec
   all.insert(all.end(), fresh.begin(), fresh.end());
   const int g = static_cast<int>(all.size()), nk = static_cast<int>(kept.size()), nf = static_cast<int>(fresh.size());
   Eigen::MatrixXd G(3 * g, 3 * g);
-  for (int j = 0; j < nk; ++j)
-    for (int i = 0; i < nk; ++i)
-      G.block<3, 3>(3 * i, 3 * j) = gram_.block<3, 3>(3 * gram_slot_[kept[i]], 3 * gram_slot_[kept[j]]);
+  G.topLeftCorner(3 * nk, 3 * nk) = kept_blocks(kept);
   // The fresh rows Y_F^T Y over the union of the fresh half columns' rows (only there is Y_F nonzero), numbered in
   // order of first use: Y (rows x 3g) on them.
   std::vector<int> row_of(half_z_.size(), -1);

@@ -123,6 +123,7 @@ class SurfaceCompliance {
   // The kept gram becomes that of kept (nodes with slots in it) then fresh (without): the kept blocks copied, the
   // fresh rows Y_F^T Y from one dense product over the fresh half columns' rows (all fresh: Y^T Y, a rank update).
   void extend_gram(const std::vector<int>& kept, const std::vector<int>& fresh);
+  Eigen::MatrixXd kept_blocks(const std::vector<int>& positions) const;  // 3k x 3k: C on nodes with gram slots
   void clear_half(int a, std::vector<double>& z) const;  // z = 0 on Y_a's pattern
   friend class CouplingMatrix;
   const StaticSolver* solver_;
