@@ -1,7 +1,6 @@
 // Surface compliance: K^-1 restricted to a node set, cached outside columns, whole-mesh and on-set responses.
 #include "physics/surface_compliance.hpp"
 
-
 #include <cassert>
 #include <algorithm>
 #include <stdexcept>
