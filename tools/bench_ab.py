@@ -33,15 +33,20 @@ def percentile(values, q):
     return v[lo] + (v[hi] - v[lo]) * (pos - lo)
 
 
-def one_run(binary, scene, render):
-    """One session; its per-run statistics from report.json."""
+def run_session(binary, scene, render, extra=(), tool="bench_ab.py"):
+    """One session, `lumen run <scene> --out DIR` (with --no-render unless render, and the extra arguments); its
+    report.json (a failed run exits with the command and its stderr)."""
     with tempfile.TemporaryDirectory() as out:
-        cmd = [binary, "run", scene, "--out", out] + ([] if render else ["--no-render"])
+        cmd = [binary, "run", scene, "--out", out] + list(extra) + ([] if render else ["--no-render"])
         done = subprocess.run(cmd, capture_output=True, text=True)
         if done.returncode != 0:
-            sys.exit(f"bench_ab.py: {' '.join(cmd)} exited {done.returncode}:\n{done.stderr}")
+            sys.exit(f"{tool}: {' '.join(cmd)} exited {done.returncode}:\n{done.stderr}")
         with open(os.path.join(out, "report.json")) as f:
-            report = json.load(f)
+            return json.load(f)
+
+
+def frame_statistics(report):
+    """A session's frame-time statistics from its report."""
     frames = report["per_frame"]
     pcr = [f["physics_ms"] + f["collision_ms"] + f["response_ms"] for f in frames]
     total = [f["total_ms"] for f in frames]
@@ -52,6 +57,11 @@ def one_run(binary, scene, render):
             "total_max_ms": max(total), "response_max_ms": max(f["response_ms"] for f in frames),
             "back_substitutions": sum(f["cg_iterations"] for f in frames),
             "fallback_frames": report["fallback_frames"], "over_budget_frames": report["over_budget_frames"]}
+
+
+def one_run(binary, scene, render):
+    """One session; its per-run statistics."""
+    return frame_statistics(run_session(binary, scene, render))
 
 
 def main():

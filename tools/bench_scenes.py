@@ -16,12 +16,10 @@ import argparse
 import json
 import os
 import statistics
-import subprocess
 import sys
-import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_ab import percentile  # noqa: E402
+from bench_ab import frame_statistics, run_session  # noqa: E402
 from csv_out import write_csv  # noqa: E402
 
 
@@ -36,26 +34,18 @@ def tip_indices(scene, prefix):
 
 
 def one_run(binary, scene, render, tip):
-    """One session; its statistics from report.json."""
-    with tempfile.TemporaryDirectory() as out:
-        cmd = [binary, "run", scene, "--check", "--out", out] + ([] if render else ["--no-render"])
-        done = subprocess.run(cmd, capture_output=True, text=True)
-        if done.returncode != 0:
-            sys.exit(f"bench_scenes.py: {' '.join(cmd)} exited {done.returncode}:\n{done.stderr}")
-        with open(os.path.join(out, "report.json")) as f:
-            report = json.load(f)
+    """One session with the exact check; its statistics from report.json."""
+    report = run_session(binary, scene, render, ["--check"], "bench_scenes.py")
+    times = frame_statistics(report)
     frames = report["per_frame"]
-    pcr = [f["physics_ms"] + f["collision_ms"] + f["response_ms"] for f in frames]
-    total = [f["total_ms"] for f in frames]
     residuals = [f["equilibrium_residual"] for f in frames
                  if f["contacts"] > 0 and f.get("equilibrium_residual") is not None]
-    row = {"pcr_median_ms": statistics.median(pcr), "pcr_p99_ms": percentile(pcr, 99),
-           "total_median_ms": statistics.median(total), "total_p99_ms": percentile(total, 99),
-           "over_budget_frames": report["over_budget_frames"], "fallback_frames": report["fallback_frames"],
-           "intersecting_frames": report["frames_with_intersections"],
-           "contact_force_end_n": frames[-1]["contact_force_n"],
-           "equilibrium_residual_median": statistics.median(residuals) if residuals else 0.0,
-           "halvings": sum(f.get("equilibrium_backtracks") or 0 for f in frames)}
+    row = {key: times[key] for key in ("pcr_median_ms", "pcr_p99_ms", "total_median_ms", "total_p99_ms",
+                                       "over_budget_frames", "fallback_frames")}
+    row.update({"intersecting_frames": report["frames_with_intersections"],
+                "contact_force_end_n": frames[-1]["contact_force_n"],
+                "equilibrium_residual_median": statistics.median(residuals) if residuals else 0.0,
+                "halvings": sum(f.get("equilibrium_backtracks") or 0 for f in frames)})
     if tip is not None:
         row["tip_mm"] = 1000.0 * statistics.mean(frames[-1]["probe_displacement_m"][i][1] for i in tip)
     return row
