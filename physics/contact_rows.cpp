@@ -40,6 +40,16 @@ void check_rows(const std::vector<ContactRow>& rows, int n_nodes) {
 
 }  // namespace
 
+std::vector<int> row_nodes(const std::vector<ContactRow>& rows) {
+  std::vector<int> nodes;
+  for (const ContactRow& r : rows)
+    for (int k = 0; k < 4; ++k)
+      if (r.node[k] >= 0) nodes.push_back(r.node[k]);
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  return nodes;
+}
+
 Eigen::VectorXd row_values(const std::vector<ContactRow>& rows, const Eigen::VectorXd& u) {
   if (u.size() % 3 != 0) fail("row_values: u must have 3n entries, got " + std::to_string(u.size()));
   check_rows(rows, static_cast<int>(u.size() / 3));

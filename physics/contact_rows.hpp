@@ -53,6 +53,8 @@ class CouplingMatrix {
   double row_times(int r, const double* y) const;
 };
 
+// The distinct nodes of the rows, ascending.
+std::vector<int> row_nodes(const std::vector<ContactRow>& rows);
 // H u for the rows, metres (u: 3n).
 Eigen::VectorXd row_values(const std::vector<ContactRow>& rows, const Eigen::VectorXd& u);
 // g for the rows: each row's required value, metres.

@@ -30,6 +30,8 @@ void validate(const ContactEquilibriumOptions& o) {
   if (!(o.feasibility_tolerance > 0.0) || !std::isfinite(o.feasibility_tolerance))
     detail::fail_must(where, "options.feasibility_tolerance", "be > 0", o.feasibility_tolerance);
   if (o.lcp_sweeps < 0) detail::fail_must(where, "options.lcp_sweeps", "be >= 0", o.lcp_sweeps);
+  if (!(o.split_entry_share >= 0.0) || !std::isfinite(o.split_entry_share))
+    detail::fail_must(where, "options.split_entry_share", "be >= 0", o.split_entry_share);
 }
 
 // v (3n) turned node by node: v_a <- R_a v_a, or R_a^T v_a (no frames: unchanged).
@@ -61,29 +63,83 @@ struct Evaluation {
 };
 
 // One QP at u: lambda from the LCP on W, and the step du = B^-1 (r + H^T lambda) with B^-1 = Rn A^-1 Rn^T (A the
-// given factorisation; Rn empty: B = A).
+// given factorisation; Rn empty: B = A). On a lazy compliance whose set holds every row node, over a solver whose
+// halves sweep its own supernodal factor, and with few enough half-column entries (options.split_entry_share), the
+// step is split (StaticSolver::half_forward / half_backward): z = L^-1 P Rn^T r, the LCP's free motion of the row nodes read
+// from z through their half columns, H^T lambda added to z the same way, and one backward sweep: one solve a step.
+// Otherwise two: B^-1 r, then B^-1 H^T lambda.
 class WarpedQp {
  public:
-  WarpedQp(const StaticSolver& K, const std::vector<ContactRow>& rows, const Eigen::MatrixXd& W,
+  WarpedQp(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows, const Eigen::MatrixXd& W,
            const std::vector<Eigen::Matrix3d>& Rn, const ContactEquilibriumOptions& options)
-      : K_(K), rows_(rows), W_(W), Rn_(Rn), options_(options), g_(row_targets(rows)) {}
+      : C_(compliance), rows_(rows), W_(W), Rn_(Rn), options_(options), g_(row_targets(rows)),
+        nodes_(row_nodes(rows)) {
+    split_ = compliance.lazy() && compliance.solver().splits_on_its_factor() && !rows.empty() &&
+             std::all_of(nodes_.begin(), nodes_.end(), [&](int v) { return compliance.index_of(v) >= 0; });
+    if (split_) {
+      // (The rows' half columns are at hand: W was formed from them.)
+      long entries = 0;
+      for (int v : nodes_) entries += compliance.half_entries(v);
+      split_ = static_cast<double>(entries) <=
+               options.split_entry_share * static_cast<double>(compliance.solver().factor_nonzeros());
+    }
+  }
   // B^-1 v (3n).
   void compliance(Eigen::VectorXd v, Eigen::VectorXd& out) const {
     turn(Rn_, true, v);
-    K_.solve(v, out);
+    C_.solver().solve(v, out);
     turn(Rn_, false, out);
   }
   // The step at u with residual r; lambda: in the warm start, out the QP's multipliers; fc: H^T lambda.
   void step(const Eigen::VectorXd& u, const Eigen::VectorXd& r, Eigen::VectorXd& lambda, Eigen::VectorXd& fc,
-            Eigen::VectorXd& du, ContactEquilibriumResult& result) const {
+            Eigen::VectorXd& du, ContactEquilibriumResult& result) {
     const int n = static_cast<int>(u.size());
-    compliance(r, du);
     if (rows_.empty()) {
+      compliance(r, du);
       lambda.resize(0);
       fc.setZero(n);
       return;
     }
+    // The free motion B^-1 r: whole, or on the row nodes only (all the LCP reads) from the forward half.
+    if (split_) {
+      ++result.split_steps;
+      Eigen::VectorXd v = r;
+      turn(Rn_, true, v);
+      C_.solver().half_forward(v, z_);
+      du.setZero(n);
+      for (int a : nodes_) du.segment<3>(3 * a) = frame(a) * C_.half_displacement(a, z_);
+    } else {
+      compliance(r, du);
+    }
     const Eigen::VectorXd q = row_values(rows_, u + du) - g_;
+    lambda = solve_lcp(q, lambda, result);
+    fc = contact_force(rows_, lambda, n);
+    // du = B^-1 (r + fc): the contact forces added to the forward half and one backward sweep, or a second solve.
+    if (split_) {
+      for (int a : nodes_) C_.add_half_force(a, frame(a).transpose() * fc.segment<3>(3 * a), z_);
+      C_.solver().half_backward(z_, du);
+      turn(Rn_, false, du);
+    } else {
+      Eigen::VectorXd dc;
+      compliance(fc, dc);
+      du += dc;
+    }
+  }
+  // Largest g - H u, metres.
+  double violation(const Eigen::VectorXd& u) const {
+    return rows_.empty() ? 0.0 : (g_ - row_values(rows_, u)).maxCoeff();
+  }
+  // Sum of max(0, g - H u) over the rows, metres.
+  double total_violation(const Eigen::VectorXd& u) const {
+    return rows_.empty() ? 0.0 : (g_ - row_values(rows_, u)).cwiseMax(0.0).sum();
+  }
+
+ private:
+  // Node a's frame R_a (identity without frames).
+  Eigen::Matrix3d frame(int a) const { return Rn_.empty() ? Eigen::Matrix3d::Identity() : Rn_[a]; }
+  // The multipliers of the LCP on W with free motion q, warm-started from lambda.
+  Eigen::VectorXd solve_lcp(const Eigen::VectorXd& q, const Eigen::VectorXd& lambda,
+                            ContactEquilibriumResult& result) const {
     LcpResult z;
     const double tol = kLcpToleranceShare * options_.feasibility_tolerance;
     if (options_.lcp_sweeps > 0) {
@@ -103,28 +159,17 @@ class WarpedQp {
     }
     result.lcp_iterations += z.iterations;
     result.lcp_converged = result.lcp_converged && z.converged;
-    lambda = z.z;
-    fc = contact_force(rows_, lambda, n);
-    Eigen::VectorXd dc;
-    compliance(fc, dc);
-    du += dc;
+    return z.z;
   }
-  // Largest g - H u, metres.
-  double violation(const Eigen::VectorXd& u) const {
-    return rows_.empty() ? 0.0 : (g_ - row_values(rows_, u)).maxCoeff();
-  }
-  // Sum of max(0, g - H u) over the rows, metres.
-  double total_violation(const Eigen::VectorXd& u) const {
-    return rows_.empty() ? 0.0 : (g_ - row_values(rows_, u)).cwiseMax(0.0).sum();
-  }
-
- private:
-  const StaticSolver& K_;
+  SurfaceCompliance& C_;
   const std::vector<ContactRow>& rows_;
   const Eigen::MatrixXd& W_;
   const std::vector<Eigen::Matrix3d>& Rn_;
   const ContactEquilibriumOptions& options_;
   Eigen::VectorXd g_;
+  std::vector<int> nodes_;  // the rows' distinct nodes
+  bool split_ = false;      // whether the steps are split (see above)
+  std::vector<double> z_;   // the split step's forward half (n_free, the factor's order)
 };
 
 }  // namespace
@@ -160,7 +205,7 @@ ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& mode
   if (options.hessian == ContactHessian::node_rotations) el.node_rotations(state.rotations, Rn);
   const Eigen::MatrixXd W =
       rows.empty() ? Eigen::MatrixXd() : coupling_matrix(compliance, rows, Rn.empty() ? nullptr : &Rn);
-  const WarpedQp qp(compliance.solver(), rows, W, Rn, options);
+  WarpedQp qp(compliance, rows, W, Rn, options);
 
   ContactEquilibriumResult result;
   Eigen::VectorXd lambda = lambda_warm, fc, du;

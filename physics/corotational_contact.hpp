@@ -45,6 +45,13 @@ struct ContactEquilibriumOptions {
   // The LCP of each step: NNCG within this many sweeps, warm-started from the last multipliers, when > 0;
   // otherwise the active-set method warm-started from the pushing rows (Lemke's pivoting where it fails).
   int lcp_sweeps = 0;
+  // A QP step is split (one forward and one backward sweep, the rows' nodes read and loaded through their half
+  // columns; see WarpedQp) when the compliance is lazy, its solver's halves sweep its own factor
+  // (StaticSolver::splits_on_its_factor), and the rows' nodes' half columns hold at most this share of the factor's
+  // nonzeros; otherwise it takes two whole solves. Reading an entry of a half column costs about five of the
+  // factor's in a sweep (BM_PhysicsQpStepSolves: the split saves 45 % of the step's solves at 20 nodes, 30 % at 80,
+  // and costs 18 % more at 150), so the break-even is near 0.18. >= 0; 0: never split.
+  double split_entry_share = 0.15;
 };
 
 // What solve_contact_equilibrium did.
@@ -52,6 +59,7 @@ struct ContactEquilibriumResult {
   int steps = 0;            // QP steps taken
   int backtracks = 0;       // line-search halvings over the steps
   int lcp_iterations = 0;   // pivots / rounds / sweeps over the LCPs
+  int split_steps = 0;      // QP steps split (options.split_entry_share)
   bool lcp_converged = true;  // every LCP reached its tolerance
   double residual = 0.0;    // |r + H^T lambda| / force scale at the returned u (the KKT residual)
   bool converged = false;   // residual <= tolerance

@@ -247,6 +247,7 @@ struct StaticSolver::Impl {
   // index of each of its columns inverted (position), the one-entry right-hand side (dense and its pattern), and
   // CHOLMOD's outputs and workspace. Made on first use, under the solve guard.
   mutable cholmod_factor* half_L = nullptr;
+  bool half_copies_L = false;  // half_L was made as a copy of L (refactorised_nested): the same order and values
   mutable std::vector<int> position;
   mutable cholmod_dense* half_b = nullptr;
   mutable cholmod_sparse* half_bset = nullptr;
@@ -254,6 +255,10 @@ struct StaticSolver::Impl {
   mutable cholmod_dense* half_x = nullptr;
   mutable cholmod_dense* half_y = nullptr;
   mutable cholmod_dense* half_e = nullptr;
+  // half_forward / half_backward's outputs and workspace (whole sweeps on half_L).
+  mutable cholmod_dense* sweep_x = nullptr;
+  mutable cholmod_dense* sweep_y = nullptr;
+  mutable cholmod_dense* sweep_e = nullptr;
   // The nested-dissection ordering's symbolic analysis (supernodal), kept for refactorised_nested (null: not made),
   // and its factor's nonzeros.
   mutable cholmod_factor* nested = nullptr;
@@ -274,6 +279,9 @@ struct StaticSolver::Impl {
     cholmod_free_dense(&half_x, &common);
     cholmod_free_dense(&half_y, &common);
     cholmod_free_dense(&half_e, &common);
+    cholmod_free_dense(&sweep_x, &common);
+    cholmod_free_dense(&sweep_y, &common);
+    cholmod_free_dense(&sweep_e, &common);
     cholmod_free_factor(&L, &common);
     cholmod_finish(&common);
   }
@@ -474,6 +482,17 @@ struct StaticSolver::Impl {
                                std::to_string(common.status) + ")");
   }
 
+  // b (n_free, half_L's order) <- L^-1 b (sys CHOLMOD_L) or L^-T b (CHOLMOD_Lt), a whole sweep on half_L's values:
+  // on L itself when half_L is its copy (L stays supernodal; CHOLMOD's partial solves turn half_L simplicial).
+  void half_sweep(int sys, std::vector<double>& b, const char* where) {
+    cholmod_dense B = wrap(b.data(), n_free(), 1);
+    if (!cholmod_solve2(sys, half_copies_L ? L : half_L, &B, nullptr, &sweep_x, nullptr, &sweep_y, &sweep_e, &common))
+      throw std::runtime_error(std::string(where) + ": CHOLMOD solve failed (status " + std::to_string(common.status) +
+                               ")");
+    const double* x = static_cast<const double*>(sweep_x->x);
+    std::copy(x, x + n_free(), b.begin());
+  }
+
   // Copies the lower triangle of K on the free DOFs into CHOLMOD, analyses and factorises it (supernodal LL^T).
   void factorise(const Eigen::SparseMatrix<double>& K_in, const std::vector<char>& fixed) {
     K = K_in;
@@ -513,6 +532,7 @@ struct StaticSolver::Impl {
     lnz = from.nested_lnz;
     prepare_half_workspace();
     set_half(copy_factor(L));
+    half_copies_L = true;
   }
 
   // K_in (the pattern of from.K) as this matrix, with from's free DOFs and lower-triangle pattern; returns its lower
@@ -788,6 +808,41 @@ void StaticSolver::half_column(int dof, std::vector<int>& index, std::vector<dou
   std::sort(index.begin(), index.end());
   value.resize(index.size());
   for (size_t e = 0; e < index.size(); ++e) value[e] = scale * x[index[e]];
+}
+
+void StaticSolver::half_forward(const Eigen::VectorXd& f, std::vector<double>& z) const {
+  Impl& m = *impl_;
+  const char* where = "StaticSolver::half_forward";
+  const SolveGuard guard(m.busy, where);
+  // P f on the free DOFs (free index k sits at position[k] in half_L's order), then the forward sweep.
+  std::vector<double>& b = m.rhs;
+  b.resize(m.n_free());
+  m.gather(where, f, b.data());
+  m.prepare_half();
+  z.resize(b.size());
+  for (int k = 0; k < m.n_free(); ++k) z[m.position[k]] = b[k];
+  m.half_sweep(CHOLMOD_L, z, where);
+  const double scale = std::sqrt(inverse_scale_);
+  for (double& v : z) v *= scale;
+}
+
+bool StaticSolver::splits_on_its_factor() const { return impl_->half_copies_L; }
+
+void StaticSolver::half_backward(const std::vector<double>& z, Eigen::VectorXd& u) const {
+  Impl& m = *impl_;
+  const char* where = "StaticSolver::half_backward";
+  const SolveGuard guard(m.busy, where);
+  if (static_cast<int>(z.size()) != m.n_free())
+    throw std::invalid_argument(std::string(where) + ": z must have " + std::to_string(m.n_free()) +
+                                " entries (the free DOFs), got " + std::to_string(z.size()));
+  m.prepare_half();
+  std::vector<double>& x = m.rhs;
+  x = z;
+  m.half_sweep(CHOLMOD_Lt, x, where);
+  // Back to the free DOFs' order (P^T), scattered.
+  const double scale = std::sqrt(inverse_scale_);
+  u.setZero(m.n);
+  for (int k = 0; k < m.n_free(); ++k) u[m.dof_of[k]] = scale * x[m.position[k]];
 }
 
 Eigen::MatrixXd StaticSolver::solve_many(const Eigen::MatrixXd& F) const {

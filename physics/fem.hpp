@@ -147,6 +147,19 @@ class StaticSolver {
   // dissection's tree is balanced (the whole colon, 24,984 DOFs: 512 entries a column against 8,500). Out: the
   // nonzero entries in that factor's order, ascending; none for a fixed DOF.
   void half_column(int dof, std::vector<int>& index, std::vector<double>& value) const;
+  // K^-1 f in two halves on half_column's factorisation: half_forward gives z = L^-1 P f (n_free entries, in that
+  // factor's order, times sqrt(inverse scale)), half_backward u = P^T L^-T z (3n, times sqrt(inverse scale), fixed
+  // DOFs 0), so that half_backward(half_forward(f)) = K^-1 f, and for a DOF's half column y, y . z = (K^-1 f)_dof.
+  // Between the halves the result can be read on a few DOFs, and forces on a few DOFs added (z += y w), from their
+  // half columns: K^-1 (f + g) for g on few DOFs in one forward and one backward sweep, where solving f and g apart
+  // takes two of each. half_forward throws std::invalid_argument for f of another size, half_backward for z of
+  // another size than n_free_dofs().
+  void half_forward(const Eigen::VectorXd& f, std::vector<double>& z) const;
+  void half_backward(const std::vector<double>& z, Eigen::VectorXd& u) const;
+  // Whether half_forward and half_backward sweep solve()'s own supernodal factor (a solver from refactorised_nested:
+  // each costs about half a solve()); otherwise they sweep half_column's factorisation, which CHOLMOD's partial
+  // solves turn simplicial, at about a whole solve() each.
+  bool splits_on_its_factor() const;
   // Makes half_column's factorisation and its solve's workspace now (a few hundred ms on the whole colon) rather than
   // on its first call. Throws as the constructor when the factorisation fails.
   void prepare_half_columns() const;

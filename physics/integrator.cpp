@@ -203,21 +203,6 @@ void CorotationalQuasiStatic::share_with_prediction(IntegratorWork& work) const 
   work.corotational.chord_steps_since_refresh = 0;
 }
 
-namespace {
-
-// The distinct nodes of the rows.
-std::vector<int> row_nodes(const std::vector<ContactRow>& rows) {
-  std::vector<int> nodes;
-  for (const ContactRow& r : rows)
-    for (int k = 0; k < 4; ++k)
-      if (r.node[k] >= 0) nodes.push_back(r.node[k]);
-  std::sort(nodes.begin(), nodes.end());
-  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
-  return nodes;
-}
-
-}  // namespace
-
 ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std::vector<ContactRow>& rows,
                                                                       SurfaceCompliance& compliance,
                                                                       const ContactEquilibriumOptions& options,

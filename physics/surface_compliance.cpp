@@ -290,6 +290,30 @@ int SurfaceCompliance::index_of(int node) const {
   return index_[node];
 }
 
+int SurfaceCompliance::half_position(int node, const std::vector<double>& z, const char* where) {
+  if (!lazy_) throw std::logic_error(std::string("SurfaceCompliance::") + where + ": the set is not lazy");
+  const int a = index_of(node);
+  if (a < 0) fail(std::string("SurfaceCompliance::") + where + ": node " + std::to_string(node) + " is not in the set");
+  if (static_cast<int>(z.size()) != solver_->n_free_dofs())
+    fail(std::string("SurfaceCompliance::") + where + ": z must have " + std::to_string(solver_->n_free_dofs()) +
+         " entries (the free DOFs), got " + std::to_string(z.size()));
+  if (!half_solved_[a]) solve_half_columns(a);
+  return a;
+}
+
+Eigen::Vector3d SurfaceCompliance::half_displacement(int node, const std::vector<double>& z) {
+  return gather_half(half_position(node, z, "half_displacement"), z);
+}
+
+long SurfaceCompliance::half_entries(int node) const {
+  const int a = index_of(node);
+  return lazy_ && a >= 0 && half_solved_[a] ? static_cast<long>(half_[a].index.size()) : 0L;
+}
+
+void SurfaceCompliance::add_half_force(int node, const Eigen::Vector3d& w, std::vector<double>& z) {
+  scatter_half(half_position(node, z, "add_half_force"), w, z);
+}
+
 void SurfaceCompliance::ensure_columns(const std::vector<int>& nodes) {
   // Nodes whose columns are not at hand, each once: outside the set and not cached, or in a lazy set not solved.
   std::vector<int> missing;

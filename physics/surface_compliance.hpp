@@ -66,6 +66,15 @@ class SurfaceCompliance {
   void ensure_columns(const std::vector<int>& nodes);
   // Number of nodes outside the set whose columns are cached.
   int n_cached_nodes() const { return static_cast<int>(extra_nodes_.size()); }
+  // A lazy set's solves split in halves (StaticSolver::half_forward / half_backward on its solver, z over the
+  // factor's rows): a set node's displacement Y_a^T z, and a force w on it added, z += Y_a w, its half columns solved
+  // for first if not at hand. std::logic_error when the set is not lazy, std::invalid_argument for a node outside
+  // it or z of another size.
+  Eigen::Vector3d half_displacement(int node, const std::vector<double>& z);
+  void add_half_force(int node, const Eigen::Vector3d& w, std::vector<double>& z);
+  // Stored entries of a lazy set's node's three half columns (0 when not solved yet, or not lazy, or outside the
+  // set): what half_displacement and add_half_force each read.
+  long half_entries(int node) const;
   // Whether the whole-mesh columns of the set nodes are kept (3n x 3s, m/N).
   bool keeps_mesh_columns() const { return Kc_.size() > 0; }
   // Whether the view nodes' rows of the set's columns are kept (3v x 3s, m/N), and those nodes (outside the set).
@@ -100,6 +109,7 @@ class SurfaceCompliance {
 
  private:
   void check_node(int node, const char* what) const;
+  int half_position(int node, const std::vector<double>& z, const char* where);  // checked, half columns at hand
   // Whether summing the whole-mesh columns of this many loaded nodes costs no more than a back-substitution.
   bool summing_is_cheaper(size_t nodes) const;
   // Column block of set node a (position in nodes_): 3s x 3, C's columns 3a .. 3a + 2 (not lazy).

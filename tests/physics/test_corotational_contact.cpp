@@ -195,6 +195,49 @@ TEST(ContactEquilibrium, IteratesStartedOnTheRowsStayOnThemAndDescend) {
   }
 }
 
+// On a lazy compliance (half columns per node) each QP step is split, one forward and one backward sweep with the
+// row nodes' free motion read and the contact forces added through their half columns; on an eager one (C solved at
+// construction), or over a solver whose halves do not sweep its own factor, it is two whole solves. The two are the same iteration: from the contact-free equilibrium (past the
+// floors: the penalty line search) and for each step bound, the same iterates and multipliers to round-off, for the
+// rest K, K turned per node and a lagged K_w.
+TEST(ContactEquilibrium, StepsSplitOnHalfColumnsEqualTwoWholeSolves) {
+  const FlooredPress p = floored_press(0.05, 1.5e-3);
+  const CorotationalModel model(p.mesh, kTissue, p.fixed);
+  CorotationalState free;
+  ASSERT_TRUE(solve_corotational(model, p.f, free, tight()).converged);
+  // (Solvers on the nested-dissection analysis: the split steps sweep their own supernodal factor.)
+  model.solver().prepare_nested_analysis();
+  const StaticSolver rest = model.solver().refactorised_nested(model.stiffness());
+  const StaticSolver lagged = model.solver().refactorised_nested(model.elements().warped_stiffness(free.rotations));
+  ASSERT_TRUE(rest.splits_on_its_factor());
+  ASSERT_FALSE(model.solver().splits_on_its_factor());
+  for (const int variant : {0, 1, 2}) {
+    SCOPED_TRACE("Hessian " + std::to_string(variant));
+    const StaticSolver& solver = variant == 2 ? lagged : rest;
+    SurfaceCompliance eager(solver, p.top);
+    SurfaceCompliance lazy(solver, p.top, SurfaceCompliance::kBlockColumns, 0L, 0L);
+    ASSERT_FALSE(eager.lazy());
+    ASSERT_TRUE(lazy.lazy());
+    ContactEquilibriumOptions o = tight_contact();
+    o.hessian = variant == 1 ? ContactHessian::node_rotations : ContactHessian::as_given;
+    o.split_entry_share = 1e9;  // (split whatever the cost: on this small tube the half columns fill the factor)
+    for (int steps = 1; steps <= 4; ++steps) {
+      o.max_steps = steps;
+      CorotationalState a, b;
+      a.u = free.u;
+      b.u = free.u;
+      const ContactEquilibriumResult ra = solve_contact_equilibrium(model, p.f, p.rows, eager, o, a);
+      const ContactEquilibriumResult rb = solve_contact_equilibrium(model, p.f, p.rows, lazy, o, b);
+      EXPECT_EQ(ra.split_steps, 0) << steps << " steps";
+      EXPECT_EQ(rb.split_steps, rb.steps) << steps << " steps";
+      EXPECT_EQ(ra.steps, rb.steps) << steps << " steps";
+      EXPECT_EQ(ra.backtracks, rb.backtracks) << steps << " steps";
+      EXPECT_LE((a.u - b.u).norm(), 1e-9 * (a.u - free.u).norm()) << steps << " steps";
+      EXPECT_LE((ra.lambda - rb.lambda).norm(), 1e-9 * p.f.norm()) << steps << " steps";
+    }
+  }
+}
+
 // Bad input names the field.
 TEST(ContactEquilibrium, RejectsBadInputNamingTheField) {
   const FlooredPress p = floored_press(0.05, 1e-3);
@@ -219,6 +262,11 @@ TEST(ContactEquilibrium, RejectsBadInputNamingTheField) {
   o.feasibility_tolerance = -1.0;
   EXPECT_NE(message([&] { solve_contact_equilibrium(model, p.f, p.rows, sc, o, state); })
                 .find("options.feasibility_tolerance"),
+            std::string::npos);
+  o = ContactEquilibriumOptions{};
+  o.split_entry_share = -0.5;
+  EXPECT_NE(message([&] { solve_contact_equilibrium(model, p.f, p.rows, sc, o, state); })
+                .find("options.split_entry_share"),
             std::string::npos);
   o = ContactEquilibriumOptions{};
   EXPECT_NE(message([&] { solve_contact_equilibrium(model, Eigen::VectorXd::Zero(3), p.rows, sc, o, state); })

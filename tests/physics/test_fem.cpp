@@ -7,6 +7,7 @@
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <future>
 #include <random>
 #include <stdexcept>
@@ -407,6 +408,78 @@ TEST(StaticSolver, HalfColumnsMultiplyToTheInverseAndAreSparseOnALongTube) {
   EXPECT_TRUE(value.empty());
   EXPECT_THROW(solver.half_column(3 * n, index, value), std::invalid_argument);
   EXPECT_THROW(solver.half_column(-1, index, value), std::invalid_argument);
+}
+
+// The solve split in halves: half_backward(half_forward(f)) is K^-1 f by the dense inverse (independent twin), a
+// DOF's half column dotted with the forward half is that DOF's displacement, and a force added to the forward half
+// through its half column gives K^-1 (f + g) from one backward sweep; through scaled views, on half_column's own
+// factorisation and on a solver from refactorised_nested (whose halves sweep its supernodal factor); the fixed DOFs
+// stay 0; wrong sizes are refused naming the argument.
+TEST(StaticSolver, SolveSplitInHalvesReadsAndAddsThroughHalfColumns) {
+  const TetMesh mesh = small_mesh();
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
+  const std::vector<int>& fixed_nodes = mesh.node_set(kStartEnd);
+  const StaticSolver solver(K, fixed_nodes);
+  const int n = mesh.n_nodes();
+  std::vector<int> free;
+  const Eigen::MatrixXd Kf = restrict(Eigen::MatrixXd(K), whole_node_mask(fixed_nodes, n), free);
+  const Eigen::MatrixXd Kinv = Kf.llt().solve(Eigen::MatrixXd::Identity(Kf.rows(), Kf.cols()));
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  Eigen::VectorXd f(3 * n), g = Eigen::VectorXd::Zero(3 * n);
+  for (Eigen::Index d = 0; d < f.size(); ++d) f[d] = unit(rng);
+  const int loaded = free[7];  // g: a force on one free DOF
+  g[loaded] = 0.3;
+  // The dense twin on the free DOFs, scattered.
+  auto twin = [&](const Eigen::VectorXd& load, double c) {
+    Eigen::VectorXd lf(free.size()), u = Eigen::VectorXd::Zero(3 * n);
+    for (size_t k = 0; k < free.size(); ++k) lf[static_cast<Eigen::Index>(k)] = load[free[k]];
+    const Eigen::VectorXd uf = Kinv * lf / c;
+    for (size_t k = 0; k < free.size(); ++k) u[free[k]] = uf[static_cast<Eigen::Index>(k)];
+    return u;
+  };
+  // On half_column's own factorisation, and on a solver from refactorised_nested (the halves sweep its factor).
+  solver.prepare_nested_analysis();
+  const StaticSolver nested = solver.refactorised_nested(K);
+  EXPECT_FALSE(solver.splits_on_its_factor());
+  EXPECT_TRUE(nested.splits_on_its_factor());
+  for (const double signed_c : {1.0, 40.0, -1.0, -40.0}) {
+    SCOPED_TRACE("scale " + std::to_string(signed_c) + " (negative: the nested solver)");
+    const double c = std::abs(signed_c);
+    const StaticSolver view = signed_c > 0.0 ? solver.scaled(c) : nested.scaled(c);
+    const Eigen::VectorXd u_ref = twin(f, c), ufg_ref = twin(f + g, c);
+    std::vector<double> z;
+    Eigen::VectorXd u;
+    view.half_forward(f, z);
+    ASSERT_EQ(static_cast<int>(z.size()), solver.n_free_dofs());
+    // A DOF's displacement read from z through its half column.
+    std::vector<int> index;
+    std::vector<double> value;
+    for (const int dof : {free[0], free[free.size() / 2], free.back()}) {
+      view.half_column(dof, index, value);
+      double y_dot_z = 0.0;
+      for (size_t e = 0; e < index.size(); ++e) y_dot_z += value[e] * z[index[e]];
+      EXPECT_NEAR(y_dot_z, u_ref[dof], 1e-10 * u_ref.cwiseAbs().maxCoeff()) << "dof " << dof;
+    }
+    std::vector<double> z_copy = z;
+    view.half_backward(z_copy, u);
+    EXPECT_LE((u - u_ref).norm(), 1e-10 * u_ref.norm());
+    for (int v : fixed_nodes) EXPECT_EQ(u.segment<3>(3 * v).norm(), 0.0);
+    // g added through its half column, one backward sweep.
+    view.half_column(loaded, index, value);
+    for (size_t e = 0; e < index.size(); ++e) z[index[e]] += value[e] * g[loaded];
+    view.half_backward(z, u);
+    EXPECT_LE((u - ufg_ref).norm(), 1e-10 * ufg_ref.norm());
+  }
+  std::vector<double> z;
+  Eigen::VectorXd u;
+  using lumen::test::message_of;
+  EXPECT_EQ(message_of<std::invalid_argument>([&] { solver.half_forward(Eigen::VectorXd::Zero(3 * n - 1), z); }),
+            "StaticSolver::half_forward: f must have " + std::to_string(3 * n) + " entries, got " +
+                std::to_string(3 * n - 1));
+  EXPECT_EQ(message_of<std::invalid_argument>([&] { solver.half_backward(std::vector<double>(3), u); }),
+            "StaticSolver::half_backward: z must have " + std::to_string(solver.n_free_dofs()) +
+                " entries (the free DOFs), got 3");
 }
 
 // A matrix of the same pattern refactorised on the first one's symbolic analysis solves as its own dense Cholesky

@@ -4,10 +4,12 @@
 #include <Eigen/Dense>
 #include <random>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "physics/surface_compliance.hpp"
 #include "compliance_model.hpp"
+#include "support/files.hpp"
 
 namespace lumen::physics {
 namespace {
@@ -81,6 +83,37 @@ TEST(SurfaceCompliance, LazySetColumnsEqualTheEagerOnes) {
   lazy.displacement(f2, du);
   EXPECT_LE((du - m.Kinv * f2).norm(), 1e-9 * twin.norm());
   EXPECT_EQ(lazy.n_cached_nodes(), 1);  // (out: the listed outer node and the last change came from solves)
+}
+
+// A lazy set's split solve: a node's displacement read from the forward half, and a force added to it, against the
+// dense twin K^-1 (f + g); half columns solved on first use (half_entries 0 before); refused on an eager set, for a
+// node outside the set and for a forward half of another size.
+TEST(SurfaceCompliance, SplitSolveReadsAndLoadsSetNodesAsTheDenseTwin) {
+  const Model& m = model();
+  SurfaceCompliance eager(*m.solver, m.inner), lazy(*m.solver, m.inner, 64, 256L << 20, 0);
+  ASSERT_TRUE(lazy.lazy());
+  const int a = m.inner[m.inner.size() / 3], b = m.inner[m.inner.size() / 2];  // (free: mid-tube)
+  EXPECT_EQ(lazy.half_entries(a), 0);
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * m.n()), g = Eigen::VectorXd::Zero(3 * m.n());
+  f.segment<3>(3 * m.outer_free[3]) << 0.01, -0.02, 0.004;
+  g.segment<3>(3 * b) << -0.003, 0.006, 0.001;
+  std::vector<double> z;
+  m.solver->half_forward(f, z);
+  const Eigen::VectorXd u_f = m.Kinv * f, u_fg = m.Kinv * (f + g);
+  for (int v : {a, b})
+    EXPECT_LE((lazy.half_displacement(v, z) - u_f.segment<3>(3 * v)).norm(), 1e-9 * u_f.norm()) << "node " << v;
+  EXPECT_GT(lazy.half_entries(a), 0);
+  lazy.add_half_force(b, g.segment<3>(3 * b), z);
+  Eigen::VectorXd u;
+  m.solver->half_backward(z, u);
+  EXPECT_LE((u - u_fg).norm(), 1e-9 * u_fg.norm());
+  EXPECT_THROW(eager.half_displacement(a, z), std::logic_error);
+  EXPECT_EQ(lumen::test::message_of<std::invalid_argument>([&] { lazy.half_displacement(m.outer_free[0], z); }),
+            "SurfaceCompliance::half_displacement: node " + std::to_string(m.outer_free[0]) + " is not in the set");
+  std::vector<double> short_z(5);
+  EXPECT_EQ(lumen::test::message_of<std::invalid_argument>([&] { lazy.add_half_force(a, g.segment<3>(0), short_z); }),
+            "SurfaceCompliance::add_half_force: z must have " + std::to_string(m.solver->n_free_dofs()) +
+                " entries (the free DOFs), got 5");
 }
 
 // Whole-mesh and set-only displacements for sparse nodal forces equal the dense twin K^-1 f, with the

@@ -9,6 +9,7 @@
 #include "physics/compliance.hpp"
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
+#include "physics/surface_compliance.hpp"
 
 namespace {
 
@@ -100,6 +101,47 @@ void BM_PhysicsSolveSinglePrecision(benchmark::State& state) {
   state.counters["rel_diff"] = (u - u_double).norm() / u_double.norm();
 }
 BENCHMARK(BM_PhysicsSolveSinglePrecision)->Unit(benchmark::kMicrosecond);
+
+// A QP step's solves on a factor of the nested-dissection analysis (the solved coupling's lagged Hessian):
+// B^-1 r then B^-1 H^T lambda as two whole solves (arg 0), or split (arg 1): the forward half of r, the row nodes'
+// displacements read and the contact forces on range(1) inner nodes added through their half columns (solved
+// before timing), one backward half.
+void BM_PhysicsQpStepSolves(benchmark::State& state) {
+  const PaperModel& m = model();
+  m.solver->prepare_nested_analysis();
+  const StaticSolver nested = m.solver->refactorised_nested(m.K);
+  const int touched = static_cast<int>(state.range(1));
+  std::vector<int> nodes;
+  for (int k = 0; k < touched; ++k) nodes.push_back(m.inner_nodes[(k * 7) % m.inner_nodes.size()]);
+  SurfaceCompliance lazy(nested, m.inner_nodes, SurfaceCompliance::kBlockColumns, 0L, 0L);
+  lazy.ensure_columns(nodes);
+  const Eigen::VectorXd r = Eigen::VectorXd::Random(nested.n_dofs());
+  Eigen::VectorXd fc = Eigen::VectorXd::Zero(nested.n_dofs()), du, dc;
+  for (int v : nodes) fc.segment<3>(3 * v) = Eigen::Vector3d(0.0, 0.01, 0.0);
+  std::vector<double> z;
+  Eigen::Vector3d seen = Eigen::Vector3d::Zero();
+  for (auto _ : state) {
+    if (state.range(0) == 0) {
+      nested.solve(r, du);
+      for (int v : nodes) seen += du.segment<3>(3 * v);
+      nested.solve(fc, dc);
+      du += dc;
+    } else {
+      nested.half_forward(r, z);
+      for (int v : nodes) seen += lazy.half_displacement(v, z);
+      for (int v : nodes) lazy.add_half_force(v, fc.segment<3>(3 * v), z);
+      nested.half_backward(z, du);
+    }
+    benchmark::DoNotOptimize(du.data());
+    benchmark::DoNotOptimize(seen.data());
+  }
+  long entries = 0;
+  for (int v : nodes) entries += lazy.half_entries(v);
+  state.counters["half_entries"] = static_cast<double>(entries);
+  state.counters["L_nnz"] = static_cast<double>(nested.factor_nonzeros());
+}
+BENCHMARK(BM_PhysicsQpStepSolves)->Args({0, 20})->Args({1, 20})->Args({0, 80})->Args({1, 80})->Args({0, 150})->Args({1, 150})
+    ->Unit(benchmark::kMicrosecond);
 
 void BM_PhysicsSolveMany(benchmark::State& state) {
   const PaperModel& m = model();
