@@ -47,11 +47,12 @@ struct ContactEquilibriumOptions {
   int lcp_sweeps = 0;
   // A QP step is split (one forward and one backward sweep, the rows' nodes read and loaded through their half
   // columns; see WarpedQp) when the compliance is lazy, its solver's halves sweep its own factor
-  // (StaticSolver::splits_on_its_factor), and the rows' nodes' half columns hold at most this share of the factor's
-  // nonzeros; otherwise it takes two whole solves. Reading an entry of a half column costs about five of the
-  // factor's in a sweep (BM_PhysicsQpStepSolves: the split saves 45 % of the step's solves at 20 nodes, 30 % at 80,
-  // and costs 18 % more at 150), so the break-even is near 0.18. >= 0; 0: never split.
-  double split_entry_share = 0.15;
+  // (StaticSolver::splits_on_its_factor), and the rows' nodes' half-column rows (three values each) number at most
+  // this share of the factor's nonzeros; otherwise it takes two whole solves. A half-column row read costs about
+  // eight of the factor's entries in a sweep (BM_PhysicsQpStepSolves: the split saves 45 % of the step's solves at
+  // 20 row nodes, 25 % at 80 and 11 % at 150, 96k rows against the factor's 1.17 M nonzeros), so the break-even is
+  // near 0.11. >= 0; 0: never split.
+  double split_entry_share = 0.1;
 };
 
 // What solve_contact_equilibrium did.

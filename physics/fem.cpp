@@ -18,9 +18,47 @@
 
 namespace lumen::physics {
 
+// A supernodal factor's elimination tree: each column's supernode, each supernode's parent (the supernode of its
+// first row below its own columns; -1: a root). (Outside the anonymous namespace: StaticSolver::Impl keeps one.)
+struct SupernodeTree {
+  std::vector<int> of_column, parent;
+};
+
 namespace {
 
 using Mat43 = Eigen::Matrix<double, 4, 3>;
+
+
+SupernodeTree supernode_tree(const detail::SupernodalView& L) {
+  SupernodeTree t;
+  t.of_column.resize(L.n);
+  t.parent.assign(L.nsuper, -1);
+  for (int k = 0; k < L.nsuper; ++k)
+    for (int c = L.super[k]; c < L.super[k + 1]; ++c) t.of_column[c] = k;
+  for (int k = 0; k < L.nsuper; ++k) {
+    const int ncol = L.super[k + 1] - L.super[k], nrow = L.pi[k + 1] - L.pi[k];
+    if (nrow > ncol) t.parent[k] = t.of_column[L.s[L.pi[k] + ncol]];
+  }
+  return t;
+}
+
+// Y (n x r) <- L^-1 Y, where Y is 0 outside the listed supernodes' columns and those are every supernode on the
+// paths from its nonzero rows to the roots, ascending (a child before its parent): a forward sweep over them only,
+// with the r right-hand sides together (a supernode's diagonal block solved, then its rows below subtracted).
+void forward_on_paths(const detail::SupernodalView& L, const std::vector<int>& supernodes, Eigen::MatrixXd& Y) {
+  using Block = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
+  Eigen::MatrixXd below;
+  for (int k : supernodes) {
+    const int c0 = L.super[k], ncol = L.super[k + 1] - c0, nrow = L.pi[k + 1] - L.pi[k], m = nrow - ncol;
+    const Block V(L.x + L.px[k], nrow, ncol, Eigen::OuterStride<>(nrow));
+    auto own = Y.middleRows(c0, ncol);
+    V.topRows(ncol).triangularView<Eigen::Lower>().solveInPlace(own);
+    if (m == 0) continue;
+    below.noalias() = V.bottomRows(m) * own;
+    const int* rows = L.s + L.pi[k] + ncol;
+    for (int i = 0; i < m; ++i) Y.row(rows[i]) -= below.row(i);
+  }
+}
 
 // CHOLMOD's supernodal factorisations and solves call the system BLAS, OpenBLAS's threaded flavour from
 // tools/setup.sh (libopenblas0-pthread, the one that is safe to call from two threads at once: the engine solves
@@ -248,6 +286,11 @@ struct StaticSolver::Impl {
   // CHOLMOD's outputs and workspace. Made on first use, under the solve guard.
   mutable cholmod_factor* half_L = nullptr;
   bool half_copies_L = false;  // half_L was made as a copy of L (refactorised_nested): the same order and values
+  // half_columns' sweeps on L (when half_copies_L): its elimination tree (made on first use), each supernode's mark
+  // and a workspace (n_free x r), 0 between uses.
+  mutable SupernodeTree tree;
+  mutable std::vector<char> marked;
+  mutable Eigen::MatrixXd paths;
   mutable std::vector<int> position;
   mutable cholmod_dense* half_b = nullptr;
   mutable cholmod_sparse* half_bset = nullptr;
@@ -480,6 +523,69 @@ struct StaticSolver::Impl {
     if (!ok)
       throw std::runtime_error("StaticSolver::half_column: CHOLMOD partial solve failed (status " +
                                std::to_string(common.status) + ")");
+  }
+
+  // half_columns on half_L: one partial solve per DOF, onto the union of their patterns, times scale.
+  void half_columns_partial(const std::vector<int>& dofs, double scale, std::vector<int>& index,
+                            std::vector<double>& value) {
+    const int r = static_cast<int>(dofs.size());
+    std::vector<std::vector<std::pair<int, double>>> columns(r);
+    for (int c = 0; c < r; ++c) {
+      const int k = free_of[dofs[c]];
+      if (k < 0) continue;
+      half_solve(position[k]);
+      const int* xp = static_cast<const int*>(half_xset->p);
+      const int* xi = static_cast<const int*>(half_xset->i);
+      const double* x = static_cast<const double*>(half_x->x);
+      for (int e = xp[0]; e < xp[1]; ++e) {
+        columns[c].emplace_back(xi[e], x[xi[e]]);
+        index.push_back(xi[e]);
+      }
+    }
+    std::sort(index.begin(), index.end());
+    index.erase(std::unique(index.begin(), index.end()), index.end());
+    value.assign(index.size() * static_cast<size_t>(r), 0.0);
+    for (int c = 0; c < r; ++c)
+      for (const auto& [i, x] : columns[c]) {
+        const size_t e = static_cast<size_t>(std::lower_bound(index.begin(), index.end(), i) - index.begin());
+        value[e * r + c] = scale * x;
+      }
+  }
+
+  // half_columns on L (supernodal, half_L's order): the supernodes on the DOFs' paths to the roots, ascending, one
+  // forward sweep over them, times scale; the workspace (paths) left 0.
+  void half_columns_on_paths(const std::vector<int>& dofs, double scale, std::vector<int>& index,
+                             std::vector<double>& value) {
+    const int r = static_cast<int>(dofs.size());
+    const detail::SupernodalView view = supernodes();
+    if (tree.parent.empty()) {
+      tree = supernode_tree(view);
+      marked.assign(tree.parent.size(), 0);
+    }
+    if (paths.rows() != n_free() || paths.cols() != r) paths = Eigen::MatrixXd::Zero(n_free(), r);
+    std::vector<int> on_paths;
+    for (int c = 0; c < r; ++c) {
+      const int k = free_of[dofs[c]];
+      if (k < 0) continue;
+      const int j = position[k];
+      paths(j, c) = 1.0;
+      for (int s = tree.of_column[j]; s >= 0 && !marked[s]; s = tree.parent[s]) {
+        marked[s] = 1;
+        on_paths.push_back(s);
+      }
+    }
+    std::sort(on_paths.begin(), on_paths.end());
+    forward_on_paths(view, on_paths, paths);
+    // The rows with an entry in any column (a supernode's first columns may have none), each row cleared after.
+    for (int s : on_paths) {
+      for (int i = view.super[s]; i < view.super[s + 1]; ++i) {
+        if (paths.row(i).cwiseAbs().maxCoeff() == 0.0) continue;
+        index.push_back(i);
+        for (int c = 0; c < r; ++c) value.push_back(scale * paths(i, c));
+        paths.row(i).setZero();
+      }
+      marked[s] = 0;
+    }
   }
 
   // b (n_free, half_L's order) <- L^-1 b (sys CHOLMOD_L) or L^-T b (CHOLMOD_Lt), a whole sweep on half_L's values:
@@ -827,6 +933,22 @@ void StaticSolver::half_forward(const Eigen::VectorXd& f, std::vector<double>& z
 }
 
 bool StaticSolver::splits_on_its_factor() const { return impl_->half_copies_L; }
+
+void StaticSolver::half_columns(const std::vector<int>& dofs, std::vector<int>& index,
+                                std::vector<double>& value) const {
+  Impl& m = *impl_;
+  const SolveGuard guard(m.busy, "StaticSolver::half_columns");
+  for (size_t c = 0; c < dofs.size(); ++c)
+    if (dofs[c] < 0 || dofs[c] >= m.n)
+      throw std::invalid_argument("StaticSolver::half_columns: dofs[" + std::to_string(c) + "] must be in [0, " +
+                                  std::to_string(m.n) + "), got " + std::to_string(dofs[c]));
+  m.prepare_half();
+  index.clear();
+  value.clear();
+  if (m.half_copies_L) m.half_columns_on_paths(dofs, std::sqrt(inverse_scale_), index, value);
+  else m.half_columns_partial(dofs, std::sqrt(inverse_scale_), index, value);
+}
+
 
 void StaticSolver::half_backward(const std::vector<double>& z, Eigen::VectorXd& u) const {
   Impl& m = *impl_;

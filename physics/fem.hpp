@@ -160,6 +160,13 @@ class StaticSolver {
   // each costs about half a solve()); otherwise they sweep half_column's factorisation, which CHOLMOD's partial
   // solves turn simplicial, at about a whole solve() each.
   bool splits_on_its_factor() const;
+  // The half columns of several DOFs (e.g. a node's three) on the union of their patterns: index its rows in the
+  // factor's order, ascending; value row-major, index.size() x dofs.size(): value[e * dofs.size() + c] is entry
+  // index[e] of dofs[c]'s half column (0 where that column has none; a fixed DOF's column is 0). On a solver whose
+  // halves sweep its own supernodal factor (splits_on_its_factor), one forward sweep over the supernodes on the
+  // DOFs' paths to the roots of the elimination tree, all the right-hand sides at once; otherwise a partial solve per
+  // DOF as half_column. Throws std::invalid_argument for a DOF out of range.
+  void half_columns(const std::vector<int>& dofs, std::vector<int>& index, std::vector<double>& value) const;
   // Makes half_column's factorisation and its solve's workspace now (a few hundred ms on the whole colon) rather than
   // on its first call. Throws as the constructor when the factorisation fails.
   void prepare_half_columns() const;

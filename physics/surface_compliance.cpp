@@ -110,31 +110,28 @@ void SurfaceCompliance::solve_half_columns(const std::vector<int>& positions) {
 
 void SurfaceCompliance::solve_half_columns(int a) {
   HalfColumns& h = half_[a];
-  h.index.clear();
-  h.value.clear();
-  std::vector<int> index;
-  std::vector<double> value;
-  for (int c = 0; c < 3; ++c) {
-    solver_->half_column(3 * nodes_[a] + c, index, value);
-    h.index.insert(h.index.end(), index.begin(), index.end());
-    h.value.insert(h.value.end(), value.begin(), value.end());
-    h.start[c + 1] = static_cast<int>(h.index.size());
-  }
+  const int v = nodes_[a];
+  solver_->half_columns({3 * v, 3 * v + 1, 3 * v + 2}, h.index, h.value);
   half_solved_[a] = 1;
 }
 
 void SurfaceCompliance::scatter_half(int a, const Eigen::Vector3d& w, std::vector<double>& z) const {
   const HalfColumns& h = half_[a];
-  for (int c = 0; c < 3; ++c)
-    for (int e = h.start[c]; e < h.start[c + 1]; ++e) z[h.index[e]] += h.value[e] * w[c];
+  const double* v = h.value.data();
+  for (size_t e = 0; e < h.index.size(); ++e, v += 3) z[h.index[e]] += v[0] * w[0] + v[1] * w[1] + v[2] * w[2];
 }
 
 Eigen::Vector3d SurfaceCompliance::gather_half(int a, const std::vector<double>& z) const {
   const HalfColumns& h = half_[a];
-  Eigen::Vector3d y = Eigen::Vector3d::Zero();
-  for (int c = 0; c < 3; ++c)
-    for (int e = h.start[c]; e < h.start[c + 1]; ++e) y[c] += h.value[e] * z[h.index[e]];
-  return y;
+  const double* v = h.value.data();
+  double y0 = 0.0, y1 = 0.0, y2 = 0.0;
+  for (size_t e = 0; e < h.index.size(); ++e, v += 3) {
+    const double ze = z[h.index[e]];
+    y0 += v[0] * ze;
+    y1 += v[1] * ze;
+    y2 += v[2] * ze;
+  }
+  return {y0, y1, y2};
 }
 
 void SurfaceCompliance::clear_half(int a, std::vector<double>& z) const {
@@ -193,9 +190,9 @@ void SurfaceCompliance::extend_gram(const std::vector<int>& kept, const std::vec
   Eigen::MatrixXd Y = Eigen::MatrixXd::Zero(rows, 3 * g);
   for (int t = 0; t < g; ++t) {
     const HalfColumns& h = half_[all[t]];
-    for (int c = 0; c < 3; ++c)
-      for (int e = h.start[c]; e < h.start[c + 1]; ++e)
-        if (row_of[h.index[e]] >= 0) Y(row_of[h.index[e]], 3 * t + c) = h.value[e];
+    for (size_t e = 0; e < h.index.size(); ++e)
+      if (row_of[h.index[e]] >= 0)
+        for (int c = 0; c < 3; ++c) Y(row_of[h.index[e]], 3 * t + c) = h.value[3 * e + c];
   }
   if (nk == 0) {
     // All fresh: the lower triangle by a rank update, then mirrored.

@@ -72,8 +72,8 @@ class SurfaceCompliance {
   // it or z of another size.
   Eigen::Vector3d half_displacement(int node, const std::vector<double>& z);
   void add_half_force(int node, const Eigen::Vector3d& w, std::vector<double>& z);
-  // Stored entries of a lazy set's node's three half columns (0 when not solved yet, or not lazy, or outside the
-  // set): what half_displacement and add_half_force each read.
+  // Rows of a lazy set's node's half columns (their common pattern; 0 when not solved yet, or not lazy, or outside
+  // the set): what half_displacement and add_half_force each read, three values a row.
   long half_entries(int node) const;
   // Whether the whole-mesh columns of the set nodes are kept (3n x 3s, m/N).
   bool keeps_mesh_columns() const { return Kc_.size() > 0; }
@@ -114,10 +114,9 @@ class SurfaceCompliance {
   bool summing_is_cheaper(size_t nodes) const;
   // Column block of set node a (position in nodes_): 3s x 3, C's columns 3a .. 3a + 2 (not lazy).
   Eigen::Ref<const Eigen::MatrixXd> set_block(int a) const;
-  // Half columns of a lazy set's node: 3 sparse columns over the factor's rows, column c the entries
-  // [start[c], start[c + 1]) of index (ascending) and value.
+  // Half columns of a lazy set's node: its 3 DOFs' sparse columns over the factor's rows, on one pattern
+  // (StaticSolver::half_columns): rows index (ascending), values row-major, value[3 e + c] of DOF c at index[e].
   struct HalfColumns {
-    int start[4] = {0, 0, 0, 0};
     std::vector<int> index;
     std::vector<double> value;
   };

@@ -352,14 +352,19 @@ TEST(StaticSolver, ScaledViewSolvesTheScaledMatrixOnTheSameFactor) {
   EXPECT_THROW(solver.scaled(-1.0), std::invalid_argument);
 }
 
+// A long thin tube (8 x 24 x 1 cells, 15 cm): nested dissection's elimination tree is balanced on it.
+TetMesh long_tube() {
+  HollowCylinderSpec spec;
+  spec.segments_around = 8, spec.segments_along = 24, spec.layers = 1, spec.length = 0.15;
+  return make_hollow_cylinder(spec);
+}
+
 // Half columns (sparse forward solves on a nested-dissection factorisation) multiply to K^-1: y_i . y_j against the
 // dense inverse (independent twin), through a scaled view too; a fixed DOF has none. On a long tube they are
 // sparse, the design's reason: here 14 % of the free DOFs on average, against 31 % with the default ordering (AMD,
 // nearly banded on a tube: its elimination tree nearly a chain), which the bound of 20 % refuses.
 TEST(StaticSolver, HalfColumnsMultiplyToTheInverseAndAreSparseOnALongTube) {
-  HollowCylinderSpec spec;
-  spec.segments_around = 8, spec.segments_along = 24, spec.layers = 1, spec.length = 0.15;
-  const TetMesh mesh = make_hollow_cylinder(spec);
+  const TetMesh mesh = long_tube();
   const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
   std::vector<int> fixed_nodes = mesh.node_set(kStartEnd);
   fixed_nodes.insert(fixed_nodes.end(), mesh.node_set(kStopEnd).begin(), mesh.node_set(kStopEnd).end());
@@ -480,6 +485,70 @@ TEST(StaticSolver, SolveSplitInHalvesReadsAndAddsThroughHalfColumns) {
   EXPECT_EQ(message_of<std::invalid_argument>([&] { solver.half_backward(std::vector<double>(3), u); }),
             "StaticSolver::half_backward: z must have " + std::to_string(solver.n_free_dofs()) +
                 " entries (the free DOFs), got 3");
+}
+
+// A node's three half columns at once: on a solver from refactorised_nested, one supernodal forward sweep over the
+// DOFs' paths in the elimination tree, against CHOLMOD's partial solves of each DOF on the same factor's copy
+// (half_column), and their products against the dense inverse; on half_column's own factorisation the per-DOF
+// solves merged; a fixed node's columns are 0; a DOF out of range is refused.
+TEST(StaticSolver, HalfColumnsOfANodeOnTheSupernodalPathsEqualThePartialSolves) {
+  const TetMesh mesh = long_tube();
+  const Eigen::SparseMatrix<double> K = assemble_stiffness(mesh, LinearMaterial{5000.0, 0.45});
+  std::vector<int> fixed_nodes = mesh.node_set(kStartEnd);
+  const StaticSolver solver(K, fixed_nodes);
+  solver.prepare_nested_analysis();
+  const StaticSolver nested = solver.refactorised_nested(K).scaled(3.0);
+  const int n = mesh.n_nodes();
+  std::vector<int> free;
+  const Eigen::MatrixXd Kf = restrict(Eigen::MatrixXd(K), whole_node_mask(fixed_nodes, n), free);
+  const Eigen::MatrixXd Kinv = Kf.llt().solve(Eigen::MatrixXd::Identity(Kf.rows(), Kf.cols()));
+  std::vector<int> free_index(3 * n, -1);
+  for (size_t k = 0; k < free.size(); ++k) free_index[free[k]] = static_cast<int>(k);
+  // A node's columns as a dense matrix over the factor's rows (n_free x 3).
+  auto dense = [&](const std::vector<int>& index, const std::vector<double>& value) {
+    Eigen::MatrixXd Y = Eigen::MatrixXd::Zero(solver.n_free_dofs(), 3);
+    EXPECT_EQ(value.size(), 3 * index.size());
+    EXPECT_TRUE(std::is_sorted(index.begin(), index.end()));
+    for (size_t e = 0; e < index.size(); ++e)
+      for (int c = 0; c < 3; ++c) Y(index[e], c) = value[3 * e + c];
+    return Y;
+  };
+  std::vector<int> index, one_index;
+  std::vector<double> value, one_value;
+  const std::vector<int> nodes = {n / 2, n / 2 + 1, n - 1, 7};
+  for (const StaticSolver* s : {&nested, &solver}) {
+    const double c = s == &nested ? 3.0 : 1.0;
+    std::vector<Eigen::MatrixXd> Ys;
+    for (int v : nodes) {
+      s->half_columns({3 * v, 3 * v + 1, 3 * v + 2}, index, value);
+      const Eigen::MatrixXd Y = dense(index, value);
+      // Each column as half_column gives it (CHOLMOD's partial solve).
+      for (int d = 0; d < 3; ++d) {
+        s->half_column(3 * v + d, one_index, one_value);
+        Eigen::VectorXd y = Eigen::VectorXd::Zero(solver.n_free_dofs());
+        for (size_t e = 0; e < one_index.size(); ++e) y[one_index[e]] = one_value[e];
+        EXPECT_LE((Y.col(d) - y).norm(), 1e-12 * y.norm() + 1e-300) << "node " << v << " dof " << d;
+      }
+      Ys.push_back(Y);
+    }
+    // Y_a^T Y_b = (c K)^-1 between the nodes' free DOFs.
+    for (size_t a = 0; a < nodes.size(); ++a)
+      for (size_t b = 0; b < nodes.size(); ++b) {
+        const Eigen::Matrix3d block = Ys[a].transpose() * Ys[b];
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) {
+            const int fi = free_index[3 * nodes[a] + i], fj = free_index[3 * nodes[b] + j];
+            const double want = fi < 0 || fj < 0 ? 0.0 : Kinv(fi, fj) / c;
+            EXPECT_NEAR(block(i, j), want, 1e-10 * Kinv.cwiseAbs().maxCoeff());
+          }
+      }
+  }
+  // A fixed node: no entries (its columns are 0).
+  nested.half_columns({3 * fixed_nodes[0], 3 * fixed_nodes[0] + 1, 3 * fixed_nodes[0] + 2}, index, value);
+  EXPECT_TRUE(index.empty());
+  EXPECT_EQ(lumen::test::message_of<std::invalid_argument>([&] { nested.half_columns({0, 3 * n}, index, value); }),
+            "StaticSolver::half_columns: dofs[1] must be in [0, " + std::to_string(3 * n) + "), got " +
+                std::to_string(3 * n));
 }
 
 // A matrix of the same pattern refactorised on the first one's symbolic analysis solves as its own dense Cholesky

@@ -143,6 +143,31 @@ void BM_PhysicsQpStepSolves(benchmark::State& state) {
 BENCHMARK(BM_PhysicsQpStepSolves)->Args({0, 20})->Args({1, 20})->Args({0, 80})->Args({1, 80})->Args({0, 150})->Args({1, 150})
     ->Unit(benchmark::kMicrosecond);
 
+// The half columns of 32 inner nodes (StaticSolver::half_columns, a node's three at once): arg 0 on the rest
+// solver (CHOLMOD's partial solves on its nested-dissection factor, one a DOF), arg 1 on a solver from
+// refactorised_nested (one supernodal forward sweep over the node's paths in the elimination tree).
+void BM_PhysicsHalfColumnsOfNodes(benchmark::State& state) {
+  const PaperModel& m = model();
+  m.solver->prepare_nested_analysis();
+  const StaticSolver nested = m.solver->refactorised_nested(m.K);
+  const StaticSolver& solver = state.range(0) == 0 ? *m.solver : nested;
+  std::vector<int> index;
+  std::vector<double> value;
+  long entries = 0;
+  for (auto _ : state) {
+    entries = 0;
+    for (int k = 0; k < 32; ++k) {
+      const int v = m.inner_nodes[(k * 17) % m.inner_nodes.size()];
+      solver.half_columns({3 * v, 3 * v + 1, 3 * v + 2}, index, value);
+      entries += static_cast<long>(index.size());
+    }
+    benchmark::DoNotOptimize(value.data());
+  }
+  state.counters["rows_per_node"] = static_cast<double>(entries) / 32.0;
+  state.SetItemsProcessed(state.iterations() * 32);
+}
+BENCHMARK(BM_PhysicsHalfColumnsOfNodes)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
 void BM_PhysicsSolveMany(benchmark::State& state) {
   const PaperModel& m = model();
   const Eigen::MatrixXd F = Eigen::MatrixXd::Random(m.solver->n_dofs(), state.range(0));
