@@ -64,10 +64,10 @@ struct Evaluation {
 
 // One QP at u: lambda from the LCP on W, and the step du = B^-1 (r + H^T lambda) with B^-1 = Rn A^-1 Rn^T (A the
 // given factorisation; Rn empty: B = A). On a lazy compliance whose set holds every row node, over a solver whose
-// halves sweep its own supernodal factor, and with few enough half-column entries (options.split_entry_share), the
-// step is split (StaticSolver::half_forward / half_backward): z = L^-1 P Rn^T r, the LCP's free motion of the row nodes read
-// from z through their half columns, H^T lambda added to z the same way, and one backward sweep: one solve a step.
-// Otherwise two: B^-1 r, then B^-1 H^T lambda.
+// halves sweep its own supernodal factor, and with few enough half-column rows (options.split_entry_share), the
+// step is split (StaticSolver::half_forward / half_backward): z = L^-1 P Rn^T r, the LCP's free motion of the row
+// nodes read from z through their half columns, H^T lambda added to z the same way, and one backward sweep: one
+// solve a step. Otherwise two: B^-1 r, then B^-1 H^T lambda.
 class WarpedQp {
  public:
   WarpedQp(SurfaceCompliance& compliance, const std::vector<ContactRow>& rows, const Eigen::MatrixXd& W,
@@ -224,54 +224,43 @@ ContactEquilibriumResult solve_contact_equilibrium(const CorotationalModel& mode
     if (at_bound || result.converged || !du.allFinite()) break;
     ++result.steps;
     const Eigen::VectorXd u0 = state.u;
-    // Off the rows: backtrack on the exact penalty phi = Pi + mu sum max(0, g - H u), mu above every multiplier,
-    // along which du descends (its slope -r . du - mu V(u)); a step that finds no decrease is taken whole (it ends
-    // on the rows).
-    if (result.violation > options.feasibility_tolerance) {
-      const double mu = kMeritMultiplierFactor * (lambda.size() > 0 ? std::max(lambda.maxCoeff(), 0.0) : 0.0);
-      const double penalty = mu * qp.total_violation(u0);
-      const double start = eval.potential + penalty, slope = eval.r.dot(du) + penalty;  // slope: -(phi's slope)
-      bool accepted = false;
-      double alpha = 1.0;
-      for (int k = 0; k <= kMaxHalvings && slope > 0.0; ++k, alpha *= 0.5) {
-        state.u = u0 + alpha * du;
-        eval.at(state);
-        const double phi = eval.potential + mu * qp.total_violation(state.u);
-        if (std::isfinite(phi) && eval.r.allFinite() && phi <= start - kSufficientDecrease * alpha * slope) {
-          accepted = true;
-          break;
-        }
-        ++result.backtracks;
-      }
-      if (accepted) continue;
-      state.u = u0 + du;
-      eval.at(state);
-      if (std::isfinite(eval.potential) && eval.r.allFinite()) continue;
-      state.u = u0;  // a step to a point that is not finite: back, and stop (not converged)
-      eval.at(state);
-      break;
-    }
-    // On the rows: backtrack to Armijo's decrease of Pi along the descent direction du.
-    const double slope = eval.r.dot(du), start = eval.potential;
-    if (!(slope > 0.0)) break;  // no descent left at round-off: the iterate stays
-    double alpha = 1.0;
+    // The merit the step backtracks on: off the rows the exact penalty phi = Pi + mu sum max(0, g - H u), mu above
+    // every multiplier, along which du descends (its slope -r . du - mu V(u)); on the rows Pi itself (Armijo).
+    const bool off_rows = result.violation > options.feasibility_tolerance;
+    const double mu =
+        off_rows ? kMeritMultiplierFactor * (lambda.size() > 0 ? std::max(lambda.maxCoeff(), 0.0) : 0.0) : 0.0;
+    const auto merit = [&](const Eigen::VectorXd& u) {
+      return off_rows ? eval.potential + mu * qp.total_violation(u) : eval.potential;
+    };
+    const double penalty = off_rows ? mu * qp.total_violation(u0) : 0.0;
+    const double start = eval.potential + penalty, slope = eval.r.dot(du) + penalty;  // slope: -(phi's slope)
+    if (!off_rows && !(slope > 0.0)) break;  // on the rows, no descent left at round-off: the iterate stays
     bool accepted = false;
-    for (int k = 0; k <= kMaxHalvings; ++k, alpha *= 0.5) {
+    double alpha = 1.0;
+    for (int k = 0; k <= kMaxHalvings && slope > 0.0; ++k, alpha *= 0.5) {
       state.u = u0 + alpha * du;
       eval.at(state);
-      const bool decrease = eval.potential <= start - kSufficientDecrease * alpha * slope;
-      const bool round_off = alpha == 1.0 && std::abs(eval.potential - start) <= kPotentialRoundOff * std::abs(start);
-      if (std::isfinite(eval.potential) && eval.r.allFinite() && (decrease || round_off)) {
+      const double phi = merit(state.u);
+      const bool decrease = phi <= start - kSufficientDecrease * alpha * slope;
+      const bool round_off =
+          !off_rows && alpha == 1.0 && std::abs(phi - start) <= kPotentialRoundOff * std::abs(start);
+      if (std::isfinite(phi) && eval.r.allFinite() && (decrease || round_off)) {
         accepted = true;
         break;
       }
       ++result.backtracks;
     }
-    if (!accepted) {
-      state.u = u0;
+    if (accepted) continue;
+    // No decrease found: off the rows the whole step is taken (it ends on the rows); on the rows, or where the whole
+    // step is not finite, the iterate goes back to its start and the iteration stops (not converged).
+    if (off_rows) {
+      state.u = u0 + du;
       eval.at(state);
-      break;
+      if (std::isfinite(eval.potential) && eval.r.allFinite()) continue;
     }
+    state.u = u0;
+    eval.at(state);
+    break;
   }
   result.lambda = lambda;
   result.n_inverted = state.n_inverted;

@@ -28,7 +28,7 @@ namespace {
 
 using Mat43 = Eigen::Matrix<double, 4, 3>;
 
-
+// The elimination tree of a supernodal factor (SupernodeTree).
 SupernodeTree supernode_tree(const detail::SupernodalView& L) {
   SupernodeTree t;
   t.of_column.resize(L.n);

@@ -197,9 +197,9 @@ TEST(ContactEquilibrium, IteratesStartedOnTheRowsStayOnThemAndDescend) {
 
 // On a lazy compliance (half columns per node) each QP step is split, one forward and one backward sweep with the
 // row nodes' free motion read and the contact forces added through their half columns; on an eager one (C solved at
-// construction), or over a solver whose halves do not sweep its own factor, it is two whole solves. The two are the same iteration: from the contact-free equilibrium (past the
-// floors: the penalty line search) and for each step bound, the same iterates and multipliers to round-off, for the
-// rest K, K turned per node and a lagged K_w.
+// construction), or over a solver whose halves do not sweep its own factor, it is two whole solves. The two are the
+// same iteration: from the contact-free equilibrium (past the floors: the penalty line search) and for each step
+// bound, the same iterates and multipliers to round-off, for the rest K, K turned per node and a lagged K_w.
 TEST(ContactEquilibrium, StepsSplitOnHalfColumnsEqualTwoWholeSolves) {
   const FlooredPress p = floored_press(0.05, 1.5e-3);
   const CorotationalModel model(p.mesh, kTissue, p.fixed);

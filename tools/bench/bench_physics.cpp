@@ -140,7 +140,8 @@ void BM_PhysicsQpStepSolves(benchmark::State& state) {
   state.counters["half_entries"] = static_cast<double>(entries);
   state.counters["L_nnz"] = static_cast<double>(nested.factor_nonzeros());
 }
-BENCHMARK(BM_PhysicsQpStepSolves)->Args({0, 20})->Args({1, 20})->Args({0, 80})->Args({1, 80})->Args({0, 150})->Args({1, 150})
+BENCHMARK(BM_PhysicsQpStepSolves)
+    ->Args({0, 20})->Args({1, 20})->Args({0, 80})->Args({1, 80})->Args({0, 150})->Args({1, 150})
     ->Unit(benchmark::kMicrosecond);
 
 // The half columns of 32 inner nodes (StaticSolver::half_columns, a node's three at once): arg 0 on the rest
