@@ -900,20 +900,10 @@ void StaticSolver::half_column(int dof, std::vector<int>& index, std::vector<dou
                                 std::to_string(dof));
   index.clear();
   value.clear();
-  const int k = m.free_of[dof];
-  if (k < 0) return;
-  // L y = e_k in the factor's order (no permutation: sys L), then its reach's entries, ascending, scaled by
+  // L y = e_k in the factor's order (a partial solve on half_L), its reach's entries ascending, scaled by
   // sqrt(inverse scale) (L L^T is the factorised matrix, whose inverse this solver returns times inverse_scale_).
   m.prepare_half();
-  m.half_solve(m.position[k]);
-  const int* xp = static_cast<const int*>(m.half_xset->p);
-  const int* xi = static_cast<const int*>(m.half_xset->i);
-  const double* x = static_cast<const double*>(m.half_x->x);
-  const double scale = std::sqrt(inverse_scale_);
-  index.assign(xi + xp[0], xi + xp[1]);
-  std::sort(index.begin(), index.end());
-  value.resize(index.size());
-  for (size_t e = 0; e < index.size(); ++e) value[e] = scale * x[index[e]];
+  m.half_columns_partial({dof}, std::sqrt(inverse_scale_), index, value);
 }
 
 void StaticSolver::half_forward(const Eigen::VectorXd& f, std::vector<double>& z) const {

@@ -157,6 +157,14 @@ std::vector<char> whole_node_mask(const std::vector<int>& nodes, int n_nodes) {
   return fixed;
 }
 
+// The dense inverse of K on the free DOFs of n nodes with the listed nodes fixed (the independent twin of the
+// factorised solves), and those free DOFs (free).
+Eigen::MatrixXd free_inverse(const Eigen::SparseMatrix<double>& K, const std::vector<int>& fixed_nodes, int n,
+                             std::vector<int>& free) {
+  const Eigen::MatrixXd Kf = restrict(Eigen::MatrixXd(K), whole_node_mask(fixed_nodes, n), free);
+  return Kf.llt().solve(Eigen::MatrixXd::Identity(Kf.rows(), Kf.cols()));
+}
+
 // A load of standard normal entries (n_dofs), and a vector's entries on the free DOFs (in their order).
 Eigen::VectorXd random_load(int n_dofs, std::mt19937& rng) {
   std::normal_distribution<double> d;
@@ -371,8 +379,7 @@ TEST(StaticSolver, HalfColumnsMultiplyToTheInverseAndAreSparseOnALongTube) {
   const StaticSolver solver(K, fixed_nodes);
   const int n = mesh.n_nodes(), nf = solver.n_free_dofs();
   std::vector<int> free;
-  const Eigen::MatrixXd Kf = restrict(Eigen::MatrixXd(K), whole_node_mask(fixed_nodes, n), free);
-  const Eigen::MatrixXd Kinv = Kf.llt().solve(Eigen::MatrixXd::Identity(Kf.rows(), Kf.cols()));
+  const Eigen::MatrixXd Kinv = free_inverse(K, fixed_nodes, n, free);
   // Half columns of every free DOF, as columns of a sparse matrix over the factor's rows.
   std::vector<Eigen::Triplet<double>> entries;
   std::vector<int> index;
@@ -427,8 +434,7 @@ TEST(StaticSolver, SolveSplitInHalvesReadsAndAddsThroughHalfColumns) {
   const StaticSolver solver(K, fixed_nodes);
   const int n = mesh.n_nodes();
   std::vector<int> free;
-  const Eigen::MatrixXd Kf = restrict(Eigen::MatrixXd(K), whole_node_mask(fixed_nodes, n), free);
-  const Eigen::MatrixXd Kinv = Kf.llt().solve(Eigen::MatrixXd::Identity(Kf.rows(), Kf.cols()));
+  const Eigen::MatrixXd Kinv = free_inverse(K, fixed_nodes, n, free);
   std::mt19937 rng(11);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   Eigen::VectorXd f(3 * n), g = Eigen::VectorXd::Zero(3 * n);
@@ -500,8 +506,7 @@ TEST(StaticSolver, HalfColumnsOfANodeOnTheSupernodalPathsEqualThePartialSolves) 
   const StaticSolver nested = solver.refactorised_nested(K).scaled(3.0);
   const int n = mesh.n_nodes();
   std::vector<int> free;
-  const Eigen::MatrixXd Kf = restrict(Eigen::MatrixXd(K), whole_node_mask(fixed_nodes, n), free);
-  const Eigen::MatrixXd Kinv = Kf.llt().solve(Eigen::MatrixXd::Identity(Kf.rows(), Kf.cols()));
+  const Eigen::MatrixXd Kinv = free_inverse(K, fixed_nodes, n, free);
   std::vector<int> free_index(3 * n, -1);
   for (size_t k = 0; k < free.size(); ++k) free_index[free[k]] = static_cast<int>(k);
   // A node's columns as a dense matrix over the factor's rows (n_free x 3).
