@@ -540,6 +540,17 @@ Inputs make_inputs(const Scene& scene) {
   return in;
 }
 
+namespace {
+
+// Contacts to come in the equilibrium on lagged Hessians: the integrator keeps one factorised ahead of them (from the
+// session's start, so that the first, slower factorisations are done before the walls meet).
+void anticipate_contacts(const Model& model, State& state) {
+  if (model.contacts_in_solve && state.compliance && model.collision.equilibrium_hessian == EquilibriumHessian::kLagged)
+    model.integrator->anticipate_contacts(state.compliance->nodes(), state.work);
+}
+
+}  // namespace
+
 State make_state(const Model& model) {
   State s;
   const int n = model.mesh.n_nodes();
@@ -574,6 +585,7 @@ State make_state(const Model& model) {
     s.compliance->ensure_columns(probe_nodes);
   }
   prime_proximity(model, s);
+  anticipate_contacts(model, s);
   return s;
 }
 
@@ -796,6 +808,7 @@ void step_begin(const Model& model, Inputs& inputs, State& state, FrameRecord& r
   state.tool_records.clear();
   if (state.compliance && solved) collide_and_respond(model, state, u, rec);
   wait_for_last_frame(model, state, rec);
+  anticipate_contacts(model, state);
 
   // Commit (or keep the last good frame), or, with the interior deferred, start its solve on a second thread and
   // place the nodes the renderer and the next frame's collision read (exact already).

@@ -144,11 +144,15 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
   // frames old, and its bounded QP steps short, docs/bench_contact_prediction.csv; when it only waited for the shared
   // factor to be its preconditioner, its own last one replaced it, and its factorisations came back: halvings 187
   // against 42-49 in one run), and the contact work bound.
+  // (So too before and between contacts while the background thread keeps a contact Hessian factorised,
+  // anticipate_contacts.)
   CorotationalOptions options = options_;
-  if (work.after_contact_solve && shares_contact_hessian()) options.refactor_cg_iterations = 0;
+  const bool anticipated = options_.refactor_in_background && (work.contact_hessian.factor || work.contact_pending.valid());
+  if ((work.after_contact_solve || anticipated) && shares_contact_hessian()) options.refactor_cg_iterations = 0;
   if (work.after_contact_solve && options.contact_back_substitutions > 0)
     options.max_back_substitutions = options.contact_back_substitutions;
   work.after_contact_solve = false;
+  ++work.predictions;
   const CorotationalResult r = solve_corotational(model_, f, work.corotational, options, u_fixed, loads.contacts);
   u1 = work.corotational.u;
   Prediction p;
@@ -168,12 +172,22 @@ namespace {
 
 // A contact solve's start this near the last one's end (relative to its largest entry) is taken as that end.
 constexpr double kSameStartRoundOff = 1e-12;
+// When the walls meet (a contact solve after a frame without one), a contact Hessian factorised at rotations more
+// than this many frames old is not used: the solve factorises K_w at its start at once. (Measured on the 8x pinch,
+// rendered with the exact check: in contact the background Hessians the solves use are 0-12 frames old; when the
+// walls met on one anticipated about 25 frames before, the next 9 frames' steps took 7-9 line-search halvings each.)
+constexpr int kStaleHessianFrames = 12;
+// Before the walls meet, a new contact Hessian is started once the last one is this many frames old (not whenever
+// the background thread is free: its factorisations slowed the contact-free frames' solves on the main thread,
+// measured on the 8x pinch, pcr median 8 against 15 ms with one after another).
+constexpr int kAnticipatedHessianFrames = 6;
 
 // K_w at the rotations R factorised, with its compliance over the nodes (lazy: half columns per node) and the half
 // columns of the prefetched nodes solved for.
 ContactHessianFactor contact_hessian(const CorotationalModel& model, const std::vector<Eigen::Matrix3d>& R,
-                                     const std::vector<int>& nodes, const std::vector<int>& prefetch) {
+                                     const std::vector<int>& nodes, const std::vector<int>& prefetch, int taken_at) {
   ContactHessianFactor h;
+  h.taken_at = taken_at;
   h.factor = factorise_warped(model, R, true);
   h.compliance = std::make_shared<SurfaceCompliance>(*h.factor, nodes, SurfaceCompliance::kBlockColumns, 0L, 0L);
   h.compliance->ensure_columns(prefetch);
@@ -183,11 +197,13 @@ ContactHessianFactor contact_hessian(const CorotationalModel& model, const std::
 // The same on a new thread at the background factorisations' priority.
 std::future<ContactHessianFactor> contact_hessian_in_background(const CorotationalModel& model,
                                                                 std::vector<Eigen::Matrix3d> R,
-                                                                std::vector<int> nodes, std::vector<int> prefetch) {
+                                                                std::vector<int> nodes, std::vector<int> prefetch,
+                                                                int taken_at) {
   return std::async(std::launch::async,
-                    [&model](std::vector<Eigen::Matrix3d> rotations, std::vector<int> set, std::vector<int> ahead) {
+                    [&model, taken_at](std::vector<Eigen::Matrix3d> rotations, std::vector<int> set,
+                                       std::vector<int> ahead) {
                       at_background_priority();
-                      return contact_hessian(model, rotations, set, ahead);
+                      return contact_hessian(model, rotations, set, ahead, taken_at);
                     },
                     std::move(R), std::move(nodes), std::move(prefetch));
 }
@@ -212,17 +228,13 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
     throw std::logic_error(
         "CorotationalQuasiStatic::solve_with_contacts: no prediction before it (its loads are the frame's)");
   const bool lagged = options.hessian == ContactHessian::as_given;
-  // A finished background factorisation becomes the Hessian (one that failed is dropped: the last one stays).
+  // A finished background factorisation becomes the Hessian; the first contact solve waits for one under way
+  // (anticipate_contacts started it before the walls met) rather than factorising another.
   int failures = 0;
   if (lagged && work.contact_pending.valid() &&
-      work.contact_pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready) {
-    try {
-      work.contact_hessian = work.contact_pending.get();
-      share_with_prediction(work);
-    } catch (const std::exception&) {
-      ++failures;  // not positive definite or out of memory: counted, and the last one stays
-    }
-  }
+      (!work.contact_hessian.compliance ||
+       work.contact_pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready))
+    adopt_contact_hessian(work, failures);
   // A start at the last contact solve's end to round-off (the committed state is the prediction plus the
   // correction) starts at that end exactly, with its evaluation.
   const CachedEvaluation& end = work.contact_end;
@@ -234,13 +246,18 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   work.corotational.u = u;
   // The rest solver's nested-dissection analysis, once, on this thread: the contact Hessians are factorised on it.
   if (lagged && !model_.solver().has_nested_analysis()) model_.solver().prepare_nested_analysis();
-  // The first contact solve factorises K_w at its start, at once (the rest K is far from the tangent of a tube
-  // deflected several wall thicknesses: its steps needed four line-search halvings each and did not converge).
-  if (lagged && !work.contact_hessian.compliance && !work.contact_pending.valid()) {
+  // The first contact solve without an anticipated Hessian, or where the walls meet on a stale one, factorises K_w
+  // at its start, at once (the rest K is far from the tangent of a tube deflected several wall thicknesses: its steps
+  // needed four line-search halvings each and did not converge).
+  const bool walls_meet = work.predictions - work.last_contact_solve > 1;
+  const bool stale = walls_meet && work.contact_hessian.compliance &&
+                     work.predictions - work.contact_hessian.taken_at > kStaleHessianFrames;
+  work.last_contact_solve = work.predictions;
+  if (lagged && ((!work.contact_hessian.compliance && !work.contact_pending.valid()) || stale)) {
     try {
       std::vector<Eigen::Matrix3d> R;
       model_.elements().rotations(u, R);
-      work.contact_hessian = contact_hessian(model_, R, compliance.nodes(), {});
+      work.contact_hessian = contact_hessian(model_, R, compliance.nodes(), {}, work.predictions);
       share_with_prediction(work);
     } catch (const std::exception&) {
       ++failures;  // (the rest K then)
@@ -257,12 +274,12 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   // of these rows' nodes (the next frame's rows are mostly on them).
   if (lagged && !work.contact_pending.valid()) {
     if (options_.refactor_in_background) {
-      work.contact_pending =
-          contact_hessian_in_background(model_, work.corotational.rotations, compliance.nodes(), row_nodes(rows));
+      work.contact_pending = contact_hessian_in_background(model_, work.corotational.rotations, compliance.nodes(),
+                                                           row_nodes(rows), work.predictions);
     } else {
       try {
         work.contact_hessian =
-            contact_hessian(model_, work.corotational.rotations, compliance.nodes(), row_nodes(rows));
+            contact_hessian(model_, work.corotational.rotations, compliance.nodes(), row_nodes(rows), work.predictions);
         share_with_prediction(work);
       } catch (const std::exception&) {
         ++failures;
@@ -272,6 +289,49 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   work.after_contact_solve = lagged;
   r.refactor_failures = failures;
   return r;
+}
+
+// The background job's Hessian adopted (waiting for it if under way) unless it is older than the one in use; one that
+// failed (not positive definite, out of memory) is counted and dropped, and the last one stays.
+void CorotationalQuasiStatic::adopt_contact_hessian(IntegratorWork& work, int& failures) const {
+  try {
+    ContactHessianFactor h = work.contact_pending.get();  // (get() leaves contact_pending invalid, failed or not)
+    if (work.contact_hessian.compliance && h.taken_at < work.contact_hessian.taken_at) return;
+    work.contact_hessian = std::move(h);
+    share_with_prediction(work);
+  } catch (const std::exception&) {
+    ++failures;
+  }
+}
+
+void CorotationalQuasiStatic::anticipate_contacts(const std::vector<int>& nodes, IntegratorWork& work) const {
+  if (!options_.refactor_in_background || !shares_contact_hessian() || work.after_contact_solve) return;
+  // (A failure here is the next contact solve's to meet: it factorises at once when no Hessian is left.)
+  int failures = 0;
+  if (work.contact_pending.valid() &&
+      work.contact_pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready)
+    adopt_contact_hessian(work, failures);
+  if (work.contact_pending.valid()) return;
+  if (!model_.solver().has_nested_analysis()) model_.solver().prepare_nested_analysis();
+  // Before the first prediction (the session's start): K, at once, twice with both alive, one kept. A factorisation
+  // whose memory is touched for the first time costs several later ones (120-170 against 26-30 ms on the paper mesh,
+  // measured, page faults); the process keeps the memory it has touched (the lumen binary's malloc settings), so the
+  // background thread's factorisations (one in use while the next is made) reuse these two's, out of the frames.
+  const std::vector<Eigen::Matrix3d>& R = work.corotational.rotations;
+  if (static_cast<int>(R.size()) != model_.elements().n_tets()) {
+    try {
+      const std::vector<Eigen::Matrix3d> rest(model_.elements().n_tets(), Eigen::Matrix3d::Identity());
+      work.contact_hessian = contact_hessian(model_, rest, nodes, {}, work.predictions);
+      contact_hessian(model_, rest, nodes, {}, work.predictions);
+      share_with_prediction(work);
+    } catch (const std::exception&) {
+      // (as a failed background one: the first contact solve factorises at once)
+    }
+    return;
+  }
+  if (work.contact_hessian.compliance && work.predictions - work.contact_hessian.taken_at < kAnticipatedHessianFrames)
+    return;
+  work.contact_pending = contact_hessian_in_background(model_, R, nodes, {}, work.predictions);
 }
 
 // ---------------------------------------------------------------------------------------------------------------

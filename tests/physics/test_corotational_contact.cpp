@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -13,6 +14,7 @@
 #include "physics/corotational.hpp"
 #include "physics/corotational_contact.hpp"
 #include "physics/fem.hpp"
+#include "physics/integrator.hpp"
 #include "physics/mesh.hpp"
 #include "physics/surface_compliance.hpp"
 #include "support/fem.hpp"
@@ -236,6 +238,94 @@ TEST(ContactEquilibrium, StepsSplitOnHalfColumnsEqualTwoWholeSolves) {
       EXPECT_LE((ra.lambda - rb.lambda).norm(), 1e-9 * p.f.norm()) << steps << " steps";
     }
   }
+}
+
+// The tube's loads as one point load on each loaded node, times `scale`.
+FrameLoads point_loads(const FlooredPress& p, double scale) {
+  FrameLoads loads;
+  for (int v : p.top) {
+    PointLoad pl;
+    pl.at.node[0] = v, pl.at.weight[0] = 1.0;
+    pl.force = scale * p.f.segment<3>(3 * v);
+    loads.points.push_back(pl);
+  }
+  return loads;
+}
+
+// relative |A^-1 b - B^-1 b| / |A^-1 b| for b the press's loads.
+double solve_difference(const StaticSolver& a, const StaticSolver& b, const Eigen::VectorXd& f) {
+  Eigen::VectorXd ua, ub;
+  a.solve(f, ua);
+  b.solve(f, ub);
+  return (ua - ub).norm() / ua.norm();
+}
+
+// A contact Hessian anticipated before the walls meet (CorotationalQuasiStatic::anticipate_contacts, background
+// factorisation on): K_w at the last evaluated rotations, factorised on the background thread, preconditions the
+// next prediction (which starts no factorisation of its own, where one without it does), and the first contact solve
+// adopts it (waiting for it while under way) instead of factorising K_w at its start: its Hessian solves as the twin
+// factorised here at the anticipation's rotations, not as K_w at the solve's start. Its end is the equilibrium that
+// a solve factorising at once reaches (KKT conditions from forces evaluated afresh). Without background
+// factorisation anticipating does nothing; before the first prediction it factorises K at once.
+TEST(ContactEquilibrium, TheFirstContactSolveAdoptsTheAnticipatedHessian) {
+  const FlooredPress p = floored_press(0.05, 1.5e-3);
+  CorotationalOptions o = tight();
+  o.refactor_cg_iterations = 1;  // (any PCG solve of more than one iteration asks for a factorisation)
+  o.refactor_in_background = true;
+  const CorotationalQuasiStatic anticipating(p.mesh, kTissue, p.fixed, o, PrescribedMotion{});
+  o.refactor_in_background = false;
+  const CorotationalQuasiStatic at_once(p.mesh, kTissue, p.fixed, o, PrescribedMotion{});
+  const CorotationalModel& model = anticipating.model();
+  SurfaceCompliance compliance(model.solver(), p.top);
+  ContactEquilibriumOptions co = tight_contact();
+  co.hessian = ContactHessian::as_given;
+  Eigen::VectorXd u_end[2], lambda_end[2];
+  for (const int variant : {0, 1}) {
+    SCOPED_TRACE(variant == 0 ? "anticipated" : "at once");
+    const CorotationalQuasiStatic& integrator = variant == 0 ? anticipating : at_once;
+    IntegratorWork work;
+    Eigen::VectorXd u;
+    // A frame before contact (half the load, the floors not reached), then the anticipation.
+    FrameLoads half = point_loads(p, 0.5);
+    integrator.predict(half, Eigen::VectorXd(), SimState{}, work, u);
+    integrator.anticipate_contacts(p.top, work);
+    EXPECT_EQ(work.contact_pending.valid(), variant == 0);
+    const std::vector<Eigen::Matrix3d> anticipated_at = work.corotational.rotations;
+    // The contact frame: its prediction, then the contacts solved in the equilibrium.
+    FrameLoads whole = point_loads(p, 1.0);
+    const Prediction prediction = integrator.predict(whole, Eigen::VectorXd(), SimState{}, work, u);
+    EXPECT_EQ(prediction.refactorisations == 0, variant == 0);
+    std::vector<Eigen::Matrix3d> start_at;
+    model.elements().rotations(u, start_at);
+    const ContactEquilibriumResult r = integrator.solve_with_contacts(p.rows, compliance, co, work, u, Eigen::VectorXd());
+    ASSERT_TRUE(r.converged);
+    ASSERT_TRUE(work.contact_hessian.factor);
+    EXPECT_EQ(work.corotational.preconditioner, work.contact_hessian.factor);
+    // (At once, the Hessian left is the next one, K_w at the solve's end; anticipated, the next one is under way
+    // and the Hessian left is the one the solve adopted.)
+    const std::vector<Eigen::Matrix3d>& expected_at = variant == 0 ? anticipated_at : work.corotational.rotations;
+    const double from_expected =
+        solve_difference(*factorise_warped(model, expected_at, false), *work.contact_hessian.factor, p.f);
+    const double from_start =
+        solve_difference(*factorise_warped(model, start_at, false), *work.contact_hessian.factor, p.f);
+    std::printf("%s: Hessian against K_w at the %s %.2e, at the solve's start %.2e\n",
+                variant == 0 ? "anticipated" : "at once", variant == 0 ? "anticipation" : "solve's end",
+                from_expected, from_start);
+    EXPECT_LE(from_expected, 1e-10);
+    EXPECT_GT(from_start, 1e-4);  // (the rotations differ: the check can fail)
+    EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
+    u_end[variant] = u;
+    lambda_end[variant] = r.lambda;
+  }
+  EXPECT_LE((u_end[0] - u_end[1]).norm(), 1e-5 * u_end[1].norm());
+  EXPECT_LE((lambda_end[0] - lambda_end[1]).norm(), 1e-4 * lambda_end[1].norm());
+  // At the session's start (no prediction yet) the anticipated Hessian is K, factorised at once.
+  IntegratorWork start;
+  anticipating.anticipate_contacts(p.top, start);
+  EXPECT_FALSE(start.contact_pending.valid());
+  ASSERT_TRUE(start.contact_hessian.factor);
+  EXPECT_EQ(start.corotational.preconditioner, start.contact_hessian.factor);
+  EXPECT_LE(solve_difference(model.solver(), *start.contact_hessian.factor, p.f), 1e-10);
 }
 
 // Bad input names the field.
