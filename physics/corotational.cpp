@@ -216,6 +216,10 @@ void CorotationalElements::add_support(const Eigen::VectorXd& v, Eigen::VectorXd
   if (support_.size()) y.array() += support_.array() * v.array();
 }
 
+double CorotationalElements::support_energy(const Eigen::VectorXd& u) const {
+  return support_.size() ? 0.5 * support_.dot(u.cwiseProduct(u)) : 0.0;
+}
+
 Eigen::SparseMatrix<double> CorotationalElements::with_support(Eigen::SparseMatrix<double> K) const {
   if (!support_.size()) return K;
   // (In place: a diagonal entry missing from K's pattern is inserted.)
@@ -265,24 +269,29 @@ int CorotationalElements::rotations(const Eigen::VectorXd& u, std::vector<Eigen:
 }
 
 void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R,
-                                          Eigen::VectorXd& f) const {
+                                          Eigen::VectorXd& f, double* energy) const {
   check_rotations("CorotationalElements::elastic_forces", R);
   if (u.size() != n_dofs()) detail::fail_must("CorotationalElements::elastic_forces", "u.size()", "be 3n", u.size());
+  double elements = 0.0;
   if (order_ == ElementOrder::kQuadratic) {
-    quadratic_forces(u, R, f);
-    return add_support(u, f);
-  }
-  f.setZero(n_dofs());
-  for (int t = 0; t < n_tets(); ++t) {
-    // Strain of the unrotated element, eps = sym(R^T F) - I, its stress, and the nodal forces V R sigma grad N_a.
-    const Eigen::Matrix3d S = R[t].transpose() * gradient(u, t);
-    Eigen::Matrix3d eps = 0.5 * (S + S.transpose());
-    eps.diagonal().array() -= 1.0;
-    const Eigen::Matrix3d P = volume_[t] * (R[t] * stress(eps, lambda_, mu_)) * grad_[t].transpose();
-    for (int a = 0; a < 3; ++a) f.segment<3>(3 * tets_(t, a + 1)) += P.col(a);
-    f.segment<3>(3 * tets_(t, 0)) -= P.rowwise().sum();
+    elements = quadratic_forces(u, R, f);
+  } else {
+    f.setZero(n_dofs());
+    for (int t = 0; t < n_tets(); ++t) {
+      // Strain of the unrotated element, eps = sym(R^T F) - I, its stress, the nodal forces V R sigma grad N_a, and
+      // its energy V eps : sigma / 2.
+      const Eigen::Matrix3d S = R[t].transpose() * gradient(u, t);
+      Eigen::Matrix3d eps = 0.5 * (S + S.transpose());
+      eps.diagonal().array() -= 1.0;
+      const Eigen::Matrix3d sigma = stress(eps, lambda_, mu_);
+      elements += 0.5 * volume_[t] * eps.cwiseProduct(sigma).sum();
+      const Eigen::Matrix3d P = volume_[t] * (R[t] * sigma) * grad_[t].transpose();
+      for (int a = 0; a < 3; ++a) f.segment<3>(3 * tets_(t, a + 1)) += P.col(a);
+      f.segment<3>(3 * tets_(t, 0)) -= P.rowwise().sum();
+    }
   }
   add_support(u, f);
+  if (energy) *energy = elements + support_energy(u);
 }
 
 void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p,
@@ -413,7 +422,7 @@ Eigen::SparseMatrix<double> CorotationalElements::tangent_stiffness(const std::v
 double CorotationalElements::elastic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const {
   check_rotations("CorotationalElements::elastic_energy", R);
   detail::check_vector("CorotationalElements::elastic_energy", "u", u, n_dofs());
-  const double springs = support_.size() ? 0.5 * support_.dot(u.cwiseProduct(u)) : 0.0;  // the supports' springs
+  const double springs = support_energy(u);
   if (order_ == ElementOrder::kQuadratic) return quadratic_energy(u, R) + springs;
   double energy = springs;
   for (int t = 0; t < n_tets(); ++t) {
@@ -456,14 +465,18 @@ Eigen::Matrix<double, 30, 1> CorotationalElements::unrotated_displacement(const 
   return d;
 }
 
-void CorotationalElements::quadratic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R,
-                                            Eigen::VectorXd& f) const {
+double CorotationalElements::quadratic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R,
+                                              Eigen::VectorXd& f) const {
   f.setZero(n_dofs());
+  double energy = 0.0;
   for (int t = 0; t < n_tets(); ++t) {
-    // f_e = R K_e (R^T x_e - X_e).
-    const Eigen::Matrix<double, 30, 1> fe = element_stiffness(t) * unrotated_displacement(u, R[t], t);
+    // f_e = R K_e d with d = R^T x_e - X_e, and the energy d^T K_e d / 2.
+    const Eigen::Matrix<double, 30, 1> d = unrotated_displacement(u, R[t], t);
+    const Eigen::Matrix<double, 30, 1> fe = element_stiffness(t) * d;
+    energy += 0.5 * d.dot(fe);
     for (int a = 0; a < 10; ++a) f.segment<3>(3 * nodes10_(t, a)) += R[t] * fe.segment<3>(3 * a);
   }
+  return energy;
 }
 
 void CorotationalElements::quadratic_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p,
@@ -831,7 +844,7 @@ class CorotationalResidual {
   // The potential Pi(u) whose negative gradient r is, at the last evaluation: elastic energy, minus the free
   // loads' work, plus each carried row's augmented term max(0, lambda_eff)^2 / (2 stiffness); joules.
   double potential() const {
-    double pi = el_.elastic_energy(state_.u, state_.rotations) - f_.dot(state_.u);
+    double pi = state_.energy - f_.dot(state_.u);  // (evaluate_at_u's, at u)
     if (contacts_) pi += lambda_eff_.squaredNorm() / (2.0 * contacts_->stiffness);
     return pi;
   }
@@ -894,6 +907,7 @@ double extrapolate_start(CorotationalState& state, CorotationalResidual& residua
   std::swap(saved.rotations, state.rotations);
   std::swap(saved.f_int, state.f_int);
   std::swap(saved.u_eval, state.u_eval);
+  saved.energy = state.energy;
   saved.n_inverted = state.n_inverted;
   const Eigen::VectorXd u_start = state.u;
   for (Eigen::Index d = 0; d < state.u.size(); ++d)
@@ -906,6 +920,7 @@ double extrapolate_start(CorotationalState& state, CorotationalResidual& residua
   std::swap(saved.rotations, state.rotations);
   std::swap(saved.f_int, state.f_int);
   std::swap(saved.u_eval, state.u_eval);
+  state.energy = saved.energy;
   state.n_inverted = saved.n_inverted;
   return residual.evaluate();  // cached: no new evaluation
 }
@@ -1154,7 +1169,7 @@ void evaluate_at_u(const CorotationalElements& el, CorotationalState& state) {
                       state.f_int.size() == n && state.u_eval == state.u;
   if (cached) return;
   state.n_inverted = el.rotations(state.u, state.rotations);
-  el.elastic_forces(state.u, state.rotations, state.f_int);
+  el.elastic_forces(state.u, state.rotations, state.f_int, &state.energy);
   state.u_eval = state.u;
 }
 

@@ -78,7 +78,9 @@ class CorotationalElements {
   // (det F <= 0).
   int rotations(const Eigen::VectorXd& u, std::vector<Eigen::Matrix3d>& R) const;
   // Elastic forces f_int = sum_e R_e K_e (R_e^T x_e - X_e), 3n, newtons (x = X + u). With R_e = I this is K u.
-  void elastic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R, Eigen::VectorXd& f) const;
+  // With energy: also elastic_energy(u, R), summed in the same element loop (joules).
+  void elastic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R, Eigen::VectorXd& f,
+                      double* energy = nullptr) const;
   // y = K_w p with the warped stiffness K_w = sum_e R_e K_e R_e^T (p, y: 3n).
   void warped_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p, Eigen::VectorXd& y) const;
   // The same K_w assembled, 3n x 3n, N/m (the sparsity of the rest stiffness K; with R = identity it is K).
@@ -111,8 +113,10 @@ class CorotationalElements {
   void build_node_elements();  // node_tet_start_ / node_tet_ from the element nodes
   void set_support(const Eigen::VectorXd& support);               // validated (std::invalid_argument)
   void add_support(const Eigen::VectorXd& v, Eigen::VectorXd& y) const;  // y += support .* v
-  // The kernels of 10-node tets (same contracts as the public functions).
-  void quadratic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R, Eigen::VectorXd& f) const;
+  double support_energy(const Eigen::VectorXd& u) const;                  // the supports' springs, joules
+  // The kernels of 10-node tets (same contracts as the public functions; quadratic_forces returns the elements'
+  // energy).
+  double quadratic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R, Eigen::VectorXd& f) const;
   void quadratic_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p, Eigen::VectorXd& y) const;
   Eigen::SparseMatrix<double> quadratic_stiffness(const std::vector<Eigen::Matrix3d>& R) const;
   double quadratic_energy(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R) const;
@@ -298,6 +302,7 @@ struct CorotationalState {
   std::vector<TwistModes> twist;              // per tet at the last linear step (projected tangent only)
   Eigen::VectorXd f_int;                      // elastic forces at u_eval, 3n, newtons
   Eigen::VectorXd u_eval;                     // displacement of the cached evaluation, 3n, metres
+  double energy = 0.0;                        // elastic energy at u_eval, joules
   int n_inverted = 0;                         // inverted tets at u_eval
   Eigen::VectorXd u_previous;                 // u before the last solve (for extrapolate), 3n, metres
   int chord_steps_since_refresh = 0;          // chord steps (over solves) since a factorisation was last asked for
@@ -320,17 +325,18 @@ struct CorotationalState {
 struct CachedEvaluation {
   Eigen::VectorXd u, u_eval, f_int;        // 3n each (u empty: none taken)
   std::vector<Eigen::Matrix3d> rotations;  // per tet, at u_eval
+  double energy = 0.0;                     // elastic energy at u_eval, joules
   int n_inverted = 0;                      // tets with det F <= 0 at u_eval
   void take(const CorotationalState& s) {
-    u = s.u, u_eval = s.u_eval, f_int = s.f_int, rotations = s.rotations, n_inverted = s.n_inverted;
+    u = s.u, u_eval = s.u_eval, f_int = s.f_int, rotations = s.rotations, energy = s.energy, n_inverted = s.n_inverted;
   }
   void restore(CorotationalState& s) const {
-    s.u = u, s.u_eval = u_eval, s.f_int = f_int, s.rotations = rotations, s.n_inverted = n_inverted;
+    s.u = u, s.u_eval = u_eval, s.f_int = f_int, s.rotations = rotations, s.energy = energy, s.n_inverted = n_inverted;
   }
 };
 
-// The rotations and elastic forces at state.u into the state's cached evaluation (rotations, f_int, u_eval,
-// n_inverted), unless it is already at state.u.
+// The rotations, elastic forces and energy at state.u into the state's cached evaluation (rotations, f_int, energy,
+// u_eval, n_inverted), unless it is already at state.u.
 void evaluate_at_u(const CorotationalElements& el, CorotationalState& state);
 
 // K_w at the rotations R (per tet) factorised on the rest factorisation's symbolic analysis, with its half

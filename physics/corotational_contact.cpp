@@ -57,7 +57,7 @@ struct Evaluation {
     evaluate_at_u(el, s);
     r.resize(n);
     for (int d = 0; d < n; ++d) r[d] = fixed[d] ? 0.0 : f[d] - s.f_int[d];
-    potential = el.elastic_energy(s.u, s.rotations) - f.dot(s.u);
+    potential = s.energy - f.dot(s.u);  // (evaluate_at_u's, at u)
     scale = std::max(f.norm(), detail::reaction_norm(s.f_int, fixed));
   }
 };

@@ -193,10 +193,11 @@ class CorotationalQuasiStatic final : public Integrator {
   ContactEquilibriumResult solve_with_contacts(const std::vector<ContactRow>& rows, SurfaceCompliance& compliance,
                                                const ContactEquilibriumOptions& options, IntegratorWork& work,
                                                Eigen::VectorXd& u, const Eigen::VectorXd& lambda_warm) const override;
-  // With options' refactor_in_background (and the factor shared with the prediction): K_w at the last evaluated
-  // rotations factorised on the background thread whenever none is under way, a finished one adopted as the
-  // contact Hessian and the prediction's preconditioner (whose own factorisations then stop, as after a contact
-  // solve). Measured on the 8x pinch: the first contact frame had factorised at once (170-225 ms).
+  // With options' refactor_in_background (and the factor shared with the prediction): at the session's start (no
+  // prediction yet) K factorised at once; then K_w at the last evaluated rotations on the background thread, once the
+  // Hessian in use is a few frames old and none is under way; a finished one adopted as the contact Hessian and the
+  // prediction's preconditioner (whose own factorisations then stop, as after a contact solve). Measured on the 8x
+  // pinch: the first contact frame had factorised at once (170-225 ms).
   void anticipate_contacts(const std::vector<int>& nodes, IntegratorWork& work) const override;
 
  private:

@@ -727,7 +727,7 @@ TEST(CorotationalSolve, RejectsInvalidInput) {
 
 // Elastic supports are part of every kernel: against the same elements without them, at a deformed state, the
 // forces differ by S u, the products by S p, the stiffness by diag(S), the energy by u^T S u / 2 (exactly, up to
-// round-off); a negative spring is refused by name.
+// round-off; the energy the forces' loop sums is elastic_energy's); a negative spring is refused by name.
 TEST(CorotationalSupport, EveryKernelGainsTheSpringsExactly) {
   const TetMesh mesh = small_tube();
   const int n = 3 * mesh.n_nodes();
@@ -741,9 +741,11 @@ TEST(CorotationalSupport, EveryKernelGainsTheSpringsExactly) {
   std::vector<Eigen::Matrix3d> R;
   bare.rotations(u, R);
   Eigen::VectorXd f0, f1, y0, y1;
+  double summed = 0.0;  // (the energy summed in the forces' loop, against elastic_energy's own below)
   bare.elastic_forces(u, R, f0);
-  held.elastic_forces(u, R, f1);
+  held.elastic_forces(u, R, f1, &summed);
   EXPECT_LE((f1 - f0 - S.cwiseProduct(u)).norm(), 1e-12 * f1.norm());
+  EXPECT_NEAR(summed, held.elastic_energy(u, R), 1e-12 * held.elastic_energy(u, R));
   bare.warped_product(R, p, y0);
   held.warped_product(R, p, y1);
   EXPECT_LE((y1 - y0 - S.cwiseProduct(p)).norm(), 1e-12 * y1.norm());

@@ -115,7 +115,8 @@ TEST(CorotationalTet10, RigidMotionCostsNothing) {
 }
 
 // Straight elements deformed affinely, x = F X with F a rotated stretch: the averaged gradient is F, and the energy
-// is that of the 4-node corotational element on the corner mesh (both represent the affine field exactly).
+// is that of the 4-node corotational element on the corner mesh (both represent the affine field exactly), also as
+// the forces' loop sums it.
 TEST(CorotationalTet10, AffineDeformationHasTheTet4Energy) {
   const TetMesh corners = make_hollow_cylinder(lumen::test::small_tube_spec());
   const QuadraticMesh q = make_quadratic(corners);
@@ -134,6 +135,11 @@ TEST(CorotationalTet10, AffineDeformationHasTheTet4Energy) {
   const double e4 = linear.elastic_energy(u4, R4);
   EXPECT_GT(e4, 0.0);
   EXPECT_NEAR(quadratic.elastic_energy(uq, Rq), e4, 1e-10 * e4);
+  // The energy summed in the forces' loop is the same.
+  Eigen::VectorXd f;
+  double summed = 0.0;
+  quadratic.elastic_forces(uq, Rq, f, &summed);
+  EXPECT_NEAR(summed, e4, 1e-10 * e4);
 }
 
 // At a rigidly rotated state the stress is zero, so the rotations' derivative drops out of the tangent: central
