@@ -139,8 +139,8 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
   work.frame_forces = nodal_forces(loads, model_.n_dofs());
   const Eigen::VectorXd& f = work.frame_forces;
   const Eigen::VectorXd u_fixed = prescribed_.empty() ? Eigen::VectorXd() : combine_columns(prescribed_.basis, prescribed_c);
-  // After a contact frame: no factorisation of its own where the contact Hessians' factors precondition it
-  // (share_with_prediction; measured on the 8x pinch: its factorisations beside the Hessian's left that 2-6 contact
+  // After a contact frame: no factorisation of its own where a contact Hessian's factor preconditions it (the one
+  // the walls met on, share_with_prediction; measured on the 8x pinch: its factorisations beside the Hessian's left that 2-6 contact
   // frames old, and its bounded QP steps short, docs/bench_contact_prediction.csv; when it only waited for the shared
   // factor to be its preconditioner, its own last one replaced it, and its factorisations came back: halvings 187
   // against 42-49 in one run), and the contact work bound.
@@ -182,15 +182,16 @@ constexpr int kStaleHessianFrames = 12;
 // measured on the 8x pinch, pcr median 8 against 15 ms with one after another).
 constexpr int kAnticipatedHessianFrames = 6;
 
-// K_w at the rotations R factorised, with its compliance over the nodes (lazy: half columns per node) and the half
-// columns of the prefetched nodes solved for.
+// K_w at the rotations R factorised, with its compliance over the nodes (lazy: half columns per node) readied for
+// couplings on the prefetched nodes (their half columns and the kept gram among them: 3-5 ms of the frame that adopts
+// it otherwise, on the 8x pinch).
 ContactHessianFactor contact_hessian(const CorotationalModel& model, const std::vector<Eigen::Matrix3d>& R,
                                      const std::vector<int>& nodes, const std::vector<int>& prefetch, int taken_at) {
   ContactHessianFactor h;
   h.taken_at = taken_at;
   h.factor = factorise_warped(model, R, true);
   h.compliance = std::make_shared<SurfaceCompliance>(*h.factor, nodes, SurfaceCompliance::kBlockColumns, 0L, 0L);
-  h.compliance->ensure_columns(prefetch);
+  h.compliance->prepare_couplings(prefetch);
   return h;
 }
 
@@ -230,11 +231,17 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   const bool lagged = options.hessian == ContactHessian::as_given;
   // A finished background factorisation becomes the Hessian; the first contact solve waits for one under way
   // (anticipate_contacts started it before the walls met) rather than factorising another.
+  // The prediction takes it as its preconditioner where the walls meet, not while they stay in contact: the frame's
+  // trial motion is its prediction plus the last frame's correction, measured from a prediction on the old
+  // preconditioner, and a bounded prediction on a new one ends elsewhere (on the 8x pinch the frame after each
+  // adoption held 2-3 times the rows, 400-500 instead of 160, and its solve took 20-30 ms).
   int failures = 0;
+  const bool walls_meet = work.predictions - work.last_contact_solve > 1;
   if (lagged && work.contact_pending.valid() &&
       (!work.contact_hessian.compliance ||
-       work.contact_pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready))
-    adopt_contact_hessian(work, failures);
+       work.contact_pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready) &&
+      adopt_contact_hessian(work, failures) && walls_meet)
+    share_with_prediction(work);
   // A start at the last contact solve's end to round-off (the committed state is the prediction plus the
   // correction) starts at that end exactly, with its evaluation.
   const CachedEvaluation& end = work.contact_end;
@@ -249,7 +256,6 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   // The first contact solve without an anticipated Hessian, or where the walls meet on a stale one, factorises K_w
   // at its start, at once (the rest K is far from the tangent of a tube deflected several wall thicknesses: its steps
   // needed four line-search halvings each and did not converge).
-  const bool walls_meet = work.predictions - work.last_contact_solve > 1;
   const bool stale = walls_meet && work.contact_hessian.compliance &&
                      work.predictions - work.contact_hessian.taken_at > kStaleHessianFrames;
   work.last_contact_solve = work.predictions;
@@ -293,14 +299,15 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
 
 // The background job's Hessian adopted (waiting for it if under way) unless it is older than the one in use; one that
 // failed (not positive definite, out of memory) is counted and dropped, and the last one stays.
-void CorotationalQuasiStatic::adopt_contact_hessian(IntegratorWork& work, int& failures) const {
+bool CorotationalQuasiStatic::adopt_contact_hessian(IntegratorWork& work, int& failures) const {
   try {
     ContactHessianFactor h = work.contact_pending.get();  // (get() leaves contact_pending invalid, failed or not)
-    if (work.contact_hessian.compliance && h.taken_at < work.contact_hessian.taken_at) return;
+    if (work.contact_hessian.compliance && h.taken_at < work.contact_hessian.taken_at) return false;
     work.contact_hessian = std::move(h);
-    share_with_prediction(work);
+    return true;
   } catch (const std::exception&) {
     ++failures;
+    return false;
   }
 }
 
@@ -309,8 +316,9 @@ void CorotationalQuasiStatic::anticipate_contacts(const std::vector<int>& nodes,
   // (A failure here is the next contact solve's to meet: it factorises at once when no Hessian is left.)
   int failures = 0;
   if (work.contact_pending.valid() &&
-      work.contact_pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready)
-    adopt_contact_hessian(work, failures);
+      work.contact_pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready &&
+      adopt_contact_hessian(work, failures))
+    share_with_prediction(work);
   if (work.contact_pending.valid()) return;
   if (!model_.solver().has_nested_analysis()) model_.solver().prepare_nested_analysis();
   // Before the first prediction (the session's start): K, at once, twice with both alive, one kept. A factorisation

@@ -85,7 +85,7 @@ struct IntegratorWork {
   // corotational quasi-static, contacts solved on a lagged factorisation (ContactHessian::as_given): K_w at the end
   // of the last contact solve with its compliance over the contact nodes (half columns cached per node until the
   // next one is adopted), and the next one, in progress on a background thread (valid() while it runs), which also
-  // solves for the half columns of the last solve's row nodes.
+  // solves for the half columns of the last solve's row nodes and the kept gram among them.
   ContactHessianFactor contact_hessian;
   std::future<ContactHessianFactor> contact_pending;
   // corotational quasi-static: the last frame solved its contacts on the lagged Hessian (solve_with_contacts); its
@@ -202,7 +202,7 @@ class CorotationalQuasiStatic final : public Integrator {
 
  private:
   void share_with_prediction(IntegratorWork& work) const;
-  void adopt_contact_hessian(IntegratorWork& work, int& failures) const;
+  bool adopt_contact_hessian(IntegratorWork& work, int& failures) const;  // whether the background one replaced it
   bool shares_contact_hessian() const { return !options_.rotate_preconditioner; }
   CorotationalModel model_;
   CorotationalOptions options_;

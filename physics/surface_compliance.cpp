@@ -152,6 +152,11 @@ Eigen::Matrix3d SurfaceCompliance::half_block(int a, int b) {
 }
 
 Eigen::MatrixXd SurfaceCompliance::half_gram(const std::vector<int>& set_positions) {
+  keep_gram(set_positions);
+  return kept_blocks(set_positions);
+}
+
+void SurfaceCompliance::keep_gram(const std::vector<int>& set_positions) {
   assert(lazy_);
   solve_half_columns(set_positions);
   // The nodes without blocks in the kept gram join it (with the kept ones while it stays within its bound).
@@ -161,7 +166,6 @@ Eigen::MatrixXd SurfaceCompliance::half_gram(const std::vector<int>& set_positio
     if (gram_nodes_.size() + fresh.size() <= static_cast<size_t>(max_gram_nodes_)) kept = gram_nodes_;
     extend_gram(kept, fresh);
   }
-  return kept_blocks(set_positions);
 }
 
 Eigen::MatrixXd SurfaceCompliance::kept_blocks(const std::vector<int>& positions) const {
@@ -337,6 +341,18 @@ void SurfaceCompliance::ensure_columns(const std::vector<int>& nodes) {
     extra_nodes_.push_back(v);
     extra_cols_.push_back(X.middleCols(3 * k, 3));
   }
+}
+
+void SurfaceCompliance::prepare_couplings(const std::vector<int>& nodes) {
+  ensure_columns(nodes);
+  if (!lazy_) return;
+  // The set's nodes among them, each once (a coupling's touched nodes are distinct).
+  std::vector<int> positions;
+  for (int v : nodes)
+    if (index_[v] >= 0) positions.push_back(index_[v]);
+  std::sort(positions.begin(), positions.end());
+  positions.erase(std::unique(positions.begin(), positions.end()), positions.end());
+  if (!positions.empty()) keep_gram(positions);
 }
 
 Eigen::Matrix3d SurfaceCompliance::block(int node_a, int node_b) {

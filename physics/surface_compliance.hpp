@@ -64,6 +64,10 @@ class SurfaceCompliance {
   // Solves for the columns of every listed node not at hand yet: outside the set and not cached (in one
   // solve_many), or in a lazy set without its half columns.
   void ensure_columns(const std::vector<int>& nodes);
+  // Readies couplings (CouplingMatrix) on the listed nodes: their columns, as ensure_columns, and in a lazy set the kept
+  // gram's blocks among those of them in the set, so that a coupling on them solves and multiplies nothing more (what
+  // a contact Hessian factorised on another thread is given before it replaces the one in use).
+  void prepare_couplings(const std::vector<int>& nodes);
   // Number of nodes outside the set whose columns are cached.
   int n_cached_nodes() const { return static_cast<int>(extra_nodes_.size()); }
   // A lazy set's solves split in halves (StaticSolver::half_forward / half_backward on its solver, z over the
@@ -129,6 +133,7 @@ class SurfaceCompliance {
   // C on the listed distinct set nodes of a lazy set (positions in nodes_), 3k x 3k, m/N: blocks of the kept gram,
   // to which nodes without them are added first (their half columns solved for if not at hand).
   Eigen::MatrixXd half_gram(const std::vector<int>& set_positions);
+  void keep_gram(const std::vector<int>& set_positions);  // the same, without the copy out
   // The kept gram becomes that of kept (nodes with slots in it) then fresh (without): the kept blocks copied, the
   // fresh rows Y_F^T Y from one dense product over the fresh half columns' rows (all fresh: Y^T Y, a rank update).
   void extend_gram(const std::vector<int>& kept, const std::vector<int>& fresh);

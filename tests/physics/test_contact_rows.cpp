@@ -130,5 +130,29 @@ TEST(CouplingMatrix, DenseOnKeptBlocksOfEarlierCouplingsEqualsTheTwin) {
   EXPECT_THROW(SurfaceCompliance(*m.solver, m.inner, 64, 256L << 20, 0L, {}, 0L, 0), std::invalid_argument);
 }
 
+// A lazy set readied for couplings on some nodes (prepare_couplings, as a contact Hessian made on the background thread
+// is, here on more nodes than the rows touch) solves no half column for a coupling on them, and that coupling, from
+// the kept gram's blocks, equals the dense twin and the coupling of a set not readied.
+TEST(CouplingMatrix, ReadiedForItsNodesSolvesNothingMoreAndEqualsTheTwin) {
+  const Model& m = model();
+  SurfaceCompliance readied(*m.solver, m.inner, 64, 256L << 20, 0L), plain(*m.solver, m.inner, 64, 256L << 20, 0L);
+  ASSERT_TRUE(readied.lazy());
+  std::mt19937 rng(53);
+  std::vector<ContactRow> rows;
+  for (int r = 0; r < 20; ++r) rows.push_back(random_vertex_face(rng, m, false));
+  std::vector<int> nodes = row_nodes(rows);
+  const size_t touched = nodes.size();
+  for (int k = 0; k < 6; ++k) nodes.push_back(m.inner[static_cast<size_t>(k) * m.inner.size() / 6]);
+  readied.prepare_couplings(nodes);
+  const int solved = readied.n_set_columns();
+  EXPECT_GE(solved, static_cast<int>(touched));
+  const Eigen::MatrixXd H = dense_H(rows, m.n());
+  const Eigen::MatrixXd twin = H * m.Kinv * H.transpose();
+  const Eigen::MatrixXd A = CouplingMatrix(readied, rows).dense(), B = CouplingMatrix(plain, rows).dense();
+  EXPECT_EQ(readied.n_set_columns(), solved);
+  EXPECT_LE((A - twin).norm(), 1e-9 * twin.norm());
+  EXPECT_LE((A - B).norm(), 1e-12 * twin.norm());
+}
+
 }  // namespace
 }  // namespace lumen::physics

@@ -328,6 +328,52 @@ TEST(ContactEquilibrium, TheFirstContactSolveAdoptsTheAnticipatedHessian) {
   EXPECT_LE(solve_difference(model.solver(), *start.contact_hessian.factor, p.f), 1e-10);
 }
 
+// While the walls stay in contact, the contact Hessian made on the background thread replaces the one in use but not
+// the prediction's preconditioner, which stays the one the walls met on (the frame's trial motion adds the last
+// frame's correction to the prediction: both must come from the same preconditioner); between contacts the
+// anticipated one becomes both.
+TEST(ContactEquilibrium, ThePredictionKeepsItsPreconditionerWhileTheWallsStayInContact) {
+  const FlooredPress p = floored_press(0.05, 1.5e-3);
+  CorotationalOptions o = tight();
+  o.refactor_cg_iterations = 1;
+  o.refactor_in_background = true;
+  const CorotationalQuasiStatic integrator(p.mesh, kTissue, p.fixed, o, PrescribedMotion{});
+  SurfaceCompliance compliance(integrator.model().solver(), p.top);
+  ContactEquilibriumOptions co = tight_contact();
+  co.hessian = ContactHessian::as_given;
+  IntegratorWork work;
+  Eigen::VectorXd u;
+  FrameLoads half = point_loads(p, 0.5), whole = point_loads(p, 1.0);
+  // The session's start (K factorised at once, as the engine does: the predictions then start no factorisation of
+  // their own), a frame before contact.
+  integrator.anticipate_contacts(p.top, work);
+  integrator.predict(half, Eigen::VectorXd(), SimState{}, work, u);
+  integrator.anticipate_contacts(p.top, work);
+  // The walls meet: the Hessian they meet on preconditions the predictions.
+  integrator.predict(whole, Eigen::VectorXd(), SimState{}, work, u);
+  ASSERT_TRUE(integrator.solve_with_contacts(p.rows, compliance, co, work, u, Eigen::VectorXd()).converged);
+  const std::shared_ptr<const StaticSolver> met_on = work.contact_hessian.factor;
+  ASSERT_TRUE(met_on);
+  EXPECT_EQ(work.corotational.preconditioner, met_on);
+  // The next contact frame adopts the next Hessian (made at the last solve's end), the prediction keeps its own.
+  ASSERT_TRUE(work.contact_pending.valid());
+  work.contact_pending.wait();
+  integrator.predict(whole, Eigen::VectorXd(), SimState{}, work, u);
+  const ContactEquilibriumResult r = integrator.solve_with_contacts(p.rows, compliance, co, work, u, Eigen::VectorXd());
+  ASSERT_TRUE(r.converged);
+  EXPECT_LE(kkt_residual(integrator.model(), p, u, r.lambda), 1e-5);
+  ASSERT_TRUE(work.contact_hessian.factor);
+  EXPECT_NE(work.contact_hessian.factor, met_on);
+  EXPECT_EQ(work.corotational.preconditioner, met_on);
+  // A frame without a contact solve: the finished Hessian is adopted as both.
+  ASSERT_TRUE(work.contact_pending.valid());
+  work.contact_pending.wait();
+  integrator.predict(half, Eigen::VectorXd(), SimState{}, work, u);
+  integrator.anticipate_contacts(p.top, work);
+  EXPECT_NE(work.contact_hessian.factor, met_on);
+  EXPECT_EQ(work.corotational.preconditioner, work.contact_hessian.factor);
+}
+
 // Bad input names the field.
 TEST(ContactEquilibrium, RejectsBadInputNamingTheField) {
   const FlooredPress p = floored_press(0.05, 1e-3);
