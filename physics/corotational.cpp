@@ -903,12 +903,8 @@ void prescribe(const CorotationalModel& model, const Eigen::VectorXd& f_ext, con
 // kSecantRetryAfter solves do not try it); returns the residual at the kept start.
 double extrapolate_start(CorotationalState& state, CorotationalResidual& residual, const std::vector<char>& fixed,
                          const Eigen::VectorXd& u_before, double residual_now) {
-  CorotationalState saved;
-  std::swap(saved.rotations, state.rotations);
-  std::swap(saved.f_int, state.f_int);
-  std::swap(saved.u_eval, state.u_eval);
-  saved.energy = state.energy;
-  saved.n_inverted = state.n_inverted;
+  CachedEvaluation saved;
+  saved.swap_evaluation(state);
   const Eigen::VectorXd u_start = state.u;
   for (Eigen::Index d = 0; d < state.u.size(); ++d)
     if (!fixed[d]) state.u[d] += state.u[d] - u_before[d];
@@ -917,11 +913,7 @@ double extrapolate_start(CorotationalState& state, CorotationalResidual& residua
   // Refused: back to the start, and the next solves do not try it.
   state.secant_skips = kSecantRetryAfter;
   state.u = u_start;
-  std::swap(saved.rotations, state.rotations);
-  std::swap(saved.f_int, state.f_int);
-  std::swap(saved.u_eval, state.u_eval);
-  state.energy = saved.energy;
-  state.n_inverted = saved.n_inverted;
+  saved.swap_evaluation(state);
   return residual.evaluate();  // cached: no new evaluation
 }
 

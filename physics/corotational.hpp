@@ -11,6 +11,7 @@
 // previous frame's displacement.
 #include <future>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -332,6 +333,12 @@ struct CachedEvaluation {
   }
   void restore(CorotationalState& s) const {
     s.u = u, s.u_eval = u_eval, s.f_int = f_int, s.rotations = rotations, s.energy = energy, s.n_inverted = n_inverted;
+  }
+  // The evaluation (not u) exchanged with the state's, without copies: twice around a trial evaluation, the state's
+  // back as it was.
+  void swap_evaluation(CorotationalState& s) {
+    std::swap(u_eval, s.u_eval), std::swap(f_int, s.f_int), std::swap(rotations, s.rotations);
+    std::swap(energy, s.energy), std::swap(n_inverted, s.n_inverted);
   }
 };
 

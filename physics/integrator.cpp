@@ -173,7 +173,8 @@ namespace {
 // A contact solve's start this near the last one's end (relative to its largest entry) is taken as that end.
 constexpr double kSameStartRoundOff = 1e-12;
 // When the walls meet (a contact solve after a frame without one), a contact Hessian factorised at rotations more
-// than this many frames old is not used: the solve factorises K_w at its start at once. (Measured on the 8x pinch,
+// than this many frames old is not used: the solve takes the one under way, if any, and if that is as old factorises
+// K_w at its start at once. (Measured on the 8x pinch,
 // rendered with the exact check: in contact the background Hessians the solves use are 0-12 frames old; when the
 // walls met on one anticipated about 25 frames before, the next 9 frames' steps took 7-9 line-search halvings each.)
 constexpr int kStaleHessianFrames = 12;
@@ -229,16 +230,22 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
     throw std::logic_error(
         "CorotationalQuasiStatic::solve_with_contacts: no prediction before it (its loads are the frame's)");
   const bool lagged = options.hessian == ContactHessian::as_given;
-  // A finished background factorisation becomes the Hessian; the first contact solve waits for one under way
-  // (anticipate_contacts started it before the walls met) rather than factorising another.
+  // A finished background factorisation becomes the Hessian; the first contact solve, or one where the walls meet on
+  // a stale Hessian, waits for one under way (anticipate_contacts started it before the walls met) rather than
+  // factorising another beside it (its thread then has a core; rendered, the walls met on a stale Hessian with one
+  // under way in about 1 run of 4, and the factorisation beside it took 140-150 ms).
   // The prediction takes it as its preconditioner where the walls meet, not while they stay in contact: the frame's
   // trial motion is its prediction plus the last frame's correction, measured from a prediction on the old
   // preconditioner, and a bounded prediction on a new one ends elsewhere (on the 8x pinch the frame after each
   // adoption held 2-3 times the rows, 400-500 instead of 160, and its solve took 20-30 ms).
   int failures = 0;
   const bool walls_meet = work.predictions - work.last_contact_solve > 1;
+  const auto stale = [&work, walls_meet] {
+    return walls_meet && work.contact_hessian.compliance &&
+           work.predictions - work.contact_hessian.taken_at > kStaleHessianFrames;
+  };
   if (lagged && work.contact_pending.valid() &&
-      (!work.contact_hessian.compliance ||
+      (!work.contact_hessian.compliance || stale() ||
        work.contact_pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready) &&
       adopt_contact_hessian(work, failures) && walls_meet)
     share_with_prediction(work);
@@ -256,10 +263,12 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   // The first contact solve without an anticipated Hessian, or where the walls meet on a stale one, factorises K_w
   // at its start, at once (the rest K is far from the tangent of a tube deflected several wall thicknesses: its steps
   // needed four line-search halvings each and did not converge).
-  const bool stale = walls_meet && work.contact_hessian.compliance &&
-                     work.predictions - work.contact_hessian.taken_at > kStaleHessianFrames;
+  const bool at_once = lagged && ((!work.contact_hessian.compliance && !work.contact_pending.valid()) || stale());
   work.last_contact_solve = work.predictions;
-  if (lagged && ((!work.contact_hessian.compliance && !work.contact_pending.valid()) || stale)) {
+  if (at_once) {
+    // (The stale one let go first, the prediction's too: a third factorisation alive would touch fresh memory.)
+    if (work.corotational.preconditioner == work.contact_hessian.factor) work.corotational.preconditioner.reset();
+    work.contact_hessian = ContactHessianFactor{};
     try {
       std::vector<Eigen::Matrix3d> R;
       model_.elements().rotations(u, R);

@@ -328,19 +328,29 @@ TEST(ContactEquilibrium, TheFirstContactSolveAdoptsTheAnticipatedHessian) {
   EXPECT_LE(solve_difference(model.solver(), *start.contact_hessian.factor, p.f), 1e-10);
 }
 
+// The press's corotational quasi-static integrator with background factorisation (any PCG solve of more than one
+// iteration asks for one), and tight contact solves on its lagged Hessians.
+CorotationalQuasiStatic in_background(const FlooredPress& p) {
+  CorotationalOptions o = tight();
+  o.refactor_cg_iterations = 1;
+  o.refactor_in_background = true;
+  return CorotationalQuasiStatic(p.mesh, kTissue, p.fixed, o, PrescribedMotion{});
+}
+ContactEquilibriumOptions on_lagged_hessians() {
+  ContactEquilibriumOptions co = tight_contact();
+  co.hessian = ContactHessian::as_given;
+  return co;
+}
+
 // While the walls stay in contact, the contact Hessian made on the background thread replaces the one in use but not
 // the prediction's preconditioner, which stays the one the walls met on (the frame's trial motion adds the last
 // frame's correction to the prediction: both must come from the same preconditioner); between contacts the
 // anticipated one becomes both.
 TEST(ContactEquilibrium, ThePredictionKeepsItsPreconditionerWhileTheWallsStayInContact) {
   const FlooredPress p = floored_press(0.05, 1.5e-3);
-  CorotationalOptions o = tight();
-  o.refactor_cg_iterations = 1;
-  o.refactor_in_background = true;
-  const CorotationalQuasiStatic integrator(p.mesh, kTissue, p.fixed, o, PrescribedMotion{});
+  const CorotationalQuasiStatic integrator = in_background(p);
   SurfaceCompliance compliance(integrator.model().solver(), p.top);
-  ContactEquilibriumOptions co = tight_contact();
-  co.hessian = ContactHessian::as_given;
+  const ContactEquilibriumOptions co = on_lagged_hessians();
   IntegratorWork work;
   Eigen::VectorXd u;
   FrameLoads half = point_loads(p, 0.5), whole = point_loads(p, 1.0);
@@ -372,6 +382,43 @@ TEST(ContactEquilibrium, ThePredictionKeepsItsPreconditionerWhileTheWallsStayInC
   integrator.anticipate_contacts(p.top, work);
   EXPECT_NE(work.contact_hessian.factor, met_on);
   EXPECT_EQ(work.corotational.preconditioner, work.contact_hessian.factor);
+}
+
+// Where the walls meet on a stale Hessian (K from the session's start, more than 12 frames old), the solve takes the
+// one anticipated since (whether it has finished or is waited for) when that is recent enough, and factorises K_w at
+// its start at once when it is stale too (the stale ones let go first). Either way the end meets the KKT conditions.
+TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianTakeTheOneAnticipatedSince) {
+  const FlooredPress p = floored_press(0.05, 1.5e-3);
+  const CorotationalQuasiStatic integrator = in_background(p);
+  const CorotationalModel& model = integrator.model();
+  SurfaceCompliance compliance(model.solver(), p.top);
+  const ContactEquilibriumOptions co = on_lagged_hessians();
+  FrameLoads half = point_loads(p, 0.5), whole = point_loads(p, 1.0);
+  for (const int frames_before : {14, 20}) {
+    SCOPED_TRACE(frames_before);
+    IntegratorWork work;
+    Eigen::VectorXd u;
+    // The session's start (K), six frames before contact and the anticipation after the sixth, then none.
+    integrator.anticipate_contacts(p.top, work);
+    for (int f = 0; f < 6; ++f) integrator.predict(half, Eigen::VectorXd(), SimState{}, work, u);
+    integrator.anticipate_contacts(p.top, work);
+    ASSERT_TRUE(work.contact_pending.valid());
+    const std::vector<Eigen::Matrix3d> anticipated_at = work.corotational.rotations;
+    for (int f = 6; f < frames_before - 1; ++f) integrator.predict(half, Eigen::VectorXd(), SimState{}, work, u);
+    // The walls meet: the Hessian in use (K, frame 0) is stale; the anticipated one is 8 or 14 frames old.
+    integrator.predict(whole, Eigen::VectorXd(), SimState{}, work, u);
+    std::vector<Eigen::Matrix3d> start_at;
+    model.elements().rotations(u, start_at);
+    const ContactEquilibriumResult r = integrator.solve_with_contacts(p.rows, compliance, co, work, u, Eigen::VectorXd());
+    ASSERT_TRUE(r.converged);
+    EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
+    ASSERT_TRUE(work.contact_hessian.factor);
+    EXPECT_EQ(work.corotational.preconditioner, work.contact_hessian.factor);
+    const std::vector<Eigen::Matrix3d>& expected_at = frames_before == 14 ? anticipated_at : start_at;
+    const std::vector<Eigen::Matrix3d>& other_at = frames_before == 14 ? start_at : anticipated_at;
+    EXPECT_LE(solve_difference(*factorise_warped(model, expected_at, false), *work.contact_hessian.factor, p.f), 1e-10);
+    EXPECT_GT(solve_difference(*factorise_warped(model, other_at, false), *work.contact_hessian.factor, p.f), 1e-4);
+  }
 }
 
 // Bad input names the field.
