@@ -140,10 +140,10 @@ Prediction CorotationalQuasiStatic::predict(FrameLoads& loads, const Eigen::Vect
   const Eigen::VectorXd& f = work.frame_forces;
   const Eigen::VectorXd u_fixed = prescribed_.empty() ? Eigen::VectorXd() : combine_columns(prescribed_.basis, prescribed_c);
   // After a contact frame: no factorisation of its own where a contact Hessian's factor preconditions it (the one
-  // the walls met on, share_with_prediction; measured on the 8x pinch: its factorisations beside the Hessian's left that 2-6 contact
-  // frames old, and its bounded QP steps short, docs/bench_contact_prediction.csv; when it only waited for the shared
-  // factor to be its preconditioner, its own last one replaced it, and its factorisations came back: halvings 187
-  // against 42-49 in one run), and the contact work bound.
+  // the walls met on, share_with_prediction; measured on the 8x pinch: its factorisations beside the Hessian's left
+  // that 2-6 contact frames old, and its bounded QP steps short, docs/bench_contact_prediction.csv; when it only
+  // waited for the shared factor to be its preconditioner, its own last one replaced it, and its factorisations came
+  // back: halvings 187 against 42-49 in one run), and the contact work bound.
   // (So too before and between contacts while the background thread keeps a contact Hessian factorised,
   // anticipate_contacts.)
   CorotationalOptions options = options_;
@@ -174,9 +174,9 @@ namespace {
 constexpr double kSameStartRoundOff = 1e-12;
 // When the walls meet (a contact solve after a frame without one), a contact Hessian factorised at rotations more
 // than this many frames old is not used: the solve takes the one under way, if any, and if that is as old factorises
-// K_w at its start at once. (Measured on the 8x pinch,
-// rendered with the exact check: in contact the background Hessians the solves use are 0-12 frames old; when the
-// walls met on one anticipated about 25 frames before, the next 9 frames' steps took 7-9 line-search halvings each.)
+// K_w at its start at once. (Measured on the 8x pinch, rendered with the exact check: in contact the background
+// Hessians the solves use are 0-12 frames old; when the walls met on one anticipated about 25 frames before, the
+// next 9 frames' steps took 7-9 line-search halvings each.)
 constexpr int kStaleHessianFrames = 12;
 // Before the walls meet, a new contact Hessian is started once the last one is this many frames old (not whenever
 // the background thread is free: its factorisations slowed the contact-free frames' solves on the main thread,
@@ -260,9 +260,9 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   work.corotational.u = u;
   // The rest solver's nested-dissection analysis, once, on this thread: the contact Hessians are factorised on it.
   if (lagged && !model_.solver().has_nested_analysis()) model_.solver().prepare_nested_analysis();
-  // The first contact solve without an anticipated Hessian, or where the walls meet on a stale one, factorises K_w
-  // at its start, at once (the rest K is far from the tangent of a tube deflected several wall thicknesses: its steps
-  // needed four line-search halvings each and did not converge).
+  // The first contact solve without an anticipated Hessian, or where the walls meet on a stale one (the one under
+  // way, taken above, as stale), factorises K_w at its start, at once (the rest K is far from the tangent of a tube
+  // deflected several wall thicknesses: its steps needed four line-search halvings each and did not converge).
   const bool at_once = lagged && ((!work.contact_hessian.compliance && !work.contact_pending.valid()) || stale());
   work.last_contact_solve = work.predictions;
   if (at_once) {

@@ -409,7 +409,8 @@ TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianTakeTheOneAnticipatedSince) 
     integrator.predict(whole, Eigen::VectorXd(), SimState{}, work, u);
     std::vector<Eigen::Matrix3d> start_at;
     model.elements().rotations(u, start_at);
-    const ContactEquilibriumResult r = integrator.solve_with_contacts(p.rows, compliance, co, work, u, Eigen::VectorXd());
+    const ContactEquilibriumResult r =
+        integrator.solve_with_contacts(p.rows, compliance, co, work, u, Eigen::VectorXd());
     ASSERT_TRUE(r.converged);
     EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
     ASSERT_TRUE(work.contact_hessian.factor);
