@@ -89,9 +89,9 @@ struct IntegratorWork {
   ContactHessianFactor contact_hessian;
   std::future<ContactHessianFactor> contact_pending;
   // corotational quasi-static: the last frame solved its contacts on the lagged Hessian (solve_with_contacts); its
-  // prediction then has the contact work bound and, while that Hessian's factor preconditions it
-  // (share_with_prediction), starts no factorisation of its own (the second core factorises the next Hessian). Read
-  // and cleared by predict.
+  // prediction then has the contact work bound and, while a contact Hessian's factor preconditions it (the one the
+  // walls met on: share_with_prediction), starts no factorisation of its own (the second core factorises the next
+  // Hessian). Read and cleared by predict.
   bool after_contact_solve = false;
   // corotational quasi-static, contacts solved in the equilibrium: the last contact solve's end with its evaluation
   // (taken only when evaluated at that end; the prediction between two contact solves evaluates the solve's state
