@@ -3,6 +3,7 @@
 #include "physics/detail/messages.hpp"
 
 #include "physics/detail/dofs.hpp"
+#include "physics/detail/element_lanes.hpp"
 
 #include <Eigen/Dense>
 #include <Eigen/IterativeLinearSolvers>
@@ -23,11 +24,6 @@ namespace lumen::physics {
 
 namespace {
 
-// Below this det F the polar rotation comes from the SVD instead of the Newton iteration.
-constexpr double kNewtonMinDet = 1e-2;
-constexpr int kNewtonMaxIterations = 20;
-// |det - 1| below which the Newton scaling is its series (newton_scaling).
-constexpr double kNewtonSeriesRange = 0.25;
 // The fewest back-substitutions a PCG step takes (the start's preconditioning and one iteration's): a work bound
 // with fewer left ends the solve.
 constexpr int kPcgStepBackSubstitutions = 2;
@@ -54,70 +50,52 @@ constexpr double kDivergenceGrowth = 1e4;
 // factorisation landing a frame later only lags the preconditioner.
 constexpr int kBackgroundFactorisationNice = 19;
 
-// Cofactor matrix of X (X^-T det X): its columns are cross products of the columns of X.
-[[gnu::always_inline]] inline Eigen::Matrix3d cofactor(const Eigen::Matrix3d& X) {
-  Eigen::Matrix3d C;
-  C.col(0) = X.col(1).cross(X.col(2));
-  C.col(1) = X.col(2).cross(X.col(0));
-  C.col(2) = X.col(0).cross(X.col(1));
-  return C;
+// Tets [t0, t0 + m) into the lanes, m = min(kElementLanes, n_tets - t0) returned: rotations, the edges of v (3n:
+// v_{a+1} - v_0 as column a), Dm^-1 and volumes; the lanes past m get identities and no volume (no force, no
+// energy).
+int fill_lanes(const Tets& tets, const std::vector<Eigen::Matrix3d>& grad, const std::vector<double>& volume,
+               const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& v, int t0, detail::ElementLanes& e) {
+  const int m = std::min(detail::kElementLanes, static_cast<int>(tets.rows()) - t0);
+  for (int l = 0; l < detail::kElementLanes; ++l) {
+    if (l >= m) {
+      for (int c = 0; c < 9; ++c) {
+        e.R[c][l] = e.G[c][l] = c % 4 == 0 ? 1.0 : 0.0;  // (entries 0, 4, 8: the diagonal)
+        e.D[c][l] = 0.0;
+      }
+      e.V[l] = 0.0;
+      continue;
+    }
+    const int t = t0 + l;
+    const double* x0 = v.data() + 3 * tets(t, 0);
+    for (int a = 0; a < 3; ++a) {
+      const double* xa = v.data() + 3 * tets(t, a + 1);
+      for (int k = 0; k < 3; ++k) e.D[3 * a + k][l] = xa[k] - x0[k];
+    }
+    for (int c = 0; c < 9; ++c) {
+      e.R[c][l] = R[t].data()[c];
+      e.G[c][l] = grad[t].data()[c];
+    }
+    e.V[l] = volume[t];
+  }
+  return m;
 }
 
-// Higham's scaling det^(-1/3) of the Newton polar iteration. It only sets the speed of convergence, not the limit,
-// so near det = 1 its Taylor series to second order (relative error at most about 3e-3 for |det - 1| < 0.25) replaces
-// std::cbrt, which cost more than the rest of an iteration.
-double newton_scaling(double det) {
-  const double e = det - 1.0;
-  if (std::abs(e) < kNewtonSeriesRange) return 1.0 - e / 3.0 + e * e * (2.0 / 9.0);
-  return std::cbrt(1.0 / det);
-}
-
-// Isotropic linear stress (pascals) of a small strain eps: lambda tr(eps) I + 2 mu eps.
-Eigen::Matrix3d stress(const Eigen::Matrix3d& eps, double lambda, double mu) {
-  Eigen::Matrix3d s = 2.0 * mu * eps;
-  s.diagonal().array() += lambda * eps.trace();
-  return s;
+// The lanes' element forces added to out (3n): P's column a on node a+1, minus their sum on node 0.
+void scatter_lanes(const Tets& tets, const detail::ElementLanes& e, int t0, int m, Eigen::VectorXd& out) {
+  for (int l = 0; l < m; ++l) {
+    const int t = t0 + l;
+    double* f0 = out.data() + 3 * tets(t, 0);
+    for (int a = 0; a < 3; ++a) {
+      double* fa = out.data() + 3 * tets(t, a + 1);
+      for (int k = 0; k < 3; ++k) {
+        fa[k] += e.P[3 * a + k][l];
+        f0[k] -= e.P[3 * a + k][l];
+      }
+    }
+  }
 }
 
 }  // namespace
-
-// ---------------------------------------------------------------------------------------------------------------
-// Rotation of a deformation gradient
-
-Eigen::Matrix3d proper_rotation(const Eigen::Matrix3d& F, bool* inverted) {
-  if (!F.allFinite()) {
-    std::ostringstream msg;
-    msg << "proper_rotation: F must be finite, got\n" << F;
-    throw std::invalid_argument(msg.str());
-  }
-  Eigen::Matrix3d C = cofactor(F);
-  double det = F.col(0).dot(C.col(0));
-  if (inverted) *inverted = !(det > 0.0);
-  // Well-conditioned, not inverted: Newton's polar iteration X <- (g X + X^-T / g) / 2 with determinant scaling
-  // g = |det X|^(-1/3) while far from orthogonal (Higham 1986); converges quadratically to the polar rotation.
-  // (X^-T det X is the cofactor matrix, whose first column also gives det X.)
-  if (det > kNewtonMinDet) {
-    Eigen::Matrix3d X = F;
-    bool scale = true;
-    for (int k = 0; k < kNewtonMaxIterations; ++k) {
-      const double g = scale ? newton_scaling(det) : 1.0;
-      const Eigen::Matrix3d next = (0.5 * g) * X + (0.5 / (g * det)) * C;
-      const double step = (next - X).lpNorm<Eigen::Infinity>();
-      X = next;
-      if (step <= 1e-8) return X;  // quadratic convergence: the error of X is now about step^2 / 2
-      scale = step > 1e-2;
-      C = cofactor(X);
-      det = X.col(0).dot(C.col(0));
-    }
-  }
-  // Inverted, nearly degenerate or not converged: SVD, the smallest singular value's sign flipped when
-  // U V^T would be a reflection (Irving et al. 2004), so R is always a proper rotation.
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d U = svd.matrixU();
-  const Eigen::Matrix3d& V = svd.matrixV();
-  if ((U * V.transpose()).determinant() < 0.0) U.col(2) = -U.col(2);
-  return U * V.transpose();
-}
 
 // ---------------------------------------------------------------------------------------------------------------
 // CorotationalElements
@@ -259,13 +237,7 @@ Eigen::Matrix3d CorotationalElements::gradient(const Eigen::VectorXd& u, int t) 
 int CorotationalElements::rotations(const Eigen::VectorXd& u, std::vector<Eigen::Matrix3d>& R) const {
   detail::check_vector("CorotationalElements::rotations", "u", u, n_dofs());
   R.resize(n_tets());
-  int inverted_count = 0;
-  for (int t = 0; t < n_tets(); ++t) {
-    bool inverted = false;
-    R[t] = proper_rotation(gradient(u, t), &inverted);
-    inverted_count += inverted ? 1 : 0;
-  }
-  return inverted_count;
+  return proper_rotations(n_tets(), [&](int t) { return gradient(u, t); }, R.data());
 }
 
 void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R,
@@ -276,18 +248,15 @@ void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::v
   if (order_ == ElementOrder::kQuadratic) {
     elements = quadratic_forces(u, R, f);
   } else {
+    // Strain of the unrotated element, eps = sym(R^T F) - I, its stress, the nodal forces V R sigma grad N_a, and
+    // its energy V eps : sigma / 2, a batch of tets at a time.
     f.setZero(n_dofs());
-    for (int t = 0; t < n_tets(); ++t) {
-      // Strain of the unrotated element, eps = sym(R^T F) - I, its stress, the nodal forces V R sigma grad N_a, and
-      // its energy V eps : sigma / 2.
-      const Eigen::Matrix3d S = R[t].transpose() * gradient(u, t);
-      Eigen::Matrix3d eps = 0.5 * (S + S.transpose());
-      eps.diagonal().array() -= 1.0;
-      const Eigen::Matrix3d sigma = stress(eps, lambda_, mu_);
-      elements += 0.5 * volume_[t] * eps.cwiseProduct(sigma).sum();
-      const Eigen::Matrix3d P = volume_[t] * (R[t] * sigma) * grad_[t].transpose();
-      for (int a = 0; a < 3; ++a) f.segment<3>(3 * tets_(t, a + 1)) += P.col(a);
-      f.segment<3>(3 * tets_(t, 0)) -= P.rowwise().sum();
+    detail::ElementLanes lanes;
+    for (int t0 = 0; t0 < n_tets(); t0 += detail::kElementLanes) {
+      const int m = fill_lanes(tets_, grad_, volume_, R, u, t0, lanes);
+      detail::element_stress_lanes(lanes, lambda_, mu_, true);
+      for (int l = 0; l < m; ++l) elements += lanes.energy[l];
+      scatter_lanes(tets_, lanes, t0, m, f);
     }
   }
   add_support(u, f);
@@ -302,17 +271,14 @@ void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R,
     quadratic_product(R, p, y);
     return add_support(p, y);
   }
+  // R K_e R^T p_e: strain of the unrotated displacement gradient R^T (Dp Dm^-1), stress, rotated nodal forces, a
+  // batch of tets at a time.
   y.setZero(n_dofs());
-  for (int t = 0; t < n_tets(); ++t) {
-    // R K_e R^T p_e: strain of the unrotated displacement gradient R^T (Dp Dm^-1), stress, rotated nodal forces.
-    const Eigen::Vector3d p0 = p.segment<3>(3 * tets_(t, 0));
-    Eigen::Matrix3d Dp;
-    for (int a = 0; a < 3; ++a) Dp.col(a) = p.segment<3>(3 * tets_(t, a + 1)) - p0;
-    const Eigen::Matrix3d H = R[t].transpose() * (Dp * grad_[t]);
-    const Eigen::Matrix3d eps = 0.5 * (H + H.transpose());
-    const Eigen::Matrix3d P = volume_[t] * (R[t] * stress(eps, lambda_, mu_)) * grad_[t].transpose();
-    for (int a = 0; a < 3; ++a) y.segment<3>(3 * tets_(t, a + 1)) += P.col(a);
-    y.segment<3>(3 * tets_(t, 0)) -= P.rowwise().sum();
+  detail::ElementLanes lanes;
+  for (int t0 = 0; t0 < n_tets(); t0 += detail::kElementLanes) {
+    const int m = fill_lanes(tets_, grad_, volume_, R, p, t0, lanes);
+    detail::element_stress_lanes(lanes, lambda_, mu_, false);
+    scatter_lanes(tets_, lanes, t0, m, y);
   }
   add_support(p, y);
 }
@@ -440,12 +406,16 @@ void CorotationalElements::node_rotations(const std::vector<Eigen::Matrix3d>& R,
                                           std::vector<Eigen::Matrix3d>& node_R) const {
   check_rotations("CorotationalElements::node_rotations", R);
   node_R.resize(n_nodes_);
-  for (int v = 0; v < n_nodes_; ++v) {
-    // Rotation nearest to the sum of the incident tets' rotations.
-    Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
-    for (int k = node_tet_start_[v]; k < node_tet_start_[v + 1]; ++k) sum += R[node_tet_[k]];
-    node_R[v] = node_tet_start_[v + 1] > node_tet_start_[v] ? proper_rotation(sum) : Eigen::Matrix3d::Identity();
-  }
+  // Rotation nearest to the sum of the incident tets' rotations (a node in no tet: identity).
+  proper_rotations(
+      n_nodes_,
+      [&](int v) {
+        if (node_tet_start_[v + 1] == node_tet_start_[v]) return Eigen::Matrix3d(Eigen::Matrix3d::Identity());
+        Eigen::Matrix3d sum = Eigen::Matrix3d::Zero();
+        for (int k = node_tet_start_[v]; k < node_tet_start_[v + 1]; ++k) sum += R[node_tet_[k]];
+        return sum;
+      },
+      node_R.data());
 }
 
 // 10-node kernels: the element's displacement unrotated by R^T, times the stored K_e, rotated back by R.

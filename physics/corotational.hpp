@@ -20,15 +20,10 @@
 #include "physics/contact_rows.hpp"
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
+#include "physics/polar.hpp"
 #include "physics/quadratic.hpp"
 
 namespace lumen::physics {
-
-// Proper rotation of a deformation gradient F (3 x 3): the rotation of the polar decomposition F = R S when
-// det F > 0; when det F <= 0 (inverted), R = U V^T from the SVD F = U Sigma V^T with the sign of the smallest
-// singular value flipped so that det R = +1 (Irving et al. 2004). R^T F is then symmetric. Never NaN for finite F.
-// inverted (optional) is set to det F <= 0.
-Eigen::Matrix3d proper_rotation(const Eigen::Matrix3d& F, bool* inverted = nullptr);
 
 // The part of the exact corotational tangent that the warped stiffness K_w leaves out (the derivative of the
 // rotations), for one tet: sum_k stiffness[k] b_k b_k^T, 12 x 12. In the signed singular frame F = U Sigma V^T

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "physics/detail/messages.hpp"
+#include "physics/detail/target_clones.hpp"
 
 namespace lumen::physics::detail {
 
@@ -39,16 +40,8 @@ double check_supernode(const SupernodalView& L, int k) {
   return largest;
 }
 
-// The sweeps are compiled for AVX2 and FMA as well as for the build's baseline, chosen at load time where the
-// compiler can (the float values are widened to double four at a time).
-#if defined(__x86_64__) && defined(__has_attribute)
-#if __has_attribute(target_clones)
-#define LUMEN_TARGET_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
-#endif
-#endif
-#ifndef LUMEN_TARGET_CLONES
-#define LUMEN_TARGET_CLONES
-#endif
+// The sweeps are compiled for AVX2 and FMA as well as for the build's baseline (LUMEN_TARGET_CLONES: the float
+// values are widened to double four at a time).
 
 // The factor's arrays as the sweeps read them (see SupernodalView).
 struct Supernodes {

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "physics/corotational.hpp"
+#include "physics/detail/element_lanes.hpp"
 #include "physics/fem.hpp"
 #include "physics/mesh.hpp"
 #include "support/fem.hpp"
@@ -125,6 +126,34 @@ TEST(ProperRotation, MatchesSvdPolarAndStaysProperWhenInverted) {
   Eigen::Matrix3d bad = Eigen::Matrix3d::Identity();
   bad(1, 2) = NAN;
   EXPECT_THROW(proper_rotation(bad), std::invalid_argument);
+}
+
+// The lockstep lanes against proper_rotation one matrix at a time: small and large strains (the series and cbrt
+// scalings), reflected and flattened gradients (left to proper_rotation's SVD), and a last batch part full; a
+// gradient that is not finite throws as proper_rotation does.
+TEST(ProperRotations, LockstepLanesEqualOneAtATime) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> small(0.0, 0.02), large(0.0, 0.3);
+  const int n = 5 * detail::kPolarLanes + 3;
+  std::vector<Eigen::Matrix3d> F(n);
+  int inverted_twin = 0;
+  for (int i = 0; i < n; ++i) {
+    F[i] = random_rotation(rng);
+    for (int k = 0; k < 9; ++k) F[i].data()[k] += (i % 3 == 0 ? large : small)(rng);
+    if (i % 7 == 0) F[i] *= 2.5;                // det about 16: the cbrt scaling
+    if (i % 11 == 0) F[i].col(i % 3) *= -1.0;   // reflected
+    if (i % 13 == 5) F[i].col(2) *= 1e-3;       // nearly flat: det below the Newton threshold
+    inverted_twin += F[i].determinant() <= 0.0 ? 1 : 0;
+  }
+  ASSERT_GT(inverted_twin, 0);
+  std::vector<Eigen::Matrix3d> R(n);
+  EXPECT_EQ(proper_rotations(n, [&](int i) { return F[i]; }, R.data()), inverted_twin);
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Matrix3d twin = proper_rotation(F[i]);
+    EXPECT_LE((R[i] - twin).norm(), 1e-13) << "matrix " << i << "\nF =\n" << F[i];
+  }
+  F[n / 2](1, 1) = NAN;
+  EXPECT_THROW(proper_rotations(n, [&](int i) { return F[i]; }, R.data()), std::invalid_argument);
 }
 
 TEST(CorotationalElements, ForcesAndWarpedProductMatchExplicitElementFormulas) {
@@ -454,10 +483,10 @@ TEST(CorotationalElements, InvertedTetGivesFiniteRestoringForceAndIsCounted) {
 // A tube of some 1500 tets under a large random displacement that inverts some
 // of its tets.
 struct InvertingTube {
-  TetMesh mesh = small_tube(16, 8, 2, 0.06);
+  TetMesh mesh;
   CorotationalElements el{mesh, kTissue};
   Eigen::VectorXd u, p;
-  InvertingTube() {
+  explicit InvertingTube(const TetMesh& m = small_tube(16, 8, 2, 0.06)) : mesh(m) {
     std::mt19937 rng(21);
     std::uniform_real_distribution<double> d(-1.5e-3, 1.5e-3);
     u.resize(el.n_dofs());
@@ -472,15 +501,15 @@ double relative_difference(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
 }
 
 // The kernels against a straightforward serial twin: per tet proper_rotation of the deformation
-// gradient, the stress formula, nodal forces scattered in tet order.
-TEST(CorotationalKernels, MatchSerialTwinWithInvertedTets) {
-  const InvertingTube tube;
+// gradient, the stress formula, nodal forces scattered in tet order, the energy summed in tet order. Returns the
+// twin's count of inverted tets.
+int expect_kernels_match_twin(const InvertingTube& tube) {
   const CorotationalElements& el = tube.el;
-  ASSERT_GE(el.n_tets(), 1000);
   const LameParameters lame = lame_parameters(kTissue);
   std::vector<Eigen::Matrix3d> R_twin(el.n_tets());
   Eigen::VectorXd f_twin = Eigen::VectorXd::Zero(el.n_dofs()), y_twin = f_twin;
   int inverted_twin = 0;
+  double energy_twin = 0.0;
   for (int t = 0; t < el.n_tets(); ++t) {
     const Eigen::Matrix3d F = el.deformation_gradient(tube.u, t);
     bool inverted = false;
@@ -504,22 +533,42 @@ TEST(CorotationalKernels, MatchSerialTwinWithInvertedTets) {
       const Eigen::Matrix3d P = el.rest_volume(t) * R * sigma * G.transpose();
       for (int a = 0; a < 3; ++a) out[k]->segment<3>(3 * el.tets()(t, a + 1)) += P.col(a);
       out[k]->segment<3>(3 * el.tets()(t, 0)) -= P.rowwise().sum();
+      if (k == 0) energy_twin += 0.5 * el.rest_volume(t) * strains[0].cwiseProduct(sigma).sum();
     }
   }
-  EXPECT_GT(inverted_twin, 0);
-  EXPECT_LT(inverted_twin, el.n_tets() / 2);
   std::vector<Eigen::Matrix3d> R;
   Eigen::VectorXd f, y;
+  double energy = 0.0;
   EXPECT_EQ(el.rotations(tube.u, R), inverted_twin);
-  for (int t = 0; t < el.n_tets(); ++t) ASSERT_LE((R[t] - R_twin[t]).norm(), 1e-12) << "tet " << t;
-  el.elastic_forces(tube.u, R, f);
+  for (int t = 0; t < el.n_tets(); ++t) EXPECT_LE((R[t] - R_twin[t]).norm(), 1e-12) << "tet " << t;
+  el.elastic_forces(tube.u, R, f, &energy);
   el.warped_product(R, tube.p, y);
   EXPECT_LE(relative_difference(f, f_twin), 1e-12);
   EXPECT_LE(relative_difference(y, y_twin), 1e-12);
+  EXPECT_NEAR(energy, energy_twin, 1e-12 * energy_twin);
+  return inverted_twin;
+}
+
+TEST(CorotationalKernels, MatchSerialTwinWithInvertedTets) {
+  const InvertingTube tube;
+  const CorotationalElements& el = tube.el;
+  ASSERT_GE(el.n_tets(), 1000);
+  const int inverted = expect_kernels_match_twin(tube);
+  EXPECT_GT(inverted, 0);
+  EXPECT_LT(inverted, el.n_tets() / 2);
   // A non-finite deformation gradient (finite u that overflows) throws.
+  std::vector<Eigen::Matrix3d> R;
   Eigen::VectorXd huge = tube.u;
   huge[3 * el.tets()(el.n_tets() / 2, 1)] = 1e308;
   EXPECT_THROW(el.rotations(huge, R), std::invalid_argument);
+}
+
+// The same where the kernels' last batch of tets is only partly full (the rotations' and the element lanes').
+TEST(CorotationalKernels, APartlyFullLastBatchMatchesTheSerialTwin) {
+  const InvertingTube tube(small_tube(9, 5, 1, 0.06));
+  ASSERT_NE(tube.el.n_tets() % detail::kPolarLanes, 0);
+  ASSERT_NE(tube.el.n_tets() % detail::kElementLanes, 0);
+  expect_kernels_match_twin(tube);
 }
 
 TEST(CorotationalSolve, ContinuesThroughInvertedElementsWithoutNaN) {
