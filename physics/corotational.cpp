@@ -50,11 +50,11 @@ constexpr double kDivergenceGrowth = 1e4;
 // factorisation landing a frame later only lags the preconditioner.
 constexpr int kBackgroundFactorisationNice = 19;
 
-// Tets [t0, t0 + m) into the lanes, m = min(kElementLanes, n_tets - t0) returned: rotations, the edges of v (3n:
-// v_{a+1} - v_0 as column a), Dm^-1 and volumes; the lanes past m get identities and no volume (no force, no
-// energy).
+// Tets [t0, t0 + m) into the lanes, m = min(kElementLanes, n_tets - t0) returned: rotations (unless R is null), the
+// edges of v (3n: v_{a+1} - v_0 as column a), Dm^-1 and volumes; the lanes past m get identities and no volume (no
+// force, no energy).
 int fill_lanes(const Tets& tets, const std::vector<Eigen::Matrix3d>& grad, const std::vector<double>& volume,
-               const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& v, int t0, detail::ElementLanes& e) {
+               const std::vector<Eigen::Matrix3d>* R, const Eigen::VectorXd& v, int t0, detail::ElementLanes& e) {
   const int m = std::min(detail::kElementLanes, static_cast<int>(tets.rows()) - t0);
   for (int l = 0; l < detail::kElementLanes; ++l) {
     if (l >= m) {
@@ -72,7 +72,7 @@ int fill_lanes(const Tets& tets, const std::vector<Eigen::Matrix3d>& grad, const
       for (int k = 0; k < 3; ++k) e.D[3 * a + k][l] = xa[k] - x0[k];
     }
     for (int c = 0; c < 9; ++c) {
-      e.R[c][l] = R[t].data()[c];
+      if (R) e.R[c][l] = (*R)[t].data()[c];
       e.G[c][l] = grad[t].data()[c];
     }
     e.V[l] = volume[t];
@@ -253,7 +253,7 @@ void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::v
     f.setZero(n_dofs());
     detail::ElementLanes lanes;
     for (int t0 = 0; t0 < n_tets(); t0 += detail::kElementLanes) {
-      const int m = fill_lanes(tets_, grad_, volume_, R, u, t0, lanes);
+      const int m = fill_lanes(tets_, grad_, volume_, &R, u, t0, lanes);
       detail::element_stress_lanes(lanes, lambda_, mu_, true);
       for (int l = 0; l < m; ++l) elements += lanes.energy[l];
       scatter_lanes(tets_, lanes, t0, m, f);
@@ -261,6 +261,38 @@ void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::v
   }
   add_support(u, f);
   if (energy) *energy = elements + support_energy(u);
+}
+
+int CorotationalElements::rotations_and_forces(const Eigen::VectorXd& u, std::vector<Eigen::Matrix3d>& R,
+                                               Eigen::VectorXd& f, double* energy) const {
+  if (order_ == ElementOrder::kQuadratic) {
+    const int inverted = rotations(u, R);
+    elastic_forces(u, R, f, energy);
+    return inverted;
+  }
+  detail::check_vector("CorotationalElements::rotations_and_forces", "u", u, n_dofs());
+  static_assert(detail::kElementLanes == detail::kPolarLanes, "one batch for the rotations and the forces");
+  R.resize(n_tets());
+  f.setZero(n_dofs());
+  double elements = 0.0;
+  int inverted = 0;
+  detail::ElementLanes lanes;
+  alignas(32) double F[9][detail::kPolarLanes];
+  for (int t0 = 0; t0 < n_tets(); t0 += detail::kElementLanes) {
+    // A batch's nodes read once: its deformation gradients, their rotations (into R and the lanes), the stresses,
+    // forces and energies, scattered.
+    const int m = fill_lanes(tets_, grad_, volume_, nullptr, u, t0, lanes);
+    detail::deformation_lanes(lanes, F);
+    inverted += rotations_of_lanes(F, t0, m, [&](int t) { return gradient(u, t); }, R.data());
+    for (int l = 0; l < detail::kElementLanes; ++l)
+      for (int c = 0; c < 9; ++c) lanes.R[c][l] = l < m ? R[t0 + l].data()[c] : (c % 4 == 0 ? 1.0 : 0.0);
+    detail::element_stress_lanes(lanes, lambda_, mu_, true);
+    for (int l = 0; l < m; ++l) elements += lanes.energy[l];
+    scatter_lanes(tets_, lanes, t0, m, f);
+  }
+  add_support(u, f);
+  if (energy) *energy = elements + support_energy(u);
+  return inverted;
 }
 
 void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p,
@@ -276,7 +308,7 @@ void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R,
   y.setZero(n_dofs());
   detail::ElementLanes lanes;
   for (int t0 = 0; t0 < n_tets(); t0 += detail::kElementLanes) {
-    const int m = fill_lanes(tets_, grad_, volume_, R, p, t0, lanes);
+    const int m = fill_lanes(tets_, grad_, volume_, &R, p, t0, lanes);
     detail::element_stress_lanes(lanes, lambda_, mu_, false);
     scatter_lanes(tets_, lanes, t0, m, y);
   }
@@ -1130,8 +1162,7 @@ void evaluate_at_u(const CorotationalElements& el, CorotationalState& state) {
   const bool cached = state.u_eval.size() == n && static_cast<int>(state.rotations.size()) == el.n_tets() &&
                       state.f_int.size() == n && state.u_eval == state.u;
   if (cached) return;
-  state.n_inverted = el.rotations(state.u, state.rotations);
-  el.elastic_forces(state.u, state.rotations, state.f_int, &state.energy);
+  state.n_inverted = el.rotations_and_forces(state.u, state.rotations, state.f_int, &state.energy);
   state.u_eval = state.u;
 }
 

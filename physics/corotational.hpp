@@ -77,6 +77,10 @@ class CorotationalElements {
   // With energy: also elastic_energy(u, R), summed in the same element loop (joules).
   void elastic_forces(const Eigen::VectorXd& u, const std::vector<Eigen::Matrix3d>& R, Eigen::VectorXd& f,
                       double* energy = nullptr) const;
+  // rotations(u, R), then elastic_forces(u, R, f, energy), in one pass over the tets (each tet's nodes read once);
+  // returns the number of inverted tets.
+  int rotations_and_forces(const Eigen::VectorXd& u, std::vector<Eigen::Matrix3d>& R, Eigen::VectorXd& f,
+                           double* energy = nullptr) const;
   // y = K_w p with the warped stiffness K_w = sum_e R_e K_e R_e^T (p, y: 3n).
   void warped_product(const std::vector<Eigen::Matrix3d>& R, const Eigen::VectorXd& p, Eigen::VectorXd& y) const;
   // The same K_w assembled, 3n x 3n, N/m (the sparsity of the rest stiffness K; with R = identity it is K).

@@ -5,6 +5,15 @@
 
 namespace lumen::physics::detail {
 
+LUMEN_TARGET_CLONES void deformation_lanes(const ElementLanes& e, double (&x)[9][kElementLanes]) {
+#pragma omp simd
+  for (int l = 0; l < kElementLanes; ++l)
+    for (int c = 0; c < 3; ++c)
+      for (int r = 0; r < 3; ++r)
+        x[3 * c + r][l] = (r == c ? 1.0 : 0.0) + e.D[r][l] * e.G[3 * c][l] + e.D[3 + r][l] * e.G[3 * c + 1][l] +
+                          e.D[6 + r][l] * e.G[3 * c + 2][l];
+}
+
 LUMEN_TARGET_CLONES void element_stress_lanes(ElementLanes& e, double lambda, double mu, bool deformation) {
   const double with_identity = deformation ? 1.0 : 0.0;
 #pragma omp simd

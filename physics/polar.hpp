@@ -29,6 +29,26 @@ unsigned polar_newton_lanes(double (&x)[9][kPolarLanes]);
 
 }  // namespace detail
 
+// The rotations of a batch whose lanes x hold gradient(i0 + l) for l < m (identity past m): Newton's polar iteration on
+// all lanes in lockstep, R[i0 + l] its rotation where it settled and proper_rotation(gradient(i0 + l)) where not.
+// Returns how many were inverted (det <= 0).
+template <class Gradient>
+int rotations_of_lanes(double (&x)[9][detail::kPolarLanes], int i0, int m, const Gradient& gradient,
+                       Eigen::Matrix3d* R) {
+  int inverted = 0;
+  const unsigned settled = detail::polar_newton_lanes(x);
+  for (int l = 0; l < m; ++l) {
+    if (settled >> l & 1u) {
+      for (int c = 0; c < 9; ++c) R[i0 + l].data()[c] = x[c][l];
+      continue;
+    }
+    bool flipped = false;
+    R[i0 + l] = proper_rotation(gradient(i0 + l), &flipped);
+    inverted += flipped ? 1 : 0;
+  }
+  return inverted;
+}
+
 // proper_rotation of gradient(i) for i in [0, n) into R[i] (n entries), kPolarLanes at a time in lockstep, and the
 // lanes the lockstep iteration does not settle one by one. Returns how many were inverted (det <= 0). Equal to
 // proper_rotation's to round-off; throws as it does on a gradient that is not finite.
@@ -38,22 +58,13 @@ int proper_rotations(int n, const Gradient& gradient, Eigen::Matrix3d* R) {
   int inverted = 0;
   alignas(32) double x[9][kPolarLanes];
   for (int i0 = 0; i0 < n; i0 += kPolarLanes) {
-    // The batch's gradients in lanes (identity past the end), the lockstep iteration, the settled lanes out.
+    // The batch's gradients in lanes (identity past the end), then their rotations.
     const int m = std::min(kPolarLanes, n - i0);
     for (int l = 0; l < kPolarLanes; ++l) {
       const Eigen::Matrix3d F = l < m ? Eigen::Matrix3d(gradient(i0 + l)) : Eigen::Matrix3d::Identity();
       for (int c = 0; c < 9; ++c) x[c][l] = F.data()[c];
     }
-    const unsigned settled = detail::polar_newton_lanes(x);
-    for (int l = 0; l < m; ++l) {
-      if (settled >> l & 1u) {
-        for (int c = 0; c < 9; ++c) R[i0 + l].data()[c] = x[c][l];
-        continue;
-      }
-      bool flipped = false;
-      R[i0 + l] = proper_rotation(gradient(i0 + l), &flipped);
-      inverted += flipped ? 1 : 0;
-    }
+    inverted += rotations_of_lanes(x, i0, m, gradient, R);
   }
   return inverted;
 }

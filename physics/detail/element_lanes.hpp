@@ -6,8 +6,9 @@ namespace lumen::physics::detail {
 
 // Tets per batch. BM_CorotationalElasticForces / BM_CorotationalWarpedProduct on the paper mesh (9,360 tets): one tet
 // at a time with Eigen 309 / 268 us; 4 lanes 214-227 / 212-225, 8 lanes 212 / 208-210, 16 lanes 207-210 / 205-210
-// (the gathers and scatters of the nodes' values bound it).
-constexpr int kElementLanes = 8;
+// (the gathers and scatters of the nodes' values bound it); 16, the rotations' lanes, so that the evaluation at u
+// (CorotationalElements::rotations_and_forces) runs both on one batch.
+constexpr int kElementLanes = 16;
 
 // One batch. Matrices are 3 x 3, entry c = 3 col + row (column-major) of lane l at [c][l].
 struct ElementLanes {
@@ -18,6 +19,9 @@ struct ElementLanes {
   double P[9][kElementLanes];  // out: V R sigma G^T, newtons; column a is node a+1's force, minus their sum node 0's
   double energy[kElementLanes];  // out: V eps : sigma / 2, joules (with deformation only)
 };
+
+// Every lane's deformation gradient F = I + D G into x (entries as the lanes', c = 3 col + row).
+void deformation_lanes(const ElementLanes& e, double (&x)[9][kElementLanes]);
 
 // The unrotated strain eps = sym(R^T (D G)) (deformation: sym(R^T (I + D G)) - I, D the displacement edges), the
 // isotropic stress sigma = 2 mu eps + lambda tr(eps) I, and P and the energy from them, on every lane.

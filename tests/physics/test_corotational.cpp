@@ -500,9 +500,9 @@ double relative_difference(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
 }
 
-// The kernels against a straightforward serial twin: per tet proper_rotation of the deformation
-// gradient, the stress formula, nodal forces scattered in tet order, the energy summed in tet order. Returns the
-// twin's count of inverted tets.
+// The kernels (rotations, forces, products, and rotations and forces in one pass) against a straightforward serial
+// twin: per tet proper_rotation of the deformation gradient, the stress formula, nodal forces scattered in tet
+// order, the energy summed in tet order. Returns the twin's count of inverted tets.
 int expect_kernels_match_twin(const InvertingTube& tube) {
   const CorotationalElements& el = tube.el;
   const LameParameters lame = lame_parameters(kTissue);
@@ -546,6 +546,14 @@ int expect_kernels_match_twin(const InvertingTube& tube) {
   EXPECT_LE(relative_difference(f, f_twin), 1e-12);
   EXPECT_LE(relative_difference(y, y_twin), 1e-12);
   EXPECT_NEAR(energy, energy_twin, 1e-12 * energy_twin);
+  // The same in one pass (the evaluation at u).
+  std::vector<Eigen::Matrix3d> R1;
+  Eigen::VectorXd f1;
+  double energy1 = 0.0;
+  EXPECT_EQ(el.rotations_and_forces(tube.u, R1, f1, &energy1), inverted_twin);
+  for (int t = 0; t < el.n_tets(); ++t) EXPECT_LE((R1[t] - R_twin[t]).norm(), 1e-12) << "tet " << t;
+  EXPECT_LE(relative_difference(f1, f_twin), 1e-12);
+  EXPECT_NEAR(energy1, energy_twin, 1e-12 * energy_twin);
   return inverted_twin;
 }
 

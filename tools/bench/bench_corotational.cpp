@@ -194,6 +194,21 @@ void BM_CorotationalElasticForces(benchmark::State& state) {
 }
 BENCHMARK(BM_CorotationalElasticForces)->Unit(benchmark::kMicrosecond);
 
+// The evaluation at u in one pass (what evaluate_at_u runs), against BM_CorotationalRotations plus
+// BM_CorotationalElasticForces.
+void BM_CorotationalRotationsAndForces(benchmark::State& state) {
+  const CorotationalElements& el = corot_model().model->elements();
+  const Eigen::VectorXd& u = deformed_state();
+  std::vector<Eigen::Matrix3d> R;
+  Eigen::VectorXd f;
+  double energy = 0.0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(el.rotations_and_forces(u, R, f, &energy));
+    benchmark::DoNotOptimize(f.data());
+  }
+}
+BENCHMARK(BM_CorotationalRotationsAndForces)->Unit(benchmark::kMicrosecond);
+
 void BM_CorotationalWarpedProduct(benchmark::State& state) {
   const CorotationalElements& el = corot_model().model->elements();
   const Eigen::VectorXd& u = deformed_state();
