@@ -22,7 +22,8 @@ LUMEN_TARGET_CLONES void element_stress_lanes(ElementLanes& e, double lambda, do
     double A[9], H[9];
     for (int c = 0; c < 3; ++c)
       for (int r = 0; r < 3; ++r)
-        A[3 * c + r] = e.D[r][l] * e.G[3 * c][l] + e.D[3 + r][l] * e.G[3 * c + 1][l] + e.D[6 + r][l] * e.G[3 * c + 2][l];
+        A[3 * c + r] =
+            e.D[r][l] * e.G[3 * c][l] + e.D[3 + r][l] * e.G[3 * c + 1][l] + e.D[6 + r][l] * e.G[3 * c + 2][l];
     for (int j = 0; j < 3; ++j)
       for (int i = 0; i < 3; ++i)
         H[3 * j + i] = e.R[3 * i][l] * A[3 * j] + e.R[3 * i + 1][l] * A[3 * j + 1] + e.R[3 * i + 2][l] * A[3 * j + 2] +

@@ -178,6 +178,12 @@ constexpr double kSameStartRoundOff = 1e-12;
 // Hessians the solves use are 0-12 frames old; when the walls met on one anticipated about 25 frames before, the
 // next 9 frames' steps took 7-9 line-search halvings each.)
 constexpr int kStaleHessianFrames = 12;
+// ... and waits at most this long for the one under way; past it the frame factorises K_w at its start at once, as
+// when no job is under way. (The background thread runs at nice 19: on a machine busy with other work it can get no
+// core for seconds: 2.8-6.5 s for one frame of the 8x pinch while a build or two busy loops ran. Solving on the stale
+// Hessian instead, until the job came, ended that session's tip at -10.9 mm against -18.0. Unloaded, the whole
+// first-contact frame, wait included, took at most 88 ms, docs/bench_stale_waits.csv.)
+constexpr auto kStaleHessianWait = std::chrono::milliseconds(100);
 // Before the walls meet, a new contact Hessian is started once the last one is this many frames old (not whenever
 // the background thread is free: its factorisations slowed the contact-free frames' solves on the main thread,
 // measured on the 8x pinch, pcr median 8 against 15 ms with one after another).
@@ -233,7 +239,9 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   // A finished background factorisation becomes the Hessian; the first contact solve, or one where the walls meet on
   // a stale Hessian, waits for one under way (anticipate_contacts started it before the walls met) rather than
   // factorising another beside it (its thread then has a core; rendered, the walls met on a stale Hessian with one
-  // under way in about 1 run of 4, and the factorisation beside it took 140-150 ms).
+  // under way in about 1 run of 4, and the factorisation beside it took 140-150 ms); on a stale one, for at most
+  // kStaleHessianWait (outwaited: this frame factorises at once below; where the walls meet again on a stale Hessian
+  // before that job has come, they do not wait for it again).
   // The prediction takes it as its preconditioner where the walls meet, not while they stay in contact: the frame's
   // trial motion is its prediction plus the last frame's correction, measured from a prediction on the old
   // preconditioner, and a bounded prediction on a new one ends elsewhere (on the 8x pinch the frame after each
@@ -244,7 +252,11 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
     return walls_meet && work.contact_hessian.compliance &&
            work.predictions - work.contact_hessian.taken_at > kStaleHessianFrames;
   };
-  if (lagged && work.contact_pending.valid() &&
+  const auto wait = work.contact_pending_outwaited ? std::chrono::milliseconds(0) : kStaleHessianWait;
+  const bool outwaited = lagged && work.contact_pending.valid() && stale() &&
+                         work.contact_pending.wait_for(wait) != std::future_status::ready;
+  work.contact_pending_outwaited = work.contact_pending_outwaited || outwaited;
+  if (lagged && work.contact_pending.valid() && !outwaited &&
       (!work.contact_hessian.compliance || stale() ||
        work.contact_pending.wait_for(std::chrono::seconds(0)) == std::future_status::ready) &&
       adopt_contact_hessian(work, failures) && walls_meet)
@@ -261,8 +273,9 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   // The rest solver's nested-dissection analysis, once, on this thread: the contact Hessians are factorised on it.
   if (lagged && !model_.solver().has_nested_analysis()) model_.solver().prepare_nested_analysis();
   // The first contact solve without an anticipated Hessian, or where the walls meet on a stale one (the one under
-  // way, taken above, as stale), factorises K_w at its start, at once (the rest K is far from the tangent of a tube
-  // deflected several wall thicknesses: its steps needed four line-search halvings each and did not converge).
+  // way, taken above, as stale, or outwaited), factorises K_w at its start, at once (the rest K is far from the
+  // tangent of a tube deflected several wall thicknesses: its steps needed four line-search halvings each and did not
+  // converge).
   const bool at_once = lagged && ((!work.contact_hessian.compliance && !work.contact_pending.valid()) || stale());
   work.last_contact_solve = work.predictions;
   if (at_once) {
@@ -291,6 +304,7 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
     if (options_.refactor_in_background) {
       work.contact_pending = contact_hessian_in_background(model_, work.corotational.rotations, compliance.nodes(),
                                                            row_nodes(rows), work.predictions);
+      work.contact_pending_outwaited = false;
     } else {
       try {
         work.contact_hessian =
@@ -349,6 +363,7 @@ void CorotationalQuasiStatic::anticipate_contacts(const std::vector<int>& nodes,
   if (work.contact_hessian.compliance && work.predictions - work.contact_hessian.taken_at < kAnticipatedHessianFrames)
     return;
   work.contact_pending = contact_hessian_in_background(model_, R, nodes, {}, work.predictions);
+  work.contact_pending_outwaited = false;
 }
 
 // ---------------------------------------------------------------------------------------------------------------

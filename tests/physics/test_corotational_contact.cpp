@@ -5,10 +5,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <future>
+#include <memory>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "physics/corotational.hpp"
@@ -384,33 +388,39 @@ TEST(ContactEquilibrium, ThePredictionKeepsItsPreconditionerWhileTheWallsStayInC
   EXPECT_EQ(work.corotational.preconditioner, work.contact_hessian.factor);
 }
 
+// The floored press on background contact Hessians, as the tests of walls meeting on a stale one set it up.
+struct BackgroundPress {
+  FlooredPress p = floored_press(0.05, 1.5e-3);
+  CorotationalQuasiStatic integrator = in_background(p);
+  SurfaceCompliance compliance{integrator.model().solver(), p.top};
+  ContactEquilibriumOptions co = on_lagged_hessians();
+  FrameLoads half = point_loads(p, 0.5), whole = point_loads(p, 1.0);
+};
+
 // Where the walls meet on a stale Hessian (K from the session's start, more than 12 frames old), the solve takes the
 // one anticipated since (whether it has finished or is waited for) when that is recent enough, and factorises K_w at
 // its start at once when it is stale too (the stale ones let go first). Either way the end meets the KKT conditions.
 TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianTakeTheOneAnticipatedSince) {
-  const FlooredPress p = floored_press(0.05, 1.5e-3);
-  const CorotationalQuasiStatic integrator = in_background(p);
-  const CorotationalModel& model = integrator.model();
-  SurfaceCompliance compliance(model.solver(), p.top);
-  const ContactEquilibriumOptions co = on_lagged_hessians();
-  FrameLoads half = point_loads(p, 0.5), whole = point_loads(p, 1.0);
+  BackgroundPress b;
+  const FlooredPress& p = b.p;
+  const CorotationalModel& model = b.integrator.model();
   for (const int frames_before : {14, 20}) {
     SCOPED_TRACE(frames_before);
     IntegratorWork work;
     Eigen::VectorXd u;
     // The session's start (K), six frames before contact and the anticipation after the sixth, then none.
-    integrator.anticipate_contacts(p.top, work);
-    for (int f = 0; f < 6; ++f) integrator.predict(half, Eigen::VectorXd(), SimState{}, work, u);
-    integrator.anticipate_contacts(p.top, work);
+    b.integrator.anticipate_contacts(p.top, work);
+    for (int f = 0; f < 6; ++f) b.integrator.predict(b.half, Eigen::VectorXd(), SimState{}, work, u);
+    b.integrator.anticipate_contacts(p.top, work);
     ASSERT_TRUE(work.contact_pending.valid());
     const std::vector<Eigen::Matrix3d> anticipated_at = work.corotational.rotations;
-    for (int f = 6; f < frames_before - 1; ++f) integrator.predict(half, Eigen::VectorXd(), SimState{}, work, u);
+    for (int f = 6; f < frames_before - 1; ++f) b.integrator.predict(b.half, Eigen::VectorXd(), SimState{}, work, u);
     // The walls meet: the Hessian in use (K, frame 0) is stale; the anticipated one is 8 or 14 frames old.
-    integrator.predict(whole, Eigen::VectorXd(), SimState{}, work, u);
+    b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
     std::vector<Eigen::Matrix3d> start_at;
     model.elements().rotations(u, start_at);
     const ContactEquilibriumResult r =
-        integrator.solve_with_contacts(p.rows, compliance, co, work, u, Eigen::VectorXd());
+        b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, Eigen::VectorXd());
     ASSERT_TRUE(r.converged);
     EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
     ASSERT_TRUE(work.contact_hessian.factor);
@@ -420,6 +430,55 @@ TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianTakeTheOneAnticipatedSince) 
     EXPECT_LE(solve_difference(*factorise_warped(model, expected_at, false), *work.contact_hessian.factor, p.f), 1e-10);
     EXPECT_GT(solve_difference(*factorise_warped(model, other_at, false), *work.contact_hessian.factor, p.f), 1e-4);
   }
+}
+
+// Where the walls meet on a stale Hessian and the one under way does not come within the wait (its thread starved on a
+// busy machine; here a promise kept 2 s later), the frame factorises K_w at its start at once, as with none under
+// way, and the late one, older, is let go when it comes. Both ends meet the KKT conditions.
+TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianDoNotWaitLongForTheOneUnderWay) {
+  BackgroundPress b;
+  const FlooredPress& p = b.p;
+  const CorotationalModel& model = b.integrator.model();
+  IntegratorWork work;
+  Eigen::VectorXd u;
+  // The session's start (K), 14 frames before the walls meet, and a Hessian under way that comes only later.
+  b.integrator.anticipate_contacts(p.top, work);
+  ASSERT_TRUE(work.contact_hessian.factor);
+  const std::shared_ptr<const StaticSolver> stale = work.contact_hessian.factor;
+  for (int f = 0; f < 13; ++f) b.integrator.predict(b.half, Eigen::VectorXd(), SimState{}, work, u);
+  ASSERT_FALSE(work.contact_pending.valid());
+  std::promise<ContactHessianFactor> starved;
+  work.contact_pending = starved.get_future();
+  std::vector<Eigen::Matrix3d> R;
+  model.elements().rotations(u, R);
+  const int taken_at = work.predictions;
+  std::thread late([&] {
+    ContactHessianFactor h;
+    h.taken_at = taken_at;
+    h.factor = factorise_warped(model, R, true);
+    h.compliance = std::make_shared<SurfaceCompliance>(*h.factor, p.top);
+    std::this_thread::sleep_for(std::chrono::seconds(2));
+    starved.set_value(std::move(h));
+  });
+  b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
+  std::vector<Eigen::Matrix3d> start_at;
+  model.elements().rotations(u, start_at);
+  ContactEquilibriumResult r =
+      b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, Eigen::VectorXd());
+  ASSERT_TRUE(work.contact_hessian.factor);
+  const std::shared_ptr<const StaticSolver> at_once = work.contact_hessian.factor;
+  EXPECT_LE(solve_difference(*factorise_warped(model, start_at, false), *at_once, p.f), 1e-10);
+  EXPECT_TRUE(work.contact_pending.valid());
+  EXPECT_EQ(r.refactor_failures, 0);
+  EXPECT_TRUE(r.converged);
+  EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
+  // The late one has come: older than the one in use, it is let go.
+  late.join();
+  b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
+  r = b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, r.lambda);
+  EXPECT_EQ(work.contact_hessian.factor, at_once);
+  EXPECT_TRUE(r.converged);
+  EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
 }
 
 // Bad input names the field.
