@@ -180,7 +180,7 @@ constexpr double kSameStartRoundOff = 1e-12;
 constexpr int kStaleHessianFrames = 12;
 // ... and waits at most this long for the one under way; past it the frame factorises K_w at its start at once, as
 // when no job is under way. (The background thread runs at nice 19: on a machine busy with other work it can get no
-// core for seconds: 2.8-6.5 s for one frame of the 8x pinch while a build or two busy loops ran. Solving on the stale
+// core for seconds: 2.8-9.4 s for one frame of the 8x pinch while a build or two busy loops ran. Solving on the stale
 // Hessian instead, until the job came, ended that session's tip at -10.9 mm against -18.0. Unloaded, the whole
 // first-contact frame, wait included, took at most 88 ms, docs/bench_stale_waits.csv.)
 constexpr auto kStaleHessianWait = std::chrono::milliseconds(100);
