@@ -251,9 +251,11 @@ void CorotationalElements::elastic_forces(const Eigen::VectorXd& u, const std::v
     // its energy V eps : sigma / 2, a batch of tets at a time.
     f.setZero(n_dofs());
     detail::ElementLanes lanes;
+    alignas(32) double F[9][detail::kElementLanes];
     for (int t0 = 0; t0 < n_tets(); t0 += detail::kElementLanes) {
       const int m = fill_lanes(tets_, grad_, volume_, &R, u, t0, lanes);
-      detail::element_stress_lanes(lanes, lambda_, mu_, true);
+      detail::gradient_lanes(lanes, true, F);
+      detail::element_stress_lanes(lanes, F, lambda_, mu_, true);
       for (int l = 0; l < m; ++l) elements += lanes.energy[l];
       scatter_lanes(tets_, lanes, t0, m, f);
     }
@@ -276,16 +278,17 @@ int CorotationalElements::rotations_and_forces(const Eigen::VectorXd& u, std::ve
   double elements = 0.0;
   int inverted = 0;
   detail::ElementLanes lanes;
-  alignas(32) double F[9][detail::kPolarLanes];
+  alignas(32) double F[9][detail::kPolarLanes], X[9][detail::kPolarLanes];  // X: F, iterated to its rotation
   for (int t0 = 0; t0 < n_tets(); t0 += detail::kElementLanes) {
-    // A batch's nodes read once: its deformation gradients, their rotations (into R and the lanes), the stresses,
-    // forces and energies, scattered.
+    // A batch's nodes read once: its deformation gradients (computed once), their rotations (into R and the lanes),
+    // the stresses, forces and energies, scattered.
     const int m = fill_lanes(tets_, grad_, volume_, nullptr, u, t0, lanes);
-    detail::deformation_lanes(lanes, F);
-    inverted += rotations_of_lanes(F, t0, m, [&](int t) { return gradient(u, t); }, R.data());
+    detail::gradient_lanes(lanes, true, F);
+    std::copy(&F[0][0], &F[0][0] + 9 * detail::kPolarLanes, &X[0][0]);
+    inverted += rotations_of_lanes(X, t0, m, [&](int t) { return gradient(u, t); }, R.data());
     for (int l = 0; l < detail::kElementLanes; ++l)
       for (int c = 0; c < 9; ++c) lanes.R[c][l] = l < m ? R[t0 + l].data()[c] : (c % 4 == 0 ? 1.0 : 0.0);
-    detail::element_stress_lanes(lanes, lambda_, mu_, true);
+    detail::element_stress_lanes(lanes, F, lambda_, mu_, true);
     for (int l = 0; l < m; ++l) elements += lanes.energy[l];
     scatter_lanes(tets_, lanes, t0, m, f);
   }
@@ -306,9 +309,11 @@ void CorotationalElements::warped_product(const std::vector<Eigen::Matrix3d>& R,
   // batch of tets at a time.
   y.setZero(n_dofs());
   detail::ElementLanes lanes;
+  alignas(32) double H[9][detail::kElementLanes];
   for (int t0 = 0; t0 < n_tets(); t0 += detail::kElementLanes) {
     const int m = fill_lanes(tets_, grad_, volume_, &R, p, t0, lanes);
-    detail::element_stress_lanes(lanes, lambda_, mu_, false);
+    detail::gradient_lanes(lanes, false, H);
+    detail::element_stress_lanes(lanes, H, lambda_, mu_, false);
     scatter_lanes(tets_, lanes, t0, m, y);
   }
   add_support(p, y);

@@ -5,29 +5,27 @@
 
 namespace lumen::physics::detail {
 
-LUMEN_TARGET_CLONES void deformation_lanes(const ElementLanes& e, double (&x)[9][kElementLanes]) {
+LUMEN_TARGET_CLONES void gradient_lanes(const ElementLanes& e, bool deformation, double (&x)[9][kElementLanes]) {
+  const double with_identity = deformation ? 1.0 : 0.0;
 #pragma omp simd
   for (int l = 0; l < kElementLanes; ++l)
     for (int c = 0; c < 3; ++c)
       for (int r = 0; r < 3; ++r)
-        x[3 * c + r][l] = (r == c ? 1.0 : 0.0) + e.D[r][l] * e.G[3 * c][l] + e.D[3 + r][l] * e.G[3 * c + 1][l] +
-                          e.D[6 + r][l] * e.G[3 * c + 2][l];
+        x[3 * c + r][l] = (r == c ? with_identity : 0.0) + e.D[r][l] * e.G[3 * c][l] +
+                          e.D[3 + r][l] * e.G[3 * c + 1][l] + e.D[6 + r][l] * e.G[3 * c + 2][l];
 }
 
-LUMEN_TARGET_CLONES void element_stress_lanes(ElementLanes& e, double lambda, double mu, bool deformation) {
+LUMEN_TARGET_CLONES void element_stress_lanes(ElementLanes& e, const double (&x)[9][kElementLanes], double lambda,
+                                              double mu, bool deformation) {
   const double with_identity = deformation ? 1.0 : 0.0;
 #pragma omp simd
   for (int l = 0; l < kElementLanes; ++l) {
-    // A = D G, H = R^T A (+ R^T: R^T F with F = I + D G).
-    double A[9], H[9];
-    for (int c = 0; c < 3; ++c)
-      for (int r = 0; r < 3; ++r)
-        A[3 * c + r] =
-            e.D[r][l] * e.G[3 * c][l] + e.D[3 + r][l] * e.G[3 * c + 1][l] + e.D[6 + r][l] * e.G[3 * c + 2][l];
+    // H = R^T x.
+    double H[9];
     for (int j = 0; j < 3; ++j)
       for (int i = 0; i < 3; ++i)
-        H[3 * j + i] = e.R[3 * i][l] * A[3 * j] + e.R[3 * i + 1][l] * A[3 * j + 1] + e.R[3 * i + 2][l] * A[3 * j + 2] +
-                       with_identity * e.R[3 * i + j][l];
+        H[3 * j + i] = e.R[3 * i][l] * x[3 * j][l] + e.R[3 * i + 1][l] * x[3 * j + 1][l] +
+                       e.R[3 * i + 2][l] * x[3 * j + 2][l];
     // eps = sym(H) (- I), sigma, the energy V eps : sigma / 2.
     double eps[9];
     for (int j = 0; j < 3; ++j)

@@ -20,11 +20,13 @@ struct ElementLanes {
   double energy[kElementLanes];  // out: V eps : sigma / 2, joules (with deformation only)
 };
 
-// Every lane's deformation gradient F = I + D G into x (entries as the lanes', c = 3 col + row).
-void deformation_lanes(const ElementLanes& e, double (&x)[9][kElementLanes]);
+// Every lane's gradient D G into x (entries as the lanes', c = 3 col + row); deformation: F = I + D G, D the
+// displacement edges.
+void gradient_lanes(const ElementLanes& e, bool deformation, double (&x)[9][kElementLanes]);
 
-// The unrotated strain eps = sym(R^T (D G)) (deformation: sym(R^T (I + D G)) - I, D the displacement edges), the
+// From x as gradient_lanes wrote it: the unrotated strain eps = sym(R^T x) (deformation: sym(R^T F) - I), the
 // isotropic stress sigma = 2 mu eps + lambda tr(eps) I, and P and the energy from them, on every lane.
-void element_stress_lanes(ElementLanes& e, double lambda, double mu, bool deformation);
+void element_stress_lanes(ElementLanes& e, const double (&x)[9][kElementLanes], double lambda, double mu,
+                          bool deformation);
 
 }  // namespace lumen::physics::detail
