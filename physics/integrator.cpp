@@ -188,6 +188,14 @@ constexpr auto kStaleHessianWait = std::chrono::milliseconds(100);
 // the background thread is free: its factorisations slowed the contact-free frames' solves on the main thread,
 // measured on the 8x pinch, pcr median 8 against 15 ms with one after another).
 constexpr int kAnticipatedHessianFrames = 6;
+// Contact Hessians factorised at the session's start with all alive, one kept, so that the memory of that many is
+// touched before the frames (see anticipate_contacts). In contact three are alive at once (the one in use, the
+// prediction's older preconditioner, the next under way), and the main thread's allocations between them split the
+// heap's free blocks. Measured on the 8x pinch, rendered (page faults and CPU time of each background factorisation,
+// instrumented): with two, the first job took 85-89 ms (4,900 faults) against 27-30 ms warm and the first after the
+// walls met 120-135 ms (8,000 faults), in every run; with three, the first 34-36 ms and still one of 113-125 ms after
+// the walls met; with four, at most one of 62-65 ms (3,000 faults) a session.
+constexpr int kWarmContactHessians = 4;
 
 // K_w at the rotations R factorised, with its compliance over the nodes (lazy: half columns per node) readied for
 // couplings on the prefetched nodes (their half columns and the kept gram among them: 3-5 ms of the frame that adopts
@@ -344,16 +352,18 @@ void CorotationalQuasiStatic::anticipate_contacts(const std::vector<int>& nodes,
     share_with_prediction(work);
   if (work.contact_pending.valid()) return;
   if (!model_.solver().has_nested_analysis()) model_.solver().prepare_nested_analysis();
-  // Before the first prediction (the session's start): K, at once, twice with both alive, one kept. A factorisation
-  // whose memory is touched for the first time costs several later ones (120-170 against 26-30 ms on the paper mesh,
-  // measured, page faults); the process keeps the memory it has touched (the lumen binary's malloc settings), so the
-  // background thread's factorisations (one in use while the next is made) reuse these two's, out of the frames.
+  // Before the first prediction (the session's start): K, at once, kWarmContactHessians times with all alive, one
+  // kept. A factorisation whose memory is touched for the first time costs several later ones (120-170 against 26-30
+  // ms on the paper mesh, measured, page faults); the process keeps the memory it has touched (the lumen binary's
+  // malloc settings), so the background thread's factorisations reuse these ones', out of the frames.
   const std::vector<Eigen::Matrix3d>& R = work.corotational.rotations;
   if (static_cast<int>(R.size()) != model_.elements().n_tets()) {
     try {
       const std::vector<Eigen::Matrix3d> rest(model_.elements().n_tets(), Eigen::Matrix3d::Identity());
-      work.contact_hessian = contact_hessian(model_, rest, nodes, {}, work.predictions);
-      contact_hessian(model_, rest, nodes, {}, work.predictions);
+      std::vector<ContactHessianFactor> warm;
+      for (int i = 0; i < kWarmContactHessians; ++i)
+        warm.push_back(contact_hessian(model_, rest, nodes, {}, work.predictions));
+      work.contact_hessian = std::move(warm.front());
       share_with_prediction(work);
     } catch (const std::exception&) {
       // (as a failed background one: the first contact solve factorises at once)
