@@ -128,8 +128,8 @@ class StaticSolver {
   // u = K^-1 f (full vectors, 3n).
   void solve(const Eigen::VectorXd& f, Eigen::VectorXd& u) const;
   // A single-precision copy of the factor for solve_approximately (half the bytes a back-substitution reads; the
-  // solver's memory grows by about half). Solvers made from this one by refactorised() make their own; those made
-  // by scaled() share it. Not while a solve runs on another thread.
+  // solver's memory grows by about half). Solvers made from this one by refactorised() or refactorised_nested() make
+  // their own; those made by scaled() share it. Not while a solve runs on another thread.
   void add_single_precision();
   bool has_single_precision() const;
   // u ~ K^-1 f for preconditioning: on the single-precision copy when there is one, in double arithmetic on its

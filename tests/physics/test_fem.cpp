@@ -669,7 +669,8 @@ TEST(StaticSolver, RefactorisedNestedSolvesAndGivesHalfColumnsOfTheNewMatrix) {
 
 // The single-precision copy of the factor (the corotational solves' preconditioner): K^-1 f to float's precision
 // against the dense Cholesky, a symmetric operator to double round-off (its solves are double arithmetic on the
-// rounded factor, which CG needs), commuting with scaling K, shared by scaled views, made again by refactorised();
+// rounded factor, which CG needs), commuting with scaling K, shared by scaled views, made again by refactorised() and
+// refactorised_nested();
 // without it, solve_approximately is solve.
 TEST(StaticSolver, SinglePrecisionCopySolvesToFloatPrecisionAndSymmetrically) {
   const TetMesh mesh = small_mesh();
@@ -721,6 +722,16 @@ TEST(StaticSolver, SinglePrecisionCopySolvesToFloatPrecisionAndSymmetrically) {
   refactorised.solve_approximately(f, u);
   const Eigen::VectorXd uf2 = llt2.solve(gather(f, free));
   EXPECT_LE((gather(u, free) - uf2).norm(), 1e-5 * uf2.norm());
+  // So does one on the nested-dissection analysis (the contact Hessians, which precondition the predictions too).
+  solver.prepare_nested_analysis();
+  const StaticSolver nested = solver.refactorised_nested(K2);
+  ASSERT_TRUE(nested.has_single_precision());
+  nested.solve_approximately(f, u);
+  EXPECT_LE((gather(u, free) - uf2).norm(), 1e-5 * uf2.norm());
+  nested.solve(f, u_exact);
+  EXPECT_GT((u - u_exact).norm(), 0.0);
+  nested.solve_approximately(g, v);
+  EXPECT_NEAR(g.dot(u), f.dot(v), 1e-12 * std::abs(f.dot(v)));
   EXPECT_THROW(solver.solve_approximately(Eigen::VectorXd::Zero(5), u), std::invalid_argument);
 }
 
