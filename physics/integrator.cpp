@@ -184,6 +184,15 @@ constexpr int kStaleHessianFrames = 12;
 // Hessian instead, until the job came, ended that session's tip at -10.9 mm against -18.0. Unloaded, the whole
 // first-contact frame, wait included, took at most 88 ms, docs/bench_stale_waits.csv.)
 constexpr auto kStaleHessianWait = std::chrono::milliseconds(100);
+// While the walls stay in contact, a contact Hessian more than kOverdueHessianFrames old whose successor has been under
+// way for more than kOverdueJobFrames is replaced at once (K_w at the solve's start, factorised on this thread; the
+// late job, older, is let go when it comes). On a machine busy with other work (two busy loops at nice 0) the nice-19
+// job never came and every contact frame solved on the one the walls met on, up to 89 frames old: the tip ended at
+// -13.4 mm against about -17.5 idle. Idle, rendered (8x pinch, instrumented), the Hessians the contact solves used
+// were 3-19 frames old in 3 runs, but the Hessian's age alone (over 24 frames) replaced one at once in some of 8
+// runs, a 37 ms frame: the job's age tells a starved job from a slow one.
+constexpr int kOverdueHessianFrames = 24;
+constexpr int kOverdueJobFrames = 20;
 // Before the walls meet, a new contact Hessian is started once the last one is this many frames old (not whenever
 // the background thread is free: its factorisations slowed the contact-free frames' solves on the main thread,
 // measured on the 8x pinch, pcr median 8 against 15 ms with one after another).
@@ -281,10 +290,14 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   // The rest solver's nested-dissection analysis, once, on this thread: the contact Hessians are factorised on it.
   if (lagged && !model_.solver().has_nested_analysis()) model_.solver().prepare_nested_analysis();
   // The first contact solve without an anticipated Hessian, or where the walls meet on a stale one (the one under
-  // way, taken above, as stale, or outwaited), factorises K_w at its start, at once (the rest K is far from the
-  // tangent of a tube deflected several wall thicknesses: its steps needed four line-search halvings each and did not
-  // converge).
-  const bool at_once = lagged && ((!work.contact_hessian.compliance && !work.contact_pending.valid()) || stale());
+  // way, taken above, as stale, or outwaited), or one in contact on an overdue one (its successor starved: taken above
+  // when it had come), factorises K_w at its start, at once (the rest K is far from the tangent of a tube deflected
+  // several wall thicknesses: its steps needed four line-search halvings each and did not converge).
+  const bool overdue = lagged && !walls_meet && work.contact_hessian.compliance &&
+                      work.predictions - work.contact_hessian.taken_at > kOverdueHessianFrames &&
+                      work.contact_pending.valid() && work.predictions - work.contact_pending_since > kOverdueJobFrames;
+  const bool at_once =
+      lagged && ((!work.contact_hessian.compliance && !work.contact_pending.valid()) || stale() || overdue);
   work.last_contact_solve = work.predictions;
   if (at_once) {
     // (The stale one let go first, the prediction's too: a third factorisation alive would touch fresh memory.)
@@ -312,6 +325,7 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
     if (options_.refactor_in_background) {
       work.contact_pending = contact_hessian_in_background(model_, work.corotational.rotations, compliance.nodes(),
                                                            row_nodes(rows), work.predictions);
+      work.contact_pending_since = work.predictions;
       work.contact_pending_outwaited = false;
     } else {
       try {
@@ -373,6 +387,7 @@ void CorotationalQuasiStatic::anticipate_contacts(const std::vector<int>& nodes,
   if (work.contact_hessian.compliance && work.predictions - work.contact_hessian.taken_at < kAnticipatedHessianFrames)
     return;
   work.contact_pending = contact_hessian_in_background(model_, R, nodes, {}, work.predictions);
+  work.contact_pending_since = work.predictions;
   work.contact_pending_outwaited = false;
 }
 

@@ -91,6 +91,8 @@ struct IntegratorWork {
   // corotational quasi-static: contact_pending was waited for as long as walls meeting on a stale Hessian wait, and
   // did not come (its thread starved): where the walls meet again before it comes, they do not wait for it again.
   bool contact_pending_outwaited = false;
+  // corotational quasi-static: the predictions counted when contact_pending was started.
+  int contact_pending_since = 0;
   // corotational quasi-static: the last frame solved its contacts on the lagged Hessian (solve_with_contacts); its
   // prediction then has the contact work bound and, while a contact Hessian's factor preconditions it (the one the
   // walls met on: share_with_prediction), starts no factorisation of its own (the second core factorises the next

@@ -481,6 +481,52 @@ TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianDoNotWaitLongForTheOneUnderW
   EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
 }
 
+// While the walls stay in contact, a Hessian whose successor does not come (its thread starved on a busy machine; here
+// a promise never kept) serves until it is more than 24 frames old (kOverdueHessianFrames) and the successor has been
+// under way for more than 20 (kOverdueJobFrames); then the solve factorises K_w at its start at once. The ends meet
+// the KKT conditions.
+TEST(ContactEquilibrium, InContactAHessianWhoseSuccessorIsOverdueIsReplacedAtOnce) {
+  BackgroundPress b;
+  const FlooredPress& p = b.p;
+  const CorotationalModel& model = b.integrator.model();
+  IntegratorWork work;
+  Eigen::VectorXd u;
+  // The session's start (K), the walls meeting in the first frame on it, and its successor never coming.
+  b.integrator.anticipate_contacts(p.top, work);
+  b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
+  ContactEquilibriumResult r =
+      b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, Eigen::VectorXd());
+  ASSERT_TRUE(work.contact_hessian.factor);
+  const std::shared_ptr<const StaticSolver> met_on = work.contact_hessian.factor;
+  ASSERT_TRUE(work.contact_pending.valid());
+  work.contact_pending.get();
+  std::promise<ContactHessianFactor> starved, starved_later;
+  work.contact_pending = starved.get_future();
+  // Frames 2-40: the one the walls met on (taken at the session's start) serves; from frame 25 it is more than 24
+  // frames old, but the successor, as if started at frame 20, has been under way for 20 frames at most.
+  for (int frame = 2; frame <= 40; ++frame) {
+    if (frame == 20) {
+      work.contact_pending = starved_later.get_future();
+      work.contact_pending_since = frame;  // (the frame's prediction is the 20th)
+    }
+    b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
+    r = b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, r.lambda);
+    ASSERT_EQ(work.contact_hessian.factor, met_on) << "frame " << frame;
+  }
+  EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
+  // Frame 41: 41 frames old, its successor under way for 21: K_w at the solve's start, at once.
+  b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
+  std::vector<Eigen::Matrix3d> start_at;
+  model.elements().rotations(u, start_at);
+  r = b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, r.lambda);
+  ASSERT_TRUE(work.contact_hessian.factor);
+  EXPECT_NE(work.contact_hessian.factor, met_on);
+  EXPECT_LE(solve_difference(*factorise_warped(model, start_at, false), *work.contact_hessian.factor, p.f), 1e-10);
+  EXPECT_EQ(r.refactor_failures, 0);
+  EXPECT_TRUE(r.converged);
+  EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
+}
+
 // Bad input names the field.
 TEST(ContactEquilibrium, RejectsBadInputNamingTheField) {
   const FlooredPress p = floored_press(0.05, 1e-3);
