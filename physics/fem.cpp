@@ -274,7 +274,8 @@ struct StaticSolver::Impl {
   // The lower triangle on the free DOFs as CHOLMOD takes it (n_free + 1 column pointers, rows), and each stored
   // entry of K's place in its values (nnz(K); -1: not in it).
   std::vector<int> lower_p, lower_i, place_of;
-  // The factor's single-precision copy (add_single_precision; null: none).
+  // The factor's single-precision copy (add_single_precision, or refactorise / refactorise_nested from a solver that
+  // has one; null: none).
   std::unique_ptr<detail::SupernodalSingle> single;
   // Reused solve workspace (single right-hand side).
   mutable std::vector<double> rhs;

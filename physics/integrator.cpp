@@ -192,6 +192,8 @@ constexpr auto kStaleHessianWait = std::chrono::milliseconds(100);
 // were 3-19 frames old in 3 runs, but the Hessian's age alone (over 24 frames) replaced one at once in some of 8
 // runs, a 37 ms frame: the job's age tells a starved job from a slow one.
 constexpr int kOverdueHessianFrames = 24;
+// (The jobs' own wall times, idle and rendered, warmed: 43-116 ms, 3-8 frames; before the warm-up the slowest took
+// 200-300 ms, about 20 frames. Instrumented, 8x pinch.)
 constexpr int kOverdueJobFrames = 20;
 // Before the walls meet, a new contact Hessian is started once the last one is this many frames old (not whenever
 // the background thread is free: its factorisations slowed the contact-free frames' solves on the main thread,
@@ -300,7 +302,8 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
       lagged && ((!work.contact_hessian.compliance && !work.contact_pending.valid()) || stale() || overdue);
   work.last_contact_solve = work.predictions;
   if (at_once) {
-    // (The stale one let go first, the prediction's too: a third factorisation alive would touch fresh memory.)
+    // (The stale one let go first, the prediction's too: one more factorisation alive would touch fresh memory; an
+    // overdue job under way holds one more until it comes.)
     if (work.corotational.preconditioner == work.contact_hessian.factor) work.corotational.preconditioner.reset();
     work.contact_hessian = ContactHessianFactor{};
     try {
@@ -374,11 +377,12 @@ void CorotationalQuasiStatic::anticipate_contacts(const std::vector<int>& nodes,
   if (static_cast<int>(R.size()) != model_.elements().n_tets()) {
     try {
       const std::vector<Eigen::Matrix3d> rest(model_.elements().n_tets(), Eigen::Matrix3d::Identity());
-      std::vector<ContactHessianFactor> warm;
-      for (int i = 0; i < kWarmContactHessians; ++i)
-        warm.push_back(contact_hessian(model_, rest, nodes, {}, work.predictions));
-      work.contact_hessian = std::move(warm.front());
+      work.contact_hessian = contact_hessian(model_, rest, nodes, {}, work.predictions);
       share_with_prediction(work);
+      // (The others beside it, then let go: one that fails leaves the first in use, its memory only less warmed.)
+      std::vector<ContactHessianFactor> warm;
+      for (int i = 1; i < kWarmContactHessians; ++i)
+        warm.push_back(contact_hessian(model_, rest, nodes, {}, work.predictions));
     } catch (const std::exception&) {
       // (as a failed background one: the first contact solve factorises at once)
     }

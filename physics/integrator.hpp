@@ -83,9 +83,10 @@ struct IntegratorWork {
   CorotationalState corotational;  // corotational quasi-static: the nonlinear solve's warm start and caches
   Eigen::VectorXd frame_forces;    // corotational quasi-static: the last prediction's nodal loads, 3n, newtons
   // corotational quasi-static, contacts solved on a lagged factorisation (ContactHessian::as_given): K_w at the end
-  // of the last contact solve with its compliance over the contact nodes (half columns cached per node until the
-  // next one is adopted), and the next one, in progress on a background thread (valid() while it runs), which also
-  // solves for the half columns of the last solve's row nodes and the kept gram among them.
+  // of the last contact solve, or at a solve's start where it was factorised at once, with its compliance over the
+  // contact nodes (half columns cached per node until the next one is adopted), and the next one, in progress on a
+  // background thread (valid() from its start until adopted or let go, which may be after it has finished), which
+  // also solves for the half columns of the last solve's row nodes and the kept gram among them.
   ContactHessianFactor contact_hessian;
   std::future<ContactHessianFactor> contact_pending;
   // corotational quasi-static: contact_pending was waited for as long as walls meeting on a stale Hessian wait, and

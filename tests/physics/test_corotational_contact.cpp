@@ -413,6 +413,7 @@ TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianTakeTheOneAnticipatedSince) 
     for (int f = 0; f < 6; ++f) b.integrator.predict(b.half, Eigen::VectorXd(), SimState{}, work, u);
     b.integrator.anticipate_contacts(p.top, work);
     ASSERT_TRUE(work.contact_pending.valid());
+    EXPECT_EQ(work.contact_pending_since, 6);
     const std::vector<Eigen::Matrix3d> anticipated_at = work.corotational.rotations;
     for (int f = 6; f < frames_before - 1; ++f) b.integrator.predict(b.half, Eigen::VectorXd(), SimState{}, work, u);
     // The walls meet: the Hessian in use (K, frame 0) is stale; the anticipated one is 8 or 14 frames old.
@@ -483,8 +484,8 @@ TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianDoNotWaitLongForTheOneUnderW
 
 // While the walls stay in contact, a Hessian whose successor does not come (its thread starved on a busy machine; here
 // a promise never kept) serves until it is more than 24 frames old (kOverdueHessianFrames) and the successor has been
-// under way for more than 20 (kOverdueJobFrames); then the solve factorises K_w at its start at once. The ends meet
-// the KKT conditions.
+// under way for more than 20 (kOverdueJobFrames); then the solve factorises K_w at its start at once, and so again
+// 25 frames later while the successor has still not come. The ends meet the KKT conditions.
 TEST(ContactEquilibrium, InContactAHessianWhoseSuccessorIsOverdueIsReplacedAtOnce) {
   BackgroundPress b;
   const FlooredPress& p = b.p;
@@ -499,6 +500,7 @@ TEST(ContactEquilibrium, InContactAHessianWhoseSuccessorIsOverdueIsReplacedAtOnc
   ASSERT_TRUE(work.contact_hessian.factor);
   const std::shared_ptr<const StaticSolver> met_on = work.contact_hessian.factor;
   ASSERT_TRUE(work.contact_pending.valid());
+  EXPECT_EQ(work.contact_pending_since, 1);  // (the solve started its successor)
   work.contact_pending.get();
   std::promise<ContactHessianFactor> starved, starved_later;
   work.contact_pending = starved.get_future();
@@ -525,6 +527,18 @@ TEST(ContactEquilibrium, InContactAHessianWhoseSuccessorIsOverdueIsReplacedAtOnc
   EXPECT_EQ(r.refactor_failures, 0);
   EXPECT_TRUE(r.converged);
   EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
+  // Frames 42-65: the successor is still under way (since frame 20), but the Hessian from frame 41 is at most 24
+  // frames old: it serves; at frame 66 it is replaced again.
+  const std::shared_ptr<const StaticSolver> replaced = work.contact_hessian.factor;
+  for (int frame = 42; frame <= 65; ++frame) {
+    b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
+    r = b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, r.lambda);
+    ASSERT_EQ(work.contact_hessian.factor, replaced) << "frame " << frame;
+  }
+  b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
+  r = b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, r.lambda);
+  EXPECT_NE(work.contact_hessian.factor, replaced);
+  EXPECT_TRUE(r.converged);
 }
 
 // Bad input names the field.
