@@ -221,18 +221,20 @@ ContactHessianFactor contact_hessian(const CorotationalModel& model, const std::
   return h;
 }
 
-// The same on a new thread at the background factorisations' priority.
-std::future<ContactHessianFactor> contact_hessian_in_background(const CorotationalModel& model,
-                                                                std::vector<Eigen::Matrix3d> R,
-                                                                std::vector<int> nodes, std::vector<int> prefetch,
-                                                                int taken_at) {
-  return std::async(std::launch::async,
-                    [&model, taken_at](std::vector<Eigen::Matrix3d> rotations, std::vector<int> set,
-                                       std::vector<int> ahead) {
-                      at_background_priority();
-                      return contact_hessian(model, rotations, set, ahead, taken_at);
-                    },
-                    std::move(R), std::move(nodes), std::move(prefetch));
+// The same started now on a new thread at the background factorisations' priority, as the work's job under way (its
+// start and outwait reset).
+void start_contact_hessian(const CorotationalModel& model, std::vector<Eigen::Matrix3d> R, std::vector<int> nodes,
+                           std::vector<int> prefetch, IntegratorWork& work) {
+  const int taken_at = work.predictions;
+  work.contact_pending = std::async(
+      std::launch::async,
+      [&model, taken_at](std::vector<Eigen::Matrix3d> rotations, std::vector<int> set, std::vector<int> ahead) {
+        at_background_priority();
+        return contact_hessian(model, rotations, set, ahead, taken_at);
+      },
+      std::move(R), std::move(nodes), std::move(prefetch));
+  work.contact_pending_since = taken_at;
+  work.contact_pending_outwaited = false;
 }
 
 }  // namespace
@@ -326,10 +328,7 @@ ContactEquilibriumResult CorotationalQuasiStatic::solve_with_contacts(const std:
   // of these rows' nodes (the next frame's rows are mostly on them).
   if (lagged && !work.contact_pending.valid()) {
     if (options_.refactor_in_background) {
-      work.contact_pending = contact_hessian_in_background(model_, work.corotational.rotations, compliance.nodes(),
-                                                           row_nodes(rows), work.predictions);
-      work.contact_pending_since = work.predictions;
-      work.contact_pending_outwaited = false;
+      start_contact_hessian(model_, work.corotational.rotations, compliance.nodes(), row_nodes(rows), work);
     } else {
       try {
         work.contact_hessian =
@@ -390,9 +389,7 @@ void CorotationalQuasiStatic::anticipate_contacts(const std::vector<int>& nodes,
   }
   if (work.contact_hessian.compliance && work.predictions - work.contact_hessian.taken_at < kAnticipatedHessianFrames)
     return;
-  work.contact_pending = contact_hessian_in_background(model_, R, nodes, {}, work.predictions);
-  work.contact_pending_since = work.predictions;
-  work.contact_pending_outwaited = false;
+  start_contact_hessian(model_, R, nodes, {}, work);
 }
 
 // ---------------------------------------------------------------------------------------------------------------

@@ -395,6 +395,12 @@ struct BackgroundPress {
   SurfaceCompliance compliance{integrator.model().solver(), p.top};
   ContactEquilibriumOptions co = on_lagged_hessians();
   FrameLoads half = point_loads(p, 0.5), whole = point_loads(p, 1.0);
+
+  // A frame at the whole load and its contact solve, warm-started from lambda.
+  ContactEquilibriumResult contact_frame(IntegratorWork& work, Eigen::VectorXd& u, const Eigen::VectorXd& lambda) {
+    integrator.predict(whole, Eigen::VectorXd(), SimState{}, work, u);
+    return integrator.solve_with_contacts(p.rows, compliance, co, work, u, lambda);
+  }
 };
 
 // Where the walls meet on a stale Hessian (K from the session's start, more than 12 frames old), the solve takes the
@@ -475,8 +481,7 @@ TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianDoNotWaitLongForTheOneUnderW
   EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
   // The late one has come: older than the one in use, it is let go.
   late.join();
-  b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
-  r = b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, r.lambda);
+  r = b.contact_frame(work, u, r.lambda);
   EXPECT_EQ(work.contact_hessian.factor, at_once);
   EXPECT_TRUE(r.converged);
   EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
@@ -494,9 +499,7 @@ TEST(ContactEquilibrium, InContactAHessianWhoseSuccessorIsOverdueIsReplacedAtOnc
   Eigen::VectorXd u;
   // The session's start (K), the walls meeting in the first frame on it, and its successor never coming.
   b.integrator.anticipate_contacts(p.top, work);
-  b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
-  ContactEquilibriumResult r =
-      b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, Eigen::VectorXd());
+  ContactEquilibriumResult r = b.contact_frame(work, u, Eigen::VectorXd());
   ASSERT_TRUE(work.contact_hessian.factor);
   const std::shared_ptr<const StaticSolver> met_on = work.contact_hessian.factor;
   ASSERT_TRUE(work.contact_pending.valid());
@@ -511,8 +514,7 @@ TEST(ContactEquilibrium, InContactAHessianWhoseSuccessorIsOverdueIsReplacedAtOnc
       work.contact_pending = starved_later.get_future();
       work.contact_pending_since = frame;  // (the frame's prediction is the 20th)
     }
-    b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
-    r = b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, r.lambda);
+    r = b.contact_frame(work, u, r.lambda);
     ASSERT_EQ(work.contact_hessian.factor, met_on) << "frame " << frame;
   }
   EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
@@ -531,12 +533,10 @@ TEST(ContactEquilibrium, InContactAHessianWhoseSuccessorIsOverdueIsReplacedAtOnc
   // frames old: it serves; at frame 66 it is replaced again.
   const std::shared_ptr<const StaticSolver> replaced = work.contact_hessian.factor;
   for (int frame = 42; frame <= 65; ++frame) {
-    b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
-    r = b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, r.lambda);
+    r = b.contact_frame(work, u, r.lambda);
     ASSERT_EQ(work.contact_hessian.factor, replaced) << "frame " << frame;
   }
-  b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
-  r = b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, r.lambda);
+  r = b.contact_frame(work, u, r.lambda);
   EXPECT_NE(work.contact_hessian.factor, replaced);
   EXPECT_TRUE(r.converged);
 }
