@@ -176,8 +176,12 @@ constexpr double kSameStartRoundOff = 1e-12;
 // than this many frames old is not used: the solve takes the one under way, if any, and if that is as old factorises
 // K_w at its start at once. (Measured on the 8x pinch, rendered with the exact check: in contact the background
 // Hessians the solves use are 0-12 frames old; when the walls met on one anticipated about 25 frames before, the
-// next 9 frames' steps took 7-9 line-search halvings each.)
-constexpr int kStaleHessianFrames = 12;
+// next 9 frames' steps took 7-9 line-search halvings each. Anticipated every kAnticipatedHessianFrames, with jobs of
+// 3-8 frames, the walls met on one 13-15 frames old in 4 of 6 rendered runs, which at 12 waited 3-12 ms for the next:
+// the first contact frame 24-34 ms. At 20, 8 alternating rendered runs: worst frame 28.5 -> 25.4 ms, and with the
+// exact check, 3 runs each, the same tip, residual and halvings within the runs' spread:
+// docs/bench_stale_hessian_frames*.csv.)
+constexpr int kStaleHessianFrames = 20;
 // ... and waits at most this long for the one under way; past it the frame factorises K_w at its start at once, as
 // when no job is under way. (The background thread runs at nice 19: on a machine busy with other work it can get no
 // core for seconds: 2.8-9.4 s for one frame of the 8x pinch while a build or two busy loops ran. Solving on the stale

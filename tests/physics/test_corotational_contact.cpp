@@ -403,14 +403,14 @@ struct BackgroundPress {
   }
 };
 
-// Where the walls meet on a stale Hessian (K from the session's start, more than 12 frames old), the solve takes the
+// Where the walls meet on a stale Hessian (K from the session's start, more than 20 frames old), the solve takes the
 // one anticipated since (whether it has finished or is waited for) when that is recent enough, and factorises K_w at
 // its start at once when it is stale too (the stale ones let go first). Either way the end meets the KKT conditions.
 TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianTakeTheOneAnticipatedSince) {
   BackgroundPress b;
   const FlooredPress& p = b.p;
   const CorotationalModel& model = b.integrator.model();
-  for (const int frames_before : {14, 20}) {
+  for (const int frames_before : {22, 28}) {
     SCOPED_TRACE(frames_before);
     IntegratorWork work;
     Eigen::VectorXd u;
@@ -422,7 +422,7 @@ TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianTakeTheOneAnticipatedSince) 
     EXPECT_EQ(work.contact_pending_since, 6);
     const std::vector<Eigen::Matrix3d> anticipated_at = work.corotational.rotations;
     for (int f = 6; f < frames_before - 1; ++f) b.integrator.predict(b.half, Eigen::VectorXd(), SimState{}, work, u);
-    // The walls meet: the Hessian in use (K, frame 0) is stale; the anticipated one is 8 or 14 frames old.
+    // The walls meet: the Hessian in use (K, frame 0) is stale; the anticipated one is 16 or 22 frames old.
     b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
     std::vector<Eigen::Matrix3d> start_at;
     model.elements().rotations(u, start_at);
@@ -432,8 +432,8 @@ TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianTakeTheOneAnticipatedSince) 
     EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
     ASSERT_TRUE(work.contact_hessian.factor);
     EXPECT_EQ(work.corotational.preconditioner, work.contact_hessian.factor);
-    const std::vector<Eigen::Matrix3d>& expected_at = frames_before == 14 ? anticipated_at : start_at;
-    const std::vector<Eigen::Matrix3d>& other_at = frames_before == 14 ? start_at : anticipated_at;
+    const std::vector<Eigen::Matrix3d>& expected_at = frames_before == 22 ? anticipated_at : start_at;
+    const std::vector<Eigen::Matrix3d>& other_at = frames_before == 22 ? start_at : anticipated_at;
     EXPECT_LE(solve_difference(*factorise_warped(model, expected_at, false), *work.contact_hessian.factor, p.f), 1e-10);
     EXPECT_GT(solve_difference(*factorise_warped(model, other_at, false), *work.contact_hessian.factor, p.f), 1e-4);
   }
@@ -448,11 +448,11 @@ TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianDoNotWaitLongForTheOneUnderW
   const CorotationalModel& model = b.integrator.model();
   IntegratorWork work;
   Eigen::VectorXd u;
-  // The session's start (K), 14 frames before the walls meet, and a Hessian under way that comes only later.
+  // The session's start (K), 22 frames before the walls meet, and a Hessian under way that comes only later.
   b.integrator.anticipate_contacts(p.top, work);
   ASSERT_TRUE(work.contact_hessian.factor);
   const std::shared_ptr<const StaticSolver> stale = work.contact_hessian.factor;
-  for (int f = 0; f < 13; ++f) b.integrator.predict(b.half, Eigen::VectorXd(), SimState{}, work, u);
+  for (int f = 0; f < 21; ++f) b.integrator.predict(b.half, Eigen::VectorXd(), SimState{}, work, u);
   ASSERT_FALSE(work.contact_pending.valid());
   std::promise<ContactHessianFactor> starved;
   work.contact_pending = starved.get_future();
