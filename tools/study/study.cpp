@@ -21,7 +21,9 @@
 // The load sweep (--load-out) shows when linear stops being enough: the pinch on the paper mesh up to the force
 // that shuts the lumen, linear against corotational (tolerance 1e-6), probe displacement, over a range of forces.
 // The sweeps against the converged CalculiX reference (--reference CSV): below first contact (--reference-out) and
-// past closure (--closure-out, the tip, the contact force and the contact area at 0.03 N per tip).
+// past closure (--closure-out, the tip, the contact force and the contact area at 0.03 N per tip); with --field-linear,
+// --field-neohooke, --field-closure, also the inner wall's displacement against the reference's (relative L2 over
+// the wall, engine/wall_field).
 // The capacity sweep (--capacity-out) finds, per model and scenario, the largest mesh whose whole frame stays
 // inside the 25 ms budget at p99: one probe at 40 fps (the real budget; 1 s ramp then held, 60 frames, rendered
 // at 640x480, self-collision on) pinching with 0.02 N (the lumen stays open) or with the study's 0.1 N (walls
@@ -47,6 +49,7 @@
 #include "engine/scene.hpp"
 #include "engine/session.hpp"
 #include "engine/simulation.hpp"
+#include "engine/wall_field.hpp"
 #include "physics/lame.hpp"
 #include "physics/support.hpp"
 
@@ -81,6 +84,9 @@ struct Outcome {
   // the multipliers that fit the state best (lambda >= 0, least squares), whose sum is the contact force the
   // state's own elastic forces imply.
   double reported_residual = std::nan(""), implied_residual = std::nan(""), implied_force = std::nan("");
+  // The inner wall's displacement against each reference field asked for (run's `fields`, in order): the relative
+  // L2 error over the wall (engine::wall_field_error).
+  std::vector<double> field_err;
   engine::StageSummary total, physics, collision, response, render;
   long over_budget = 0, not_converged = 0, fallbacks = 0, failures = 0, max_inverted = 0;
   int nodes = 0, tets = 0, inner_tris = 0;
@@ -165,8 +171,15 @@ engine::Scene squeeze_scene(const Config& c, double force, int frames, double fp
   return s;
 }
 
-// Runs a scene (rendering off-screen when `render`) and measures the last frame's shape.
-Outcome run(const engine::Scene& scene, bool render) {
+// A reference field over the inner wall and the factor on its displacement (a linear reference at another force).
+struct FieldAt {
+  const engine::WallField* field;
+  double scale;
+};
+
+// Runs a scene (rendering off-screen when `render`) and measures the last frame's shape, and its inner wall against
+// the `fields`.
+Outcome run(const engine::Scene& scene, bool render, const std::vector<FieldAt>& fields = {}) {
   Outcome o;
   const auto t0 = std::chrono::steady_clock::now();
   auto model = engine::compile_model(scene);
@@ -210,6 +223,10 @@ Outcome run(const engine::Scene& scene, bool render) {
     for (int v = 0; v < m.mesh.n_nodes(); ++v)
       if (st.in_contact[v]) o.contact_area += node_area[v];
     o.contact_force = rec.contact_force;
+    for (const FieldAt& f : fields)
+      o.field_err.push_back(
+          engine::wall_field_error(m.mesh.rest, m.mesh.surface(lumen::physics::kInnerWall), st.sim.u, *f.field, f.scale)
+              .relative_l2);
     const engine::ContactEquilibrium eq = engine::contact_equilibrium(m, st);
     if (eq.available) {
       o.reported_residual = eq.reported_residual;
@@ -262,6 +279,10 @@ struct StudyOptions {
   std::string coupling = "correct";           // the closure sweep's corotational coupling: "correct" | "carried"
   std::string closure_models = "all";         // the closure sweep's models: "linear" | "corotational" | "all"
   std::string closure_mesh;                   // the closure sweep's one mesh ("24x14x1"; empty: all)
+  // The reference's inner-wall displacement fields (tools/reference/ccx_reference.py's reference_inner_wall CSVs, 3 mm
+  // tips): linear (at any force: scaled), Neo-Hookean NLGEOM (compared at its force), past closure (at its force);
+  // empty: no full-field error.
+  std::string field_linear, field_neohooke, field_closure;
   double closure_force = 0.03;                // the closure sweep's force per tip, newtons (a reference row's)
   std::string reference_meshes = "all";       // the reference sweep's meshes: "uniform" | "graded" | "all"
   std::string capacity_scenario = "all";      // the capacity sweep's scenarios: "open" | "shut" | "all"
@@ -403,6 +424,16 @@ ReferenceTip find_reference(const ReferenceTable& table, const std::string& path
   return it->second;
 }
 
+// Forces this close (relative) are the same load (the reference's header prints 7 digits).
+bool same_force(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b)); }
+
+// A CSV cell of a number, 6 significant digits.
+std::string csv_number(double v) {
+  char cell[32];
+  std::snprintf(cell, sizeof cell, "%.6g", v);
+  return cell;
+}
+
 // The sweep against the converged CalculiX reference (3 mm tips, as the squeeze's): each configuration pinched
 // below first contact, at 0.002 N and 0.01 N (the tip moves about a fifth and 1.6x the wall thickness), against
 // two references: the linear one (small strain, no NLGEOM; computed at 0.002 N and scaled by the force, which is
@@ -442,7 +473,12 @@ void reference_sweep(const StudyOptions& opt) {
       "force_n,reference_linear_mm,reference_neohooke_mm,reference_dofs,around,along,layers,grade_around,grade_along,"
       "tip_points,nodes,tets,element,model,tolerance,frames,probe_disp_mm,err_vs_linear,err_vs_neohooke,tip_mean_mm,"
       "tip_err_vs_linear,tip_err_vs_neohooke,total_median_ms,total_p99_ms,physics_median_ms,physics_p99_ms,"
-      "over_budget,not_converged,fallbacks,failures\n";
+      "over_budget,not_converged,fallbacks,failures,field_err_vs_linear,field_err_vs_neohooke\n";
+  // The full-field references, read once (a missing or bad file stops the sweep before its first run).
+  const engine::WallField linear_field =
+      opt.field_linear.empty() ? engine::WallField{} : engine::read_wall_field(opt.field_linear);
+  const engine::WallField neohooke_field =
+      opt.field_neohooke.empty() ? engine::WallField{} : engine::read_wall_field(opt.field_neohooke);
   char line[1024];  // one CSV row
   for (double force : {kLinearReferenceForce, 0.01}) {
     const ReferenceTip neohooke = lookup(force, "neohooke");
@@ -450,7 +486,20 @@ void reference_sweep(const StudyOptions& opt) {
     for (const Config& c : configs) {
       std::fprintf(stderr, "%g N %dx%dx%d %s %s ...", force, c.level.around, c.level.along, c.level.layers,
                    c.element.c_str(), c.model.c_str());
-      const Outcome o = run(squeeze_scene(c, force, opt.frames, opt.fps), !opt.no_render);
+      // The fields at this force: the linear one scaled to it, the Neo-Hookean one at its own force only.
+      std::vector<FieldAt> fields;
+      int linear_at = -1, neohooke_at = -1;
+      if (!opt.field_linear.empty()) {
+        linear_at = static_cast<int>(fields.size());
+        fields.push_back({&linear_field, force / linear_field.force_n});
+      }
+      if (!opt.field_neohooke.empty() && same_force(neohooke_field.force_n, force)) {
+        neohooke_at = static_cast<int>(fields.size());
+        fields.push_back({&neohooke_field, 1.0});
+      }
+      const Outcome o = run(squeeze_scene(c, force, opt.frames, opt.fps), !opt.no_render, fields);
+      const std::string field_linear = linear_at < 0 ? "" : csv_number(o.field_err[linear_at]);
+      const std::string field_neohooke = neohooke_at < 0 ? "" : csv_number(o.field_err[neohooke_at]);
       // Signed relative errors: < 0 too stiff.
       const double err_linear = (o.probe_disp - linear_tip) / linear_tip;
       const double err_neohooke = (o.probe_disp - neohooke.tip_m) / neohooke.tip_m;
@@ -458,19 +507,21 @@ void reference_sweep(const StudyOptions& opt) {
       const double tip_err_neohooke = (o.tip_mean - neohooke.tip_m) / neohooke.tip_m;
       std::snprintf(line, sizeof line,
                     "%g,%.6g,%.6g,%d,%d,%d,%d,%g,%g,%d,%d,%d,%s,%s,%g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4f,%.4f,%.4f,"
-                    "%.4f,%ld,%ld,%ld,%ld\n",
+                    "%.4f,%ld,%ld,%ld,%ld,%s,%s\n",
                     force, 1e3 * linear_tip, 1e3 * neohooke.tip_m, neohooke.dofs, c.level.around, c.level.along,
                     c.level.layers, c.grade_around, c.grade_along, c.tip_points, o.nodes, o.tets, c.element.c_str(),
                     c.model.c_str(), c.tolerance, opt.frames, 1e3 * o.probe_disp, err_linear, err_neohooke,
                     1e3 * o.tip_mean, tip_err_linear, tip_err_neohooke, o.total.median_ms, o.total.p99_ms,
-                    o.physics.median_ms, o.physics.p99_ms, o.over_budget, o.not_converged, o.fallbacks, o.failures);
+                    o.physics.median_ms, o.physics.p99_ms, o.over_budget, o.not_converged, o.fallbacks, o.failures,
+                    field_linear.c_str(), field_neohooke.c_str());
       csv += line;
       engine::write_text_file(opt.reference_out, csv);  // after every configuration
       std::fprintf(stderr,
                    " patch %.4f mm (%+.1f %% vs linear, %+.1f %% vs Neo-Hookean), load points %.4f mm (%+.1f %%, "
-                   "%+.1f %%), total %.2f / %.2f ms\n",
+                   "%+.1f %%), total %.2f / %.2f ms; inner wall L2 %s vs linear, %s vs Neo-Hookean\n",
                    1e3 * o.probe_disp, 100.0 * err_linear, 100.0 * err_neohooke, 1e3 * o.tip_mean,
-                   100.0 * tip_err_linear, 100.0 * tip_err_neohooke, o.total.median_ms, o.total.p99_ms);
+                   100.0 * tip_err_linear, 100.0 * tip_err_neohooke, o.total.median_ms, o.total.p99_ms,
+                   field_linear.c_str(), field_neohooke.c_str());
     }
   }
 }
@@ -525,7 +576,16 @@ void closure_sweep(const StudyOptions& opt) {
       "layers,grade_around,grade_along,tip_points,nodes,tets,element,model,coupling,tolerance,frames,tip_mean_mm,"
       "tip_err,opening_mm,reference_opening_mm,contact_force_n,contact_force_err,contact_area_mm2,contact_area_err,"
       "total_median_ms,total_p99_ms,physics_median_ms,physics_p99_ms,response_median_ms,response_p99_ms,over_budget,"
-      "not_converged,fallbacks,failures,max_inverted,reported_residual,implied_contact_force_n,implied_residual\n";
+      "not_converged,fallbacks,failures,max_inverted,reported_residual,implied_contact_force_n,implied_residual,"
+      "field_err\n";
+  // The reference's inner wall past closure, compared at its own force only (refused at another).
+  const engine::WallField closure_field =
+      opt.field_closure.empty() ? engine::WallField{} : engine::read_wall_field(opt.field_closure);
+  if (!opt.field_closure.empty() && !same_force(closure_field.force_n, force))
+    throw std::runtime_error(opt.field_closure + ": its force is " + csv_number(closure_field.force_n) +
+                             " N, not the closure sweep's " + csv_number(force) + " N (--closure-force)");
+  std::vector<FieldAt> fields;
+  if (!opt.field_closure.empty()) fields.push_back({&closure_field, 1.0});
   char line[1024];  // one CSV row
   for (const Config& c : configs) {
     std::fprintf(stderr, "closure %g N %s %s %s ...", force, mesh_name(c.level).c_str(), c.element.c_str(),
@@ -534,7 +594,8 @@ void closure_sweep(const StudyOptions& opt) {
     if (c.model == "corotational" && opt.coupling == "carried")
       scene.collision.coupling = engine::ContactCoupling::kCarried;
     const char* coupling = c.model == "corotational" ? opt.coupling.c_str() : "";
-    const Outcome o = run(scene, !opt.no_render);
+    const Outcome o = run(scene, !opt.no_render, fields);
+    const std::string field_err = fields.empty() ? "" : csv_number(o.field_err[0]);
     const double area_one_side = 0.5 * o.contact_area;
     // Signed relative errors: < 0 too stiff (tip), too little force or area.
     const double tip_err = (o.tip_mean - ref.tip_m) / ref.tip_m;
@@ -542,23 +603,23 @@ void closure_sweep(const StudyOptions& opt) {
     const double area_err = (area_one_side - ref.contact_area_m2) / ref.contact_area_m2;
     std::snprintf(line, sizeof line,
                   "%g,%.6g,%.6g,%.6g,%d,%d,%d,%d,%g,%g,%d,%d,%d,%s,%s,%s,%g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,"
-                  "%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld,%ld,%.6g,%.6g,%.6g\n",
+                  "%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%ld,%ld,%ld,%ld,%ld,%.6g,%.6g,%.6g,%s\n",
                   force, 1e3 * ref.tip_m, ref.contact_force_n, 1e6 * ref.contact_area_m2, ref.dofs,
                   c.level.around, c.level.along, c.level.layers, c.grade_around, c.grade_along, c.tip_points, o.nodes,
                   o.tets, c.element.c_str(), c.model.c_str(), coupling, c.tolerance, opt.frames, 1e3 * o.tip_mean,
                   tip_err, 1e3 * o.opening, 1e3 * ref.opening_m, o.contact_force, force_err, 1e6 * area_one_side,
                   area_err, o.total.median_ms, o.total.p99_ms, o.physics.median_ms, o.physics.p99_ms,
                   o.response.median_ms, o.response.p99_ms, o.over_budget, o.not_converged, o.fallbacks, o.failures,
-                  o.max_inverted, o.reported_residual, o.implied_force, o.implied_residual);
+                  o.max_inverted, o.reported_residual, o.implied_force, o.implied_residual, field_err.c_str());
     csv += line;
     engine::write_text_file(opt.closure_out, csv);  // after every configuration
     std::fprintf(stderr,
                  " tip %.3f mm (%+.1f %%), opening %.3f mm (reference %.3f), contact force %.2f mN (%+.1f %%), "
                  "area %.2f mm^2 (%+.1f %%), total %.1f / %.1f ms, fallbacks %ld; equilibrium residual %.3g "
-                 "reported, %.3g fitted, fitted force %.2f mN\n",
+                 "reported, %.3g fitted, fitted force %.2f mN; inner wall L2 %s\n",
                  1e3 * o.tip_mean, 100.0 * tip_err, 1e3 * o.opening, 1e3 * ref.opening_m, 1e3 * o.contact_force,
                  100.0 * force_err, 1e6 * area_one_side, 100.0 * area_err, o.total.median_ms, o.total.p99_ms,
-                 o.fallbacks, o.reported_residual, o.implied_residual, 1e3 * o.implied_force);
+                 o.fallbacks, o.reported_residual, o.implied_residual, 1e3 * o.implied_force, field_err.c_str());
   }
 }
 
@@ -668,6 +729,13 @@ int main(int argc, char** argv) {
   app.add_option("--closure-mesh", opt.closure_mesh, "the closure sweep's one mesh, e.g. 24x14x1 (default: all)");
   app.add_option("--closure-models", opt.closure_models, "the closure sweep's models")
       ->check(CLI::IsMember({"linear", "corotational", "all"}));
+  app.add_option("--field-linear", opt.field_linear,
+                 "the linear reference's inner wall (reference_inner_wall CSV), scaled to each force: the reference "
+                 "sweep's full-field error against it");
+  app.add_option("--field-neohooke", opt.field_neohooke,
+                 "the Neo-Hookean reference's inner wall, compared at its force by the reference sweep");
+  app.add_option("--field-closure", opt.field_closure,
+                 "the contact reference's inner wall, compared by the closure sweep (at its force only)");
   app.add_option("--reference-meshes", opt.reference_meshes, "the reference sweep's meshes")
       ->check(CLI::IsMember({"uniform", "graded", "all"}));
   CLI11_PARSE(app, argc, argv);
