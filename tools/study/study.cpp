@@ -73,6 +73,7 @@ struct Config {
   // degrees, along toward the tips' section.
   double grade_around = 1.0, grade_along = 1.0;
   int tip_points = 7;  // load points per tip: 7 (centre and rim) or an equal-area spiral of that many
+  int max_back_substitutions = 0;  // the corotational solve's work bound a frame (solver.max_back_substitutions; 0 none)
 };
 
 // What a squeeze session measured at its last frame, and its frame times.
@@ -100,11 +101,13 @@ constexpr double kProbeZ = 0.05;        // metres, mid-length
 constexpr double kPatchRadius = 0.003;  // metres: the probe tip's radius; its displacement is averaged over it
 constexpr double kPi = static_cast<double>(EIGEN_PI);  // Eigen's constant, a long double, as a double
 
-// The configuration's solver settings on a scene (the tolerance only matters to the corotational solve).
+// The configuration's solver settings on a scene (the tolerance and the work bound only matter to the corotational
+// solve).
 void apply_solver(engine::Scene& s, const Config& c) {
   if (c.model == "corotational") {
     s.solver.tolerance = c.tolerance;
     s.solver.max_iterations = c.tolerance < 1e-4 ? 40 : 20;
+    s.solver.max_back_substitutions = c.max_back_substitutions;
   }
 }
 
@@ -285,6 +288,9 @@ struct StudyOptions {
   std::string field_linear, field_neohooke, field_closure;
   double closure_force = 0.03;                // the closure sweep's force per tip, newtons (a reference row's)
   std::string reference_meshes = "all";       // the reference sweep's meshes: "uniform" | "graded" | "all"
+  std::string reference_mesh;                 // the reference sweep's one mesh ("24x14x1"; empty: all)
+  std::string reference_models = "all";       // the reference sweep's models: "linear" | "corotational" | "all"
+  int max_back_substitutions = 0;             // the reference sweep's corotational work bound (0: none)
   std::string capacity_scenario = "all";      // the capacity sweep's scenarios: "open" | "shut" | "all"
   std::string capacity_family = "all";        // its families: "tet4-linear" | "tet4-corotational" | "tet10-linear"
   int capacity_min_tets = 0;                  // its meshes from this many elements on (the smaller are skipped)
@@ -469,11 +475,27 @@ void reference_sweep(const StudyOptions& opt) {
       for (const char* model : {"linear", "corotational"})
         configs.push_back({l, "tet10", model, tolerance_of(model), kGradeAround, kGradeAlong, kGradedTipPoints});
   }
+  // The asked mesh and models only (refused when none is left), with the asked work bound.
+  std::vector<Config> asked;
+  for (Config c : configs) {
+    const std::string name =
+        std::to_string(c.level.around) + "x" + std::to_string(c.level.along) + "x" + std::to_string(c.level.layers);
+    if ((opt.reference_mesh.empty() || opt.reference_mesh == name) &&
+        (opt.reference_models == "all" || opt.reference_models == c.model)) {
+      c.max_back_substitutions = opt.max_back_substitutions;
+      asked.push_back(c);
+    }
+  }
+  if (asked.empty())
+    throw std::runtime_error("--reference-mesh, --reference-models: no configuration of the reference sweep (" +
+                             opt.reference_meshes + " meshes) is mesh \"" + opt.reference_mesh + "\" with model \"" +
+                             opt.reference_models + "\"");
+  configs = asked;
   std::string csv =
       "force_n,reference_linear_mm,reference_neohooke_mm,reference_dofs,around,along,layers,grade_around,grade_along,"
       "tip_points,nodes,tets,element,model,tolerance,frames,probe_disp_mm,err_vs_linear,err_vs_neohooke,tip_mean_mm,"
       "tip_err_vs_linear,tip_err_vs_neohooke,total_median_ms,total_p99_ms,physics_median_ms,physics_p99_ms,"
-      "over_budget,not_converged,fallbacks,failures,field_err_vs_linear,field_err_vs_neohooke\n";
+      "over_budget,not_converged,fallbacks,failures,field_err_vs_linear,field_err_vs_neohooke,max_back_substitutions,fps\n";
   // The full-field references, read once (a missing or bad file stops the sweep before its first run).
   const engine::WallField linear_field =
       opt.field_linear.empty() ? engine::WallField{} : engine::read_wall_field(opt.field_linear);
@@ -507,21 +529,23 @@ void reference_sweep(const StudyOptions& opt) {
       const double tip_err_neohooke = (o.tip_mean - neohooke.tip_m) / neohooke.tip_m;
       std::snprintf(line, sizeof line,
                     "%g,%.6g,%.6g,%d,%d,%d,%d,%g,%g,%d,%d,%d,%s,%s,%g,%d,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4f,%.4f,%.4f,"
-                    "%.4f,%ld,%ld,%ld,%ld,%s,%s\n",
+                    "%.4f,%ld,%ld,%ld,%ld,%s,%s,%d,%g\n",
                     force, 1e3 * linear_tip, 1e3 * neohooke.tip_m, neohooke.dofs, c.level.around, c.level.along,
                     c.level.layers, c.grade_around, c.grade_along, c.tip_points, o.nodes, o.tets, c.element.c_str(),
                     c.model.c_str(), c.tolerance, opt.frames, 1e3 * o.probe_disp, err_linear, err_neohooke,
                     1e3 * o.tip_mean, tip_err_linear, tip_err_neohooke, o.total.median_ms, o.total.p99_ms,
                     o.physics.median_ms, o.physics.p99_ms, o.over_budget, o.not_converged, o.fallbacks, o.failures,
-                    field_linear.c_str(), field_neohooke.c_str());
+                    field_linear.c_str(), field_neohooke.c_str(), c.max_back_substitutions, opt.fps);
       csv += line;
       engine::write_text_file(opt.reference_out, csv);  // after every configuration
       std::fprintf(stderr,
                    " patch %.4f mm (%+.1f %% vs linear, %+.1f %% vs Neo-Hookean), load points %.4f mm (%+.1f %%, "
-                   "%+.1f %%), total %.2f / %.2f ms; inner wall L2 %s vs linear, %s vs Neo-Hookean\n",
+                   "%+.1f %%), total %.2f / %.2f ms (physics %.2f / %.2f, collision %.2f, response %.2f, render %.2f "
+                   "median), %ld unconverged; inner wall L2 %s vs linear, %s vs Neo-Hookean\n",
                    1e3 * o.probe_disp, 100.0 * err_linear, 100.0 * err_neohooke, 1e3 * o.tip_mean,
                    100.0 * tip_err_linear, 100.0 * tip_err_neohooke, o.total.median_ms, o.total.p99_ms,
-                   field_linear.c_str(), field_neohooke.c_str());
+                   o.physics.median_ms, o.physics.p99_ms, o.collision.median_ms, o.response.median_ms,
+                   o.render.median_ms, o.not_converged, field_linear.c_str(), field_neohooke.c_str());
     }
   }
 }
@@ -736,9 +760,19 @@ int main(int argc, char** argv) {
                  "the Neo-Hookean reference's inner wall, compared at its force by the reference sweep");
   app.add_option("--field-closure", opt.field_closure,
                  "the contact reference's inner wall, compared by the closure sweep (at its force only)");
+  app.add_option("--reference-mesh", opt.reference_mesh, "the reference sweep's one mesh, e.g. 24x14x1 (default: all)");
+  app.add_option("--reference-models", opt.reference_models, "the reference sweep's models")
+      ->check(CLI::IsMember({"linear", "corotational", "all"}));
+  app.add_option("--max-back-substitutions", opt.max_back_substitutions,
+                 "the reference sweep's corotational work bound a frame (solver.max_back_substitutions; 0: none)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--reference-meshes", opt.reference_meshes, "the reference sweep's meshes")
       ->check(CLI::IsMember({"uniform", "graded", "all"}));
   CLI11_PARSE(app, argc, argv);
+  if (opt.max_back_substitutions == 1) {
+    std::fprintf(stderr, "lumen_study: --max-back-substitutions must be 0 (no bound) or >= 2 (a PCG step takes two)\n");
+    return 2;
+  }
   if (opt.reference_csv.empty() != (opt.reference_out.empty() && opt.closure_out.empty())) {
     std::fprintf(stderr, "lumen_study: --reference goes with --reference-out or --closure-out\n");
     return 2;
