@@ -11,8 +11,12 @@ assert the behaviour).
 
 With --model corotational (or linear), each scene runs as a copy with material.model set to it (written to a
 temporary folder; scenes already on that model run as they are): the hard cases on the other model.
+With --settings-from SCENE as well, each quasi-static corotational copy also takes that scene's solver keys (over its
+own) and its contact coupling keys (COUPLING_KEYS), e.g. scenes/pinch-tips-corotational-8x.json: the real-time
+corotational settings (the solved coupling, the warped tangent, the work bound); dynamic scenes keep their own.
 
-Usage: tools/hard_cases.py [--lumen build/lumen] [--no-render] [--model NAME] [--json OUT.json] [SCENE ...]
+Usage: tools/hard_cases.py [--lumen build/lumen] [--no-render] [--model NAME] [--settings-from SCENE]
+                           [--json OUT.json] [SCENE ...]
 """
 import argparse
 import glob
@@ -24,6 +28,8 @@ import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 STAGES = ("input", "physics", "collision", "response", "render", "total")
+# The collision keys --settings-from copies: how the contacts meet the corotational solve.
+COUPLING_KEYS = ("coupling", "equilibrium_steps", "equilibrium_hessian", "prediction_back_substitutions")
 
 
 def run_json(cmd):
@@ -55,18 +61,26 @@ def health(lumen, scene):
     }
 
 
-def with_model(scene, model, folder):
-    """The scene file as it is when it already uses `model`, else a copy in `folder` with material.model set."""
+def with_model(scene, model, folder, settings=None):
+    """(path, applied): the scene file as it is when it already uses `model` (and no settings apply), else a copy in
+    `folder` with material.model set and, for a quasi-static corotational scene, the settings' solver keys and
+    coupling keys (applied: whether they were)."""
     with open(scene) as f:
         data = json.load(f)
-    if data.get("material", {}).get("model", "linear") == model:
-        return scene
+    quasi_static = data.get("solver", {}).get("type", "static") != "dynamic"
+    apply = settings is not None and model == "corotational" and quasi_static
+    if data.get("material", {}).get("model", "linear") == model and not apply:
+        return scene, False
     data.setdefault("material", {})["model"] = model
+    if apply:
+        data.setdefault("solver", {}).update(settings.get("solver", {}))
+        collision = data.setdefault("collision", {})
+        collision.update({k: v for k, v in settings.get("collision", {}).items() if k in COUPLING_KEYS})
     data["name"] = data.get("name", os.path.splitext(os.path.basename(scene))[0]) + "-" + model
     copy = os.path.join(folder, os.path.basename(scene))
     with open(copy, "w") as f:
         json.dump(data, f, indent=1)
-    return copy
+    return copy, apply
 
 
 def main():
@@ -76,7 +90,18 @@ def main():
     ap.add_argument("--no-render", action="store_true", help="skip the runs with rendering")
     ap.add_argument("--json", help="also write all numbers to this JSON file")
     ap.add_argument("--model", choices=["linear", "corotational"], help="run every scene with this material model")
+    ap.add_argument("--settings-from", help="with --model corotational: a scene whose solver and coupling keys the "
+                    "quasi-static copies take")
     args = ap.parse_args()
+    settings = None
+    if args.settings_from:
+        if args.model != "corotational":
+            sys.exit("--settings-from goes with --model corotational")
+        try:
+            with open(args.settings_from) as f:
+                settings = json.load(f)
+        except (OSError, ValueError) as e:
+            sys.exit("--settings-from: %s: %s" % (args.settings_from, e))
     if not os.access(args.lumen, os.X_OK):
         sys.exit("lumen binary not found or not executable: %s (build it, or pass --lumen)" % args.lumen)
     scenes = args.scenes or sorted(glob.glob(os.path.join(ROOT, "scenes", "hard", "*.json")))
@@ -89,8 +114,8 @@ def main():
     for scene in scenes:
         name = os.path.splitext(os.path.basename(scene))[0]
         if args.model:
-            copy = with_model(scene, args.model, copies.name)
-            name += "" if copy == scene else " (%s)" % args.model
+            copy, applied = with_model(scene, args.model, copies.name, settings)
+            name += "" if copy == scene else " (%s%s)" % (args.model, ", real-time settings" if applied else "")
             scene = copy
         print("running %s ..." % name, file=sys.stderr, flush=True)
         row = {"scene": name, "sim": run_json([args.lumen, "bench", scene, "--json", "--no-render"])["stages"]}

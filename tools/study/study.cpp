@@ -449,6 +449,7 @@ std::string csv_number(double v) {
 void reference_sweep(const StudyOptions& opt) {
   const ReferenceTable table = read_reference(opt.reference_csv);
   constexpr double kLinearReferenceForce = 0.002;  // newtons: the force of the linear reference row
+  constexpr double kLargeForce = 0.01;             // newtons: the large pinch's, below first contact
   auto lookup = [&](double force, const char* material) { return find_reference(table, opt.reference_csv, force, material); };
   const ReferenceTip linear = lookup(kLinearReferenceForce, "linear");
   std::vector<Config> configs;
@@ -501,8 +502,13 @@ void reference_sweep(const StudyOptions& opt) {
       opt.field_linear.empty() ? engine::WallField{} : engine::read_wall_field(opt.field_linear);
   const engine::WallField neohooke_field =
       opt.field_neohooke.empty() ? engine::WallField{} : engine::read_wall_field(opt.field_neohooke);
+  if (!opt.field_neohooke.empty() && !same_force(neohooke_field.force_n, kLinearReferenceForce) &&
+      !same_force(neohooke_field.force_n, kLargeForce))
+    throw std::runtime_error(opt.field_neohooke + ": its force is " + csv_number(neohooke_field.force_n) +
+                             " N, neither of the sweep's (" + csv_number(kLinearReferenceForce) + ", " +
+                             csv_number(kLargeForce) + " N)");
   char line[1024];  // one CSV row
-  for (double force : {kLinearReferenceForce, 0.01}) {
+  for (double force : {kLinearReferenceForce, kLargeForce}) {
     const ReferenceTip neohooke = lookup(force, "neohooke");
     const double linear_tip = linear.tip_m * force / kLinearReferenceForce;
     for (const Config& c : configs) {
