@@ -19,10 +19,10 @@ namespace {
 using physics::kPi;
 
 constexpr double kTwoPi = 2.0 * kPi;
-// Grid coordinates this close are the same grid line (the CSV prints 7 significant digits: about 1e-9 m in z near
-// 0.01 m, and angles from the printed x, y agree to about 1e-7 rad where the nodes are the same).
-constexpr double kSameAngle = 1e-6;  // radians
-constexpr double kSameZ = 1e-8;      // metres
+// Grid coordinates closer than this fraction of their range are the same grid line (the CSV prints 7 significant
+// digits: one z printed twice differs by up to 1e-8 m on a 0.1 m tube, the angles of one node's printed x, y by about
+// 1e-7 rad; the reference's finest cells are about 1e-4 of the range).
+constexpr double kSameLine = 1e-6;
 // A node further than this from the mean radius (relative) is not on the wall.
 constexpr double kRadiusTolerance = 1e-4;
 // A barycentric coordinate at least this negative puts a grid node outside a triangle (round-off on its edges).
@@ -30,10 +30,10 @@ constexpr double kOnTriangle = -1e-9;
 // The columns of the file, in order.
 const char* const kColumns[6] = {"x_m", "y_m", "z_m", "ux_m", "uy_m", "uz_m"};
 
-// The angle of (x, y) about the z axis in [-pi, pi).
+// The angle of (x, y) about the z axis in [-pi, pi), a point on the seam (within kSameLine of a turn) at -pi.
 double angle_of(double x, double y) {
   const double a = std::atan2(y, x);
-  return a >= kPi ? a - kTwoPi : a;
+  return a >= kPi - kSameLine * kTwoPi ? a - kTwoPi : a;
 }
 
 // The distinct values of v (sorted), those closer than tol merged into the first.
@@ -183,8 +183,12 @@ WallField read_wall_field(const std::string& path) {
   if (!have_force || !(f.force_n > 0.0))
     throw std::runtime_error(path + ": no force in its comment lines (\"F = <newtons> N\", positive)");
   if (rows.size() < 4) throw std::runtime_error(path + ": " + std::to_string(rows.size()) + " nodes (at least 4)");
-  // The wall's radius, each node on it.
-  for (const auto& r : rows) f.radius += std::hypot(r[0], r[1]) / static_cast<double>(rows.size());
+  // The wall's radius (the nodes' median distance from the axis, which one node off the wall does not move), each
+  // node on it.
+  std::vector<double> radii;
+  for (const auto& r : rows) radii.push_back(std::hypot(r[0], r[1]));
+  std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
+  f.radius = radii[radii.size() / 2];
   for (size_t i = 0; i < rows.size(); ++i)
     if (std::abs(std::hypot(rows[i][0], rows[i][1]) - f.radius) > kRadiusTolerance * f.radius)
       throw std::runtime_error(path + ":" + std::to_string(line_numbers[i]) + ": x_m, y_m at radius " +
@@ -196,15 +200,17 @@ WallField read_wall_field(const std::string& path) {
     angles.push_back(angle_of(r[0], r[1]));
     zs.push_back(r[2]);
   }
-  f.angle = grid_lines(angles, kSameAngle);
-  f.z = grid_lines(zs, kSameZ);
+  const auto [z_lo, z_hi] = std::minmax_element(zs.begin(), zs.end());
+  const double same_angle = kSameLine * kTwoPi, same_z = kSameLine * (*z_hi - *z_lo);
+  f.angle = grid_lines(angles, same_angle);
+  f.z = grid_lines(zs, same_z);
   const size_t na = f.angle.size(), nz = f.z.size();
   if (na * nz != rows.size() || na < 3 || nz < 2)
     throw std::runtime_error(path + ": " + std::to_string(rows.size()) + " nodes are not a full grid of " +
                              std::to_string(na) + " angles x " + std::to_string(nz) + " positions along z");
   f.u.setConstant(static_cast<Eigen::Index>(na * nz), 3, std::nan(""));
   for (size_t k = 0; k < rows.size(); ++k) {
-    const int i = line_of(f.angle, angles[k], kSameAngle), j = line_of(f.z, zs[k], kSameZ);
+    const int i = line_of(f.angle, angles[k], same_angle), j = line_of(f.z, zs[k], same_z);
     const Eigen::Index row = static_cast<Eigen::Index>(j) * static_cast<Eigen::Index>(na) + i;
     if (!std::isnan(f.u(row, 0)))
       throw std::runtime_error(path + ":" + std::to_string(line_numbers[k]) + ": x_m, y_m, z_m repeat a node's");

@@ -15,7 +15,7 @@ namespace lumen::engine {
 struct WallField {
   std::string path;            // the file it was read from
   double force_n = 0.0;        // newtons per tip, from the header's "F = <value> N"
-  double radius = 0.0;         // metres: the nodes' distance from the axis (their mean)
+  double radius = 0.0;         // metres: the nodes' distance from the axis (their median)
   std::vector<double> angle;   // radians in [-pi, pi), ascending  [n_angle]
   std::vector<double> z;       // metres, ascending                [n_z]
   Eigen::MatrixX3d u;          // metres: the displacement at (angle[i], z[j]) in row j * n_angle + i  [n_angle * n_z]

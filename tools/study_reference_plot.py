@@ -39,7 +39,10 @@ def read_field(path):
         for number, line in enumerate(f, 1):
             if line.startswith("#"):
                 if force is None and "F = " in line:
-                    force = float(line.split("F = ")[1].split()[0])
+                    try:
+                        force = float(line.split("F = ")[1].split()[0])
+                    except (ValueError, IndexError):
+                        raise SystemExit(f"{path}:{number}: 'F = ' is not followed by a number of newtons")
                 continue
             if line.startswith("x_m"):
                 continue

@@ -10,6 +10,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "engine/wall_field.hpp"
 #include "physics/mesh.hpp"
@@ -142,11 +143,25 @@ TEST(WallField, BadFilesAndUncoveredWallsAreNamed) {
   const std::string missing = test::write_temp("wf_missing.csv", text.substr(0, text.rfind('\n', text.size() - 2) + 1));
   EXPECT_NE(read_error(missing).find("23 nodes are not a full grid of 8 angles x 3 positions"), std::string::npos)
       << read_error(missing);
-  // A node off the wall's radius.
+  // A node off the wall's radius, first or last (the wall's radius is the nodes' median: the good ones are not blamed).
   std::string off = text;
   off.insert(off.find("x_m,y_m,z_m,ux_m,uy_m,uz_m\n") + 27, "0.02,0,0,0,0,0\n");
   const std::string off_path = test::write_temp("wf_off.csv", off);
   EXPECT_NE(read_error(off_path).find(off_path + ":3: x_m, y_m at radius"), std::string::npos) << read_error(off_path);
+  const std::string off_last = test::write_temp("wf_off_last.csv", text + "0.2,0,0,0,0,0\n");
+  EXPECT_NE(read_error(off_last).find(off_last + ":27: x_m, y_m at radius 0.2"), std::string::npos)
+      << read_error(off_last);
+  // A node twice (in place of another: the grid's size is right, one of its nodes is missing).
+  std::vector<std::string> lines;
+  {
+    std::stringstream ss(text);
+    for (std::string l; std::getline(ss, l);) lines.push_back(l);
+  }
+  lines[6] = lines[5];  // (line 7 repeats line 6)
+  std::string twice;
+  for (const std::string& l : lines) twice += l + "\n";
+  const std::string twice_path = test::write_temp("wf_twice.csv", twice);
+  EXPECT_EQ(read_error(twice_path), twice_path + ":7: x_m, y_m, z_m repeat a node's");
   // The wrong header; a missing file.
   const std::string header = test::write_temp("wf_header.csv", "# F = 0.002 N\nx,y,z,ux,uy,uz\n");
   EXPECT_EQ(read_error(header), header + ":2: the header must be x_m,y_m,z_m,ux_m,uy_m,uz_m (column 1 is \"x\")");

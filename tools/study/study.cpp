@@ -430,8 +430,9 @@ ReferenceTip find_reference(const ReferenceTable& table, const std::string& path
   return it->second;
 }
 
-// Forces this close (relative) are the same load (the reference's header prints 7 digits).
-bool same_force(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(std::abs(a), std::abs(b)); }
+// Forces this close (relative) are the same load (the reference's files print 6-7 significant digits).
+constexpr double kSameForce = 1e-6;
+bool same_force(double a, double b) { return std::abs(a - b) <= kSameForce * std::max(std::abs(a), std::abs(b)); }
 
 // A CSV cell of a number, 6 significant digits.
 std::string csv_number(double v) {
@@ -541,7 +542,8 @@ void reference_sweep(const StudyOptions& opt) {
                     c.model.c_str(), c.tolerance, opt.frames, 1e3 * o.probe_disp, err_linear, err_neohooke,
                     1e3 * o.tip_mean, tip_err_linear, tip_err_neohooke, o.total.median_ms, o.total.p99_ms,
                     o.physics.median_ms, o.physics.p99_ms, o.over_budget, o.not_converged, o.fallbacks, o.failures,
-                    field_linear.c_str(), field_neohooke.c_str(), c.max_back_substitutions, opt.fps);
+                    field_linear.c_str(), field_neohooke.c_str(), c.model == "corotational" ? c.max_back_substitutions : 0,
+                    opt.fps);
       csv += line;
       engine::write_text_file(opt.reference_out, csv);  // after every configuration
       std::fprintf(stderr,
@@ -777,6 +779,18 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   if (opt.max_back_substitutions == 1) {
     std::fprintf(stderr, "lumen_study: --max-back-substitutions must be 0 (no bound) or >= 2 (a PCG step takes two)\n");
+    return 2;
+  }
+  // Options of a sweep that is not asked for are refused (they would be ignored).
+  const bool reference_only = !opt.field_linear.empty() || !opt.field_neohooke.empty() || !opt.reference_mesh.empty() ||
+                              opt.reference_models != "all" || opt.max_back_substitutions != 0;
+  if (reference_only && opt.reference_out.empty()) {
+    std::fprintf(stderr, "lumen_study: --field-linear, --field-neohooke, --reference-mesh, --reference-models and "
+                         "--max-back-substitutions go with --reference-out\n");
+    return 2;
+  }
+  if (!opt.field_closure.empty() && opt.closure_out.empty()) {
+    std::fprintf(stderr, "lumen_study: --field-closure goes with --closure-out\n");
     return 2;
   }
   if (opt.reference_csv.empty() != (opt.reference_out.empty() && opt.closure_out.empty())) {
