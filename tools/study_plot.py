@@ -27,6 +27,26 @@ def pareto(points):
     return sorted(front, key=lambda i: points[i][0])
 
 
+def finish_axes(ax, title, xlabel, ylabel, legend_size=8):
+    """A study panel's axes: the 25 ms budget marked, log-log, labelled, gridded, with its legend."""
+    ax.axvline(25.0, color="red", lw=0.8, ls=":", label="25 ms budget")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(True, which="both", lw=0.3)
+    ax.legend(fontsize=legend_size)
+
+
+def save(fig, dst):
+    """The figure at dst, written under a temporary name and then renamed (never a half-written file)."""
+    fig.tight_layout()
+    tmp = dst + ".tmp.png"
+    fig.savefig(tmp, dpi=110)
+    os.replace(tmp, dst)
+
+
 def label(row):
     lvl = f"{row['around']}x{row['layers']}"
     if row["model"] == "corotational":
@@ -59,18 +79,9 @@ def main():
         ax.plot([pts[i][0] for i in front], [pts[i][1] for i in front], "k--", lw=1, label="Pareto front", zorder=2)
         for i in front:
             ax.annotate(label(rows[i]), pts[i], textcoords="offset points", xytext=(5, 4), fontsize=7)
-        ax.axvline(25.0, color="red", lw=0.8, ls=":", label="25 ms budget")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("frame time, median (ms): physics + collision + response + render 640x480")
-        ax.set_ylabel("relative error")
-        ax.set_title(title, fontsize=10)
-        ax.grid(True, which="both", lw=0.3)
-        ax.legend(fontsize=8)
-    fig.tight_layout()
-    tmp = dst + ".tmp.png"
-    fig.savefig(tmp, dpi=110)
-    os.replace(tmp, dst)
+        finish_axes(ax, title, "frame time, median (ms): physics + collision + response + render 640x480",
+                    "relative error")
+    save(fig, dst)
 
 
 if __name__ == "__main__":

@@ -16,12 +16,13 @@ when --closure is given, the pinch past closure (0.03 N) against the reference w
 import argparse
 import csv
 import math
-import os
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+
+from study_plot import finish_axes, save  # noqa: E402
 
 STYLES = {("tet4", "linear"): ("o", "tab:blue"), ("tet4", "corotational"): ("s", "tab:orange"),
           ("tet10", "linear"): ("^", "tab:green"), ("tet10", "corotational"): ("D", "tab:red")}
@@ -111,14 +112,8 @@ def panel(ax, rows, key, title, model_line=None):
     if model_line is not None:
         ax.axhline(model_line, color="tab:blue", lw=0.8, ls="-.",
                    label=f"linear model's own error ({100 * model_line:.0f} %)")
-    ax.axvline(25.0, color="red", lw=0.8, ls=":", label="25 ms budget")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("whole frame, median ms (physics + collision + response + render 640x480)")
-    ax.set_ylabel("inner wall displacement, relative L2 error")
-    ax.set_title(title, fontsize=10)
-    ax.grid(True, which="both", lw=0.3)
-    ax.legend(fontsize=7)
+    finish_axes(ax, title, "whole frame, median ms (physics + collision + response + render 640x480)",
+                "inner wall displacement, relative L2 error", legend_size=7)
 
 
 def main():
@@ -144,10 +139,7 @@ def main():
     if closure:
         force = float(closure[0]["force_n"])
         panel(axes[2], closure, "field_err", f"past closure, {force:g} N per tip, against Neo-Hookean with contact")
-    fig.tight_layout()
-    tmp = args.out + ".tmp.png"
-    fig.savefig(tmp, dpi=110)
-    os.replace(tmp, args.out)
+    save(fig, args.out)
     print(f"wrote {args.out}; the linear model's own error at {at:g} N: {100 * line:.1f} %")
 
 

@@ -396,9 +396,12 @@ struct BackgroundPress {
   ContactEquilibriumOptions co = on_lagged_hessians();
   FrameLoads half = point_loads(p, 0.5), whole = point_loads(p, 1.0);
 
-  // A frame at the whole load and its contact solve, warm-started from lambda.
-  ContactEquilibriumResult contact_frame(IntegratorWork& work, Eigen::VectorXd& u, const Eigen::VectorXd& lambda) {
+  // A frame at the whole load and its contact solve, warm-started from lambda; start_at, when given: the rotations at
+  // the solve's start (the prediction's end), those of a Hessian factorised there at once.
+  ContactEquilibriumResult contact_frame(IntegratorWork& work, Eigen::VectorXd& u, const Eigen::VectorXd& lambda,
+                                         std::vector<Eigen::Matrix3d>* start_at = nullptr) {
     integrator.predict(whole, Eigen::VectorXd(), SimState{}, work, u);
+    if (start_at) integrator.model().elements().rotations(u, *start_at);
     return integrator.solve_with_contacts(p.rows, compliance, co, work, u, lambda);
   }
 };
@@ -423,11 +426,8 @@ TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianTakeTheOneAnticipatedSince) 
     const std::vector<Eigen::Matrix3d> anticipated_at = work.corotational.rotations;
     for (int f = 6; f < frames_before - 1; ++f) b.integrator.predict(b.half, Eigen::VectorXd(), SimState{}, work, u);
     // The walls meet: the Hessian in use (K, frame 0) is stale; the anticipated one is 16 or 22 frames old.
-    b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
     std::vector<Eigen::Matrix3d> start_at;
-    model.elements().rotations(u, start_at);
-    const ContactEquilibriumResult r =
-        b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, Eigen::VectorXd());
+    const ContactEquilibriumResult r = b.contact_frame(work, u, Eigen::VectorXd(), &start_at);
     ASSERT_TRUE(r.converged);
     EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
     ASSERT_TRUE(work.contact_hessian.factor);
@@ -467,11 +467,8 @@ TEST(ContactEquilibrium, WallsMeetingOnAStaleHessianDoNotWaitLongForTheOneUnderW
     std::this_thread::sleep_for(std::chrono::seconds(2));
     starved.set_value(std::move(h));
   });
-  b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
   std::vector<Eigen::Matrix3d> start_at;
-  model.elements().rotations(u, start_at);
-  ContactEquilibriumResult r =
-      b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, Eigen::VectorXd());
+  ContactEquilibriumResult r = b.contact_frame(work, u, Eigen::VectorXd(), &start_at);
   ASSERT_TRUE(work.contact_hessian.factor);
   const std::shared_ptr<const StaticSolver> at_once = work.contact_hessian.factor;
   EXPECT_LE(solve_difference(*factorise_warped(model, start_at, false), *at_once, p.f), 1e-10);
@@ -519,10 +516,8 @@ TEST(ContactEquilibrium, InContactAHessianWhoseSuccessorIsOverdueIsReplacedAtOnc
   }
   EXPECT_LE(kkt_residual(model, p, u, r.lambda), 1e-5);
   // Frame 41: 41 frames old, its successor under way for 21: K_w at the solve's start, at once.
-  b.integrator.predict(b.whole, Eigen::VectorXd(), SimState{}, work, u);
   std::vector<Eigen::Matrix3d> start_at;
-  model.elements().rotations(u, start_at);
-  r = b.integrator.solve_with_contacts(p.rows, b.compliance, b.co, work, u, r.lambda);
+  r = b.contact_frame(work, u, r.lambda, &start_at);
   ASSERT_TRUE(work.contact_hessian.factor);
   EXPECT_NE(work.contact_hessian.factor, met_on);
   EXPECT_LE(solve_difference(*factorise_warped(model, start_at, false), *work.contact_hessian.factor, p.f), 1e-10);

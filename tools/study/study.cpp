@@ -101,6 +101,11 @@ constexpr double kProbeZ = 0.05;        // metres, mid-length
 constexpr double kPatchRadius = 0.003;  // metres: the probe tip's radius; its displacement is averaged over it
 constexpr double kPi = static_cast<double>(EIGEN_PI);  // Eigen's constant, a long double, as a double
 
+// A mesh level's name, "around x along x layers" (the sweeps' --reference-mesh, --closure-mesh).
+std::string mesh_name(const Level& l) {
+  return std::to_string(l.around) + "x" + std::to_string(l.along) + "x" + std::to_string(l.layers);
+}
+
 // The configuration's solver settings on a scene (the tolerance and the work bound only matter to the corotational
 // solve).
 void apply_solver(engine::Scene& s, const Config& c) {
@@ -480,9 +485,7 @@ void reference_sweep(const StudyOptions& opt) {
   // The asked mesh and models only (refused when none is left), with the asked work bound.
   std::vector<Config> asked;
   for (Config c : configs) {
-    const std::string name =
-        std::to_string(c.level.around) + "x" + std::to_string(c.level.along) + "x" + std::to_string(c.level.layers);
-    if ((opt.reference_mesh.empty() || opt.reference_mesh == name) &&
+    if ((opt.reference_mesh.empty() || opt.reference_mesh == mesh_name(c.level)) &&
         (opt.reference_models == "all" || opt.reference_models == c.model)) {
       c.max_back_substitutions = opt.max_back_substitutions;
       asked.push_back(c);
@@ -584,9 +587,6 @@ void closure_sweep(const StudyOptions& opt) {
                                       {{10, 13, 1}, "tet10", "", 0.0},
                                       {{24, 14, 1}, "tet10", "", 0.0, kGradeAround, kGradeAlong, kGradedTipPoints},
                                       {{32, 20, 2}, "tet10", "", 0.0, kGradeAround, kGradeAlong, kGradedTipPoints}};
-  auto mesh_name = [](const Level& l) {
-    return std::to_string(l.around) + "x" + std::to_string(l.along) + "x" + std::to_string(l.layers);
-  };
   std::vector<Config> configs;
   for (const char* model : {"linear", "corotational"}) {
     if (opt.closure_models != "all" && opt.closure_models != model) continue;
